@@ -1,0 +1,39 @@
+"""Shared benchmark helpers: timing with medians, machine description."""
+
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import time
+
+import jax
+
+
+def machine() -> dict:
+    dev = jax.devices()[0]
+    return {"platform": dev.platform, "device": str(getattr(dev, "device_kind", dev)),
+            "cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+            "python": platform.python_version(), "jax": jax.__version__,
+            "xla_flags": os.environ.get("XLA_FLAGS", "")}
+
+
+def block(x):
+    return jax.tree.map(lambda a: a.block_until_ready() if hasattr(a, "block_until_ready") else a, x)
+
+
+def timed(fn, *args, repeats=7):
+    """(compile+first-run seconds, list of warm run seconds)."""
+    t0 = time.perf_counter()
+    block(fn(*args))
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        block(fn(*args))
+        runs.append(time.perf_counter() - t0)
+    return first, runs
+
+
+def summary(runs) -> str:
+    return f"median {statistics.median(runs) * 1e3:9.3f} ms  (min {min(runs) * 1e3:.3f}, max {max(runs) * 1e3:.3f})"

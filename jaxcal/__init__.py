@@ -1,0 +1,20 @@
+"""jaxcal: calibration of the Denavit-Hartenberg parameters of serial robot arms, in JAX.
+
+Importing jaxcal enables float64 in JAX (``jax_enable_x64``); see :mod:`jaxcal._config`.
+Units inside jaxcal: millimetres and radians.
+"""
+
+from . import _config  # noqa: F401  (enables float64 first)
+from . import derivatives, error_model, kinematics, lie, presets
+from .errors import DataError, JaxcalError, PrecisionError, RobotFileError
+from .kinematics import fk, fk_frames, to_mdh, to_sdh
+from .presets import preset
+from .robot import Robot
+from .robot_io import load_robot, save_robot
+
+__all__ = [
+    "DataError", "JaxcalError", "PrecisionError", "RobotFileError", "Robot",
+    "derivatives", "error_model", "fk", "fk_frames", "kinematics", "lie", "load_robot",
+    "preset", "presets", "save_robot", "to_mdh", "to_sdh",
+]
+__version__ = "0.1.0"

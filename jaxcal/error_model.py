@@ -1,0 +1,116 @@
+"""The differential error model (paper eq. 8-10) and the identification Jacobian.
+
+Parameters are laid out as one flat vector ``x``::
+
+    x = [dtheta_1, dd_1, da_1, dalpha_1, ..., dtheta_n, ..., dalpha_n,   # 4n DH errors
+         base twist (6, optional), tool twist (6, optional)]
+
+Base and tool errors are twists ``[v, w]`` applied as ``base <- exp(xi_b) base`` (left, in the
+measurement frame) and ``tool <- tool exp(xi_t)`` (right, in the tool frame); see
+:func:`perturb`.
+
+Two error representations are provided:
+
+* the paper's 4x4 error matrix ``dT T^{-1} = sum_i T_i Omega_i T_i^{-1}`` (eq. 10), computed
+  literally by :func:`error_twist_matrix`;
+* its analytic adjoint form: column ``k`` of joint ``i`` is ``Ad(T_i) vee(Omega_k)``
+  (:func:`twist_jacobian`), and the identification Jacobian (:func:`identification_jacobian`)
+  maps ``x`` to the first-order change of the end *position* (3 rows) and *orientation*
+  (3 rows, a rotation vector), both in the measurement (base) frame. Position rows are
+  ``dp = v + w x p_end``.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from .derivatives import OMEGA_TWISTS, OMEGAS
+from .kinematics import fk, fk_frames, joint_dh
+from .lie import adjoint, inv_transform, se3_exp, skew, so3_log
+from .robot import DH_NAMES, Robot
+
+FRAME_NAMES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+def n_params(robot: Robot, *, base: bool = False, tool: bool = False) -> int:
+    return 4 * robot.n_joints + 6 * base + 6 * tool
+
+
+def param_names(robot: Robot, *, base: bool = False, tool: bool = False) -> list[str]:
+    names = [f"{p}{i + 1}" for i in range(robot.n_joints) for p in DH_NAMES]
+    names += [f"base_{c}" for c in FRAME_NAMES] if base else []
+    names += [f"tool_{c}" for c in FRAME_NAMES] if tool else []
+    return names
+
+
+def perturb(robot: Robot, x: Float[Array, "m"], *, base: bool = False, tool: bool = False) -> Robot:
+    """The robot with parameter errors ``x`` applied (exactly, not to first order)."""
+    n4 = 4 * robot.n_joints
+    out = robot.with_dh_delta(x[:n4].reshape(robot.n_joints, 4))
+    k = n4
+    new_base, new_tool = out.base, out.tool
+    if base:
+        new_base = se3_exp(x[k:k + 6]) @ robot.base
+        k += 6
+    if tool:
+        new_tool = robot.tool @ se3_exp(x[k:k + 6])
+    if base or tool:
+        import equinox as eqx
+
+        out = eqx.tree_at(lambda r: (r.base, r.tool), out, (new_base, new_tool))
+    return out
+
+
+def pose_error(T_a: Float[Array, "*b 4 4"], T_b: Float[Array, "*b 4 4"]) -> Float[Array, "*b 6"]:
+    """Pose of ``T_a`` relative to ``T_b`` in the common (base) frame:
+    ``[p_a - p_b, log(R_a R_b^T)]`` (mm, rad)."""
+    dR = T_a[..., :3, :3] @ jnp.swapaxes(T_b[..., :3, :3], -1, -2)
+    return jnp.concatenate([T_a[..., :3, 3] - T_b[..., :3, 3], so3_log(dR)], -1)
+
+
+def error_twist_matrix(robot: Robot, q: Float[Array, "*b n"], delta: Float[Array, "n 4"]) -> Float[Array, "*b 4 4"]:
+    """Paper eq. (10), literally: ``dT T^{-1} = sum_i T_i Omega_i T_i^{-1}`` with
+    ``Omega_i = sum_k Omega_{i,k} delta_{i,k}`` and ``T_i = base A_1 ... A_i``."""
+    frames = fk_frames(robot, q)
+    p = joint_dh(robot, q)
+    om = OMEGAS[robot.convention](p[..., 0], p[..., 1], p[..., 2], p[..., 3])  # (..., n, 4, 4, 4)
+    omega_i = jnp.einsum("...nkij,nk->...nij", om, delta)
+    return jnp.sum(frames @ omega_i @ inv_transform(frames), axis=-3)
+
+
+def twist_jacobian(robot: Robot, q: Float[Array, "*b n"], *, base: bool = False,
+                   tool: bool = False) -> Float[Array, "*b 6 m"]:
+    """Analytic adjoint form of eq. (10): columns ``Ad(T_i) vee(Omega_k)`` (spatial twists
+    ``[v, w]`` of ``dT T^{-1}``), plus base and tool twist columns when asked."""
+    frames = fk_frames(robot, q)
+    p = joint_dh(robot, q)
+    local = OMEGA_TWISTS[robot.convention](p[..., 0], p[..., 1], p[..., 2], p[..., 3])  # (..., n, 4, 6)
+    cols = jnp.einsum("...nij,...nkj->...ikn", adjoint(frames), local)  # (..., 6, 4, n)
+    cols = jnp.swapaxes(cols, -1, -2).reshape(cols.shape[:-2] + (4 * robot.n_joints,))
+    blocks = [cols]
+    if base:
+        blocks.append(jnp.broadcast_to(jnp.eye(6), cols.shape[:-1] + (6,)))
+    if tool:
+        blocks.append(adjoint(frames[..., -1, :, :] @ robot.tool))
+    return jnp.concatenate(blocks, -1)
+
+
+def twist_to_pose_rows(J_twist: Float[Array, "*b 6 m"], p_end: Float[Array, "*b 3"]) -> Float[Array, "*b 6 m"]:
+    """Spatial twist columns -> first-order change of end position and orientation:
+    ``dp = v + w x p_end = v - skew(p_end) w``, ``dr = w``."""
+    v, w = J_twist[..., :3, :], J_twist[..., 3:, :]
+    return jnp.concatenate([v - skew(p_end) @ w, w], -2)
+
+
+def identification_jacobian(robot: Robot, q: Float[Array, "*b n"], *, position_only: bool = False,
+                            base: bool = False, tool: bool = False) -> Float[Array, "*b r m"]:
+    """Identification Jacobian: ``d pose_error(T(x), T(0)) / dx`` at ``x = 0``.
+
+    Rows: 3 position (mm) then 3 rotation (rad) per pose, in the base/measurement frame; only
+    the 3 position rows with ``position_only=True``. Columns: see the module docstring.
+    """
+    J = twist_jacobian(robot, q, base=base, tool=tool)
+    p_end = fk(robot, q)[..., :3, 3]
+    J = twist_to_pose_rows(J, p_end)
+    return J[..., :3, :] if position_only else J

@@ -1,0 +1,101 @@
+"""Small SE(3)/SO(3) helpers on 4x4 homogeneous matrices, built on :mod:`jaxlie`.
+
+Twists are ordered ``[v, w]`` (translation, then rotation), like jaxlie's. Every function
+broadcasts over leading axes.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import jaxlie
+from jaxtyping import Array, Float
+
+
+def skew(w: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
+    """``skew(w) @ x == cross(w, x)``."""
+    z = jnp.zeros_like(w[..., 0])
+    return jnp.stack(
+        [
+            jnp.stack([z, -w[..., 2], w[..., 1]], -1),
+            jnp.stack([w[..., 2], z, -w[..., 0]], -1),
+            jnp.stack([-w[..., 1], w[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def vee(m: Float[Array, "*b 4 4"]) -> Float[Array, "*b 6"]:
+    """se(3) matrix ``[[skew(w), v], [0, 0]]`` -> twist ``[v, w]`` (antisymmetric part used)."""
+    w = 0.5 * jnp.stack(
+        [m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]],
+        -1,
+    )
+    return jnp.concatenate([m[..., :3, 3], w], -1)
+
+
+def hat(xi: Float[Array, "*b 6"]) -> Float[Array, "*b 4 4"]:
+    """Twist ``[v, w]`` -> 4x4 se(3) matrix."""
+    top = jnp.concatenate([skew(xi[..., 3:]), xi[..., :3, None]], -1)
+    bottom = jnp.zeros(xi.shape[:-1] + (1, 4), xi.dtype)
+    return jnp.concatenate([top, bottom], -2)
+
+
+def make_transform(R: Float[Array, "*b 3 3"], p: Float[Array, "*b 3"]) -> Float[Array, "*b 4 4"]:
+    top = jnp.concatenate([R, p[..., :, None]], -1)
+    bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0], R.dtype), R.shape[:-2] + (1, 4))
+    return jnp.concatenate([top, bottom], -2)
+
+
+def inv_transform(T: Float[Array, "*b 4 4"]) -> Float[Array, "*b 4 4"]:
+    """Inverse of a rigid transform, ``[R^T, -R^T p]``."""
+    Rt = jnp.swapaxes(T[..., :3, :3], -1, -2)
+    return make_transform(Rt, -jnp.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+def adjoint(T: Float[Array, "*b 4 4"]) -> Float[Array, "*b 6 6"]:
+    """Adjoint of T acting on ``[v, w]`` twists: ``hat(Ad_T xi) == T hat(xi) T^-1``."""
+    R, p = T[..., :3, :3], T[..., :3, 3]
+    z = jnp.zeros_like(R)
+    top = jnp.concatenate([R, skew(p) @ R], -1)
+    return jnp.concatenate([top, jnp.concatenate([z, R], -1)], -2)
+
+
+def se3_exp(xi: Float[Array, "*b 6"]) -> Float[Array, "*b 4 4"]:
+    """Exponential map of a ``[v, w]`` twist."""
+    return jaxlie.SE3.exp(xi).as_matrix()
+
+
+def so3_log(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 3"]:
+    """Rotation vector of a rotation matrix (differentiable at the identity)."""
+    return jaxlie.SO3.from_matrix(R).log()
+
+
+def rpy_to_matrix(rpy: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
+    """Roll-pitch-yaw about fixed axes x, y, z: ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    rpy = jnp.asarray(rpy)
+    fn = lambda r: jaxlie.SO3.from_rpy_radians(r[0], r[1], r[2]).as_matrix()
+    for _ in range(rpy.ndim - 1):
+        fn = jax.vmap(fn)
+    return fn(rpy)
+
+
+def matrix_to_rpy(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 3"]:
+    """Inverse of :func:`rpy_to_matrix` (pitch in [-pi/2, pi/2])."""
+    so3 = jaxlie.SO3.from_matrix(R)
+    return jnp.stack([so3.compute_roll_radians(), so3.compute_pitch_radians(),
+                      so3.compute_yaw_radians()], -1)
+
+
+def xyz_rpy_to_transform(xyz, rpy) -> Float[Array, "4 4"]:
+    return make_transform(rpy_to_matrix(jnp.asarray(rpy)), jnp.asarray(xyz))
+
+
+def quat_to_matrix(q_wxyz: Float[Array, "*b 4"]) -> Float[Array, "*b 3 3"]:
+    """Unit quaternion, scalar first -> rotation matrix."""
+    return jaxlie.SO3(wxyz=q_wxyz).as_matrix()
+
+
+def matrix_to_quat(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 4"]:
+    """Rotation matrix -> unit quaternion, scalar first."""
+    return jaxlie.SO3.from_matrix(R).wxyz

@@ -1,0 +1,131 @@
+"""The robot model: a DH table as an equinox Module, with base and tool frames.
+
+Units inside jaxcal are millimetres and radians; :mod:`jaxcal.robot_io` converts at the edges.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from ._config import as_f64
+from .errors import RobotFileError
+
+CONVENTIONS = ("sdh", "mdh")
+JOINT_TYPES = ("R", "P")
+DH_NAMES = ("theta", "d", "a", "alpha")
+
+
+class Robot(eqx.Module):
+    """A serial arm described by a Denavit–Hartenberg table.
+
+    With ``convention="sdh"`` (standard DH, the paper's eq. 1) link ``i`` is
+    ``Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``; with ``"mdh"`` (modified DH, Craig) it is
+    ``Rx(alpha_i) Tx(a_i) Rz(theta_i) Tz(d_i)``, where row ``i`` stores Craig's
+    ``alpha_{i-1}, a_{i-1}``. A revolute joint adds ``q_i`` to ``theta_i``, a prismatic one to
+    ``d_i``. The end pose is ``base @ A_1 ... A_n @ tool``.
+    """
+
+    dh: Float[Array, "n 4"]
+    """Per joint ``(theta offset, d, a, alpha)`` in mm and rad, base to tip."""
+    base: Float[Array, "4 4"]
+    """Measurement (world) frame -> robot base frame 0."""
+    tool: Float[Array, "4 4"]
+    """Last joint frame (flange) -> tool point/frame."""
+    q_limits: Float[Array, "n 2"]
+    """Joint limits ``[lower, upper]`` (rad, or mm for prismatic joints); used by simulation."""
+    convention: str = eqx.field(static=True)
+    joint_types: tuple[str, ...] = eqx.field(static=True)
+    name: str = eqx.field(static=True, default="robot")
+
+    def __init__(self, dh, *, convention="sdh", joint_types=None, base=None, tool=None,
+                 q_limits=None, name="robot"):
+        dh = as_f64(dh, "dh")
+        if dh.ndim != 2 or dh.shape[1] != 4:
+            raise RobotFileError(f"dh must have shape (n_joints, 4) = (theta, d, a, alpha), got {dh.shape}")
+        n = dh.shape[0]
+        if n < 1:
+            raise RobotFileError("a robot needs at least one joint")
+        bad = ~np.isfinite(np.asarray(dh))
+        if bad.any():
+            j, k = np.argwhere(bad)[0]
+            raise RobotFileError(f"joint {j + 1}: {DH_NAMES[k]} is not finite")
+        if convention not in CONVENTIONS:
+            raise RobotFileError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
+        joint_types = tuple(str(t) for t in joint_types) if joint_types is not None else ("R",) * n
+        if len(joint_types) != n:
+            raise RobotFileError(f"{len(joint_types)} joint types for {n} joints")
+        for i, t in enumerate(joint_types):
+            if t not in JOINT_TYPES:
+                raise RobotFileError(f"joint {i + 1}: type must be 'R' or 'P', got {t!r}")
+        self.dh = dh
+        self.base = _check_transform(base, "base")
+        self.tool = _check_transform(tool, "tool")
+        if q_limits is None:
+            q_limits = np.tile([-np.pi, np.pi], (n, 1))
+        q_limits = as_f64(q_limits, "q_limits")
+        if q_limits.shape != (n, 2):
+            raise RobotFileError(f"q_limits must have shape ({n}, 2), got {q_limits.shape}")
+        if not bool(jnp.all(q_limits[:, 0] < q_limits[:, 1])):
+            j = int(np.argmin(np.asarray(q_limits[:, 1] - q_limits[:, 0])))
+            raise RobotFileError(f"joint {j + 1}: lower limit is not below the upper limit")
+        self.q_limits = q_limits
+        self.convention = convention
+        self.joint_types = joint_types
+        self.name = str(name)
+
+    # -- views --------------------------------------------------------------------------
+    @property
+    def n_joints(self) -> int:
+        return self.dh.shape[-2]
+
+    @property
+    def theta(self):
+        return self.dh[..., 0]
+
+    @property
+    def d(self):
+        return self.dh[..., 1]
+
+    @property
+    def a(self):
+        return self.dh[..., 2]
+
+    @property
+    def alpha(self):
+        return self.dh[..., 3]
+
+    @property
+    def revolute_mask(self) -> Float[Array, "n"]:
+        return jnp.array([t == "R" for t in self.joint_types], dtype=jnp.float64)
+
+    def param_names(self) -> list[str]:
+        """Names of the 4n DH parameters in the order of :meth:`dh` flattened row-major."""
+        return [f"{p}{i + 1}" for i in range(self.n_joints) for p in DH_NAMES]
+
+    def replace(self, **kw) -> "Robot":
+        """A validated copy with some fields replaced (never mutates ``self``; not for jit)."""
+        args = dict(dh=self.dh, convention=self.convention, joint_types=self.joint_types,
+                    base=self.base, tool=self.tool, q_limits=self.q_limits, name=self.name)
+        args.update(kw)
+        return Robot(**args)
+
+    def with_dh_delta(self, delta: Float[Array, "n 4"]) -> "Robot":
+        return eqx.tree_at(lambda r: r.dh, self, self.dh + delta)
+
+
+def _check_transform(T, name):
+    if T is None:
+        return jnp.eye(4)
+    T = as_f64(T, name)
+    if T.shape != (4, 4):
+        raise RobotFileError(f"{name} must be a 4x4 transform, got shape {T.shape}")
+    Tn = np.asarray(T)
+    if not np.all(np.isfinite(Tn)):
+        raise RobotFileError(f"{name} transform has non-finite entries")
+    R = Tn[:3, :3]
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0 or not np.allclose(Tn[3], [0, 0, 0, 1]):
+        raise RobotFileError(f"{name} is not a rigid transform (rotation not orthonormal or bottom row not 0 0 0 1)")
+    return T

@@ -1,0 +1,149 @@
+"""Robot files (TOML) -> :class:`jaxcal.Robot` and back, with unit conversion at the edge.
+
+File shape (see README)::
+
+    name = "paper-6r"
+    convention = "sdh"          # "sdh" or "mdh"
+    length_unit = "mm"          # "mm" or "m"
+    angle_unit = "rad"          # "rad" or "deg"
+    [[joints]]                  # one table per joint, base to tip
+    theta = 0.0                 # joint offset added to q
+    d = 0.0
+    a = 160.0
+    alpha = -1.5707963267948966
+    type = "R"                  # optional: "R" (default) or "P"
+    limits = [-3.14, 3.14]      # optional: joint limits (angle unit, or length unit if "P")
+    [tool]                      # optional, flange -> tool point/frame
+    xyz = [0.0, 0.0, 0.0]
+    rpy = [0.0, 0.0, 0.0]       # roll-pitch-yaw, fixed axes x-y-z
+    [base]                      # optional, measurement frame -> robot base; same keys
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+
+from .errors import RobotFileError
+from .lie import matrix_to_rpy, rpy_to_matrix
+from .robot import Robot
+
+LENGTH = {"mm": 1.0, "m": 1000.0}
+ANGLE = {"rad": 1.0, "deg": math.pi / 180.0}
+TOP_KEYS = {"name", "convention", "length_unit", "angle_unit", "joints", "tool", "base"}
+JOINT_KEYS = {"theta", "d", "a", "alpha", "type", "limits"}
+FRAME_KEYS = {"xyz", "rpy"}
+
+
+def _num(v, where):
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise RobotFileError(f"{where}: expected a number, got {v!r}")
+    if not math.isfinite(v):
+        raise RobotFileError(f"{where}: not finite ({v!r})")
+    return float(v)
+
+
+def _frame(tab, what, lu, au):
+    if not isinstance(tab, dict):
+        raise RobotFileError(f"[{what}] must be a table with keys xyz and rpy")
+    unknown = set(tab) - FRAME_KEYS
+    if unknown:
+        raise RobotFileError(f"[{what}]: unknown key(s) {sorted(unknown)}; allowed: xyz, rpy")
+    out = []
+    for key, scale in (("xyz", lu), ("rpy", au)):
+        v = tab.get(key, [0.0, 0.0, 0.0])
+        if not isinstance(v, list) or len(v) != 3:
+            raise RobotFileError(f"[{what}].{key} must be a list of 3 numbers, got {v!r}")
+        out.append(np.array([_num(x, f"[{what}].{key}[{i}]") * scale for i, x in enumerate(v)]))
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(rpy_to_matrix(out[1]))
+    T[:3, 3] = out[0]
+    return T
+
+
+def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
+    """Build a robot from a parsed TOML document (units converted to mm and rad)."""
+    unknown = set(doc) - TOP_KEYS
+    if unknown:
+        raise RobotFileError(f"{source}: unknown top-level key(s) {sorted(unknown)}; allowed: {sorted(TOP_KEYS)}")
+    conv = doc.get("convention", "sdh")
+    if conv not in ("sdh", "mdh"):
+        raise RobotFileError(f"{source}: convention must be 'sdh' or 'mdh', got {conv!r}")
+    lu_name, au_name = doc.get("length_unit", "mm"), doc.get("angle_unit", "rad")
+    if lu_name not in LENGTH:
+        raise RobotFileError(f"{source}: length_unit must be 'mm' or 'm', got {lu_name!r}")
+    if au_name not in ANGLE:
+        raise RobotFileError(f"{source}: angle_unit must be 'rad' or 'deg', got {au_name!r}")
+    lu, au = LENGTH[lu_name], ANGLE[au_name]
+    joints = doc.get("joints")
+    if not isinstance(joints, list) or not joints:
+        raise RobotFileError(f"{source}: needs at least one [[joints]] table")
+    dh, types, limits = [], [], []
+    for i, j in enumerate(joints, start=1):
+        if not isinstance(j, dict):
+            raise RobotFileError(f"{source}: joint {i} is not a table")
+        bad = set(j) - JOINT_KEYS
+        if bad:
+            raise RobotFileError(f"{source}: joint {i}: unknown key(s) {sorted(bad)}; allowed: {sorted(JOINT_KEYS)}")
+        missing = [k for k in ("theta", "d", "a", "alpha") if k not in j]
+        if missing:
+            raise RobotFileError(f"{source}: joint {i}: missing {', '.join(missing)}")
+        jt = j.get("type", "R")
+        if jt not in ("R", "P"):
+            raise RobotFileError(f"{source}: joint {i}: type must be 'R' or 'P', got {jt!r}")
+        dh.append([_num(j["theta"], f"joint {i} theta") * au, _num(j["d"], f"joint {i} d") * lu,
+                   _num(j["a"], f"joint {i} a") * lu, _num(j["alpha"], f"joint {i} alpha") * au])
+        types.append(jt)
+        lim = j.get("limits", None)
+        scale = au if jt == "R" else lu
+        if lim is None:
+            limits.append([-math.pi, math.pi] if jt == "R" else [-1000.0, 1000.0])
+        else:
+            if not isinstance(lim, list) or len(lim) != 2:
+                raise RobotFileError(f"{source}: joint {i}: limits must be [lower, upper]")
+            limits.append([_num(x, f"joint {i} limits") * scale for x in lim])
+    base = _frame(doc["base"], "base", lu, au) if "base" in doc else None
+    tool = _frame(doc["tool"], "tool", lu, au) if "tool" in doc else None
+    name = doc.get("name", "robot")
+    if not isinstance(name, str):
+        raise RobotFileError(f"{source}: name must be a string")
+    return Robot(np.array(dh), convention=conv, joint_types=types, base=base, tool=tool,
+                 q_limits=np.array(limits), name=name)
+
+
+def load_robot(path) -> Robot:
+    """Read a robot TOML file (see the module docstring for its shape)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            doc = tomllib.load(f)
+    except FileNotFoundError:
+        raise RobotFileError(f"robot file not found: {path}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise RobotFileError(f"{path}: not valid TOML: {e}") from None
+    return robot_from_dict(doc, source=str(path))
+
+
+def robot_to_dict(robot: Robot) -> dict:
+    """A TOML-ready document in mm and rad (full float precision)."""
+    dh = np.asarray(robot.dh)
+    lim = np.asarray(robot.q_limits)
+    doc = {"name": robot.name, "convention": robot.convention, "length_unit": "mm", "angle_unit": "rad",
+           "joints": [{"theta": float(r[0]), "d": float(r[1]), "a": float(r[2]), "alpha": float(r[3]),
+                       "type": t, "limits": [float(lim[i, 0]), float(lim[i, 1])]}
+                      for i, (r, t) in enumerate(zip(dh, robot.joint_types))]}
+    for key in ("tool", "base"):
+        T = np.asarray(getattr(robot, key))
+        if not np.allclose(T, np.eye(4), atol=0, rtol=0):
+            doc[key] = {"xyz": [float(v) for v in T[:3, 3]],
+                        "rpy": [float(v) for v in np.asarray(matrix_to_rpy(T[:3, :3]))]}
+    return doc
+
+
+def save_robot(robot: Robot, path) -> None:
+    """Write a robot TOML file (mm, rad)."""
+    Path(path).write_text(tomli_w.dumps(robot_to_dict(robot)))

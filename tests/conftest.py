@@ -1,0 +1,27 @@
+import jax
+import numpy as np
+import pytest
+
+import jaxcal  # noqa: F401  (enables float64)
+
+jax.config.update("jax_enable_x64", True)
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20221)
+
+
+def random_dh(rng, n=6, *, lengths=300.0):
+    """A random, generic DH table (mm, rad)."""
+    return np.c_[rng.uniform(-np.pi, np.pi, n), rng.uniform(-lengths, lengths, n),
+                 rng.uniform(-lengths, lengths, n), rng.uniform(-np.pi, np.pi, n)]
+
+
+def random_transform(rng, scale=100.0):
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    T[:3, 3] = rng.normal(size=3) * scale
+    return T

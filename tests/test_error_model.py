@@ -1,0 +1,93 @@
+"""The error model (eq. 8-10) and the identification Jacobian against autodiff of the exact,
+nonlinear pose error."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from conftest import random_dh, random_transform
+from jaxcal import Robot, error_model as E, fk, presets
+from jaxcal.lie import hat, vee
+
+
+def _robots(rng):
+    out = [presets.paper_6r(), presets.puma560(), presets.ur5(), presets.panda()]
+    for conv in ("sdh", "mdh"):
+        out.append(Robot(random_dh(rng), convention=conv, base=random_transform(rng),
+                         tool=random_transform(rng, 80.0), joint_types=("R", "P", "R", "R", "P", "R")))
+    return out
+
+
+def _true_error(robot, q, base, tool):
+    T0 = fk(robot, q)
+    return lambda x: E.pose_error(fk(E.perturb(robot, x, base=base, tool=tool), q), T0)
+
+
+@pytest.mark.parametrize("base,tool", [(False, False), (True, False), (False, True), (True, True)])
+def test_identification_jacobian_matches_jacfwd(rng, base, tool):
+    for robot in _robots(rng):
+        Q = jnp.asarray(rng.uniform(-2, 2, (8, robot.n_joints)))
+        m = E.n_params(robot, base=base, tool=tool)
+        J = E.identification_jacobian(robot, Q, base=base, tool=tool)
+        assert J.shape == (8, 6, m)
+        for q, Jq in zip(Q, J):
+            ad = jax.jacfwd(_true_error(robot, q, base, tool))(jnp.zeros(m))
+            scale = max(1.0, float(jnp.abs(ad).max()))
+            assert_allclose(np.asarray(Jq), np.asarray(ad), atol=1e-12 * scale, rtol=0)
+        Jp = E.identification_jacobian(robot, Q, base=base, tool=tool, position_only=True)
+        assert_allclose(np.asarray(Jp), np.asarray(J[..., :3, :]))
+
+
+def test_eq10_literal_sum_equals_adjoint_form(rng):
+    for robot in _robots(rng):
+        Q = jnp.asarray(rng.uniform(-2, 2, (10, robot.n_joints)))
+        delta = jnp.asarray(rng.normal(size=(robot.n_joints, 4)))
+        M = E.error_twist_matrix(robot, Q, delta)
+        tw = E.twist_jacobian(robot, Q) @ delta.ravel()
+        assert_allclose(np.asarray(M), np.asarray(hat(tw)), atol=1e-9)
+
+
+def test_eq10_is_dT_Tinv_to_first_order(rng):
+    """(T(p + eps*delta) - T(p)) T^{-1} / eps -> sum_i T_i Omega_i T_i^{-1} as eps -> 0."""
+    robot = presets.paper_6r()
+    q = jnp.asarray(rng.uniform(-2, 2, 6))
+    delta = jnp.asarray(rng.normal(size=(6, 4)))
+    M = np.asarray(E.error_twist_matrix(robot, q, delta))
+    T = np.asarray(fk(robot, q))
+    errs = []
+    for eps in (1e-3, 5e-4):
+        Tp = np.asarray(fk(robot.with_dh_delta(eps * delta), q))
+        errs.append(np.abs((Tp - T) @ np.linalg.inv(T) / eps - M).max())
+    assert errs[0] / errs[1] == pytest.approx(2.0, rel=0.05)  # O(eps) remainder
+    assert errs[1] < 1e-2 * np.abs(M).max()
+
+
+@pytest.mark.parametrize("name", ["paper-6r", "panda"])
+def test_first_order_model_error_is_quadratic(name, rng):
+    """|e_true(s d) - J s d| = O(s^2): halving s divides the remainder by 4."""
+    robot = presets.preset(name)
+    Q = jnp.asarray(rng.uniform(-2, 2, (20, robot.n_joints)))
+    m = E.n_params(robot, base=True, tool=True)
+    d = jnp.asarray(rng.normal(size=m)) * jnp.where(jnp.arange(m) % 4 % 2 == 0, 1e-2, 1.0)
+    J = E.identification_jacobian(robot, Q, base=True, tool=True)
+    rem = []
+    for s in (1e-2, 5e-3, 2.5e-3):
+        true = jax.vmap(lambda q: _true_error(robot, q, True, True)(s * d))(Q)
+        rem.append(float(jnp.abs(true - J @ (s * d)).max()))
+    r1, r2 = rem[0] / rem[1], rem[1] / rem[2]
+    assert 3.6 < r1 < 4.4 and 3.6 < r2 < 4.4, (rem, r1, r2)
+
+
+def test_vee_hat_roundtrip(rng):
+    xi = jnp.asarray(rng.normal(size=(5, 6)))
+    assert_allclose(np.asarray(vee(hat(xi))), np.asarray(xi))
+
+
+def test_param_names_and_layout():
+    r = presets.paper_6r()
+    names = E.param_names(r, base=True, tool=True)
+    assert len(names) == E.n_params(r, base=True, tool=True) == 36
+    assert names[:5] == ["theta1", "d1", "a1", "alpha1", "theta2"]
+    assert names[24] == "base_x" and names[-1] == "tool_rz"

@@ -1,0 +1,115 @@
+"""Robot TOML files: round trip, units at the edge, clear errors."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from jaxcal import RobotFileError, Robot, fk, load_robot, presets, save_robot
+
+PAPER_TOML = """
+name = "paper-6r"
+convention = "sdh"
+length_unit = "m"
+angle_unit = "deg"
+[[joints]]
+theta = 0.0
+d = 0.0
+a = 0.160
+alpha = -90
+[[joints]]
+theta = -90
+d = 0.0
+a = 0.580
+alpha = 0
+[[joints]]
+theta = 0
+d = 0
+a = 0.2
+alpha = -90
+[[joints]]
+theta = 0
+d = 0.64
+a = 0
+alpha = 90
+[[joints]]
+theta = 0
+d = 0.228
+a = 0
+alpha = -90
+[[joints]]
+theta = 0
+d = 0
+a = 0
+alpha = 0
+[tool]
+xyz = [0.0, 0.0, 0.1]
+rpy = [0.0, 90.0, 0.0]
+"""
+
+
+@pytest.mark.parametrize("name", list(presets.PRESETS))
+def test_roundtrip_presets(name, tmp_path, rng):
+    r = presets.preset(name)
+    save_robot(r, tmp_path / "r.toml")
+    r2 = load_robot(tmp_path / "r.toml")
+    assert r2.convention == r.convention and r2.joint_types == r.joint_types and r2.name == r.name
+    assert_allclose(np.asarray(r2.dh), np.asarray(r.dh), rtol=0, atol=0)
+    Q = jnp.asarray(rng.uniform(-2, 2, (10, r.n_joints)))
+    assert_allclose(np.asarray(fk(r2, Q)), np.asarray(fk(r, Q)), atol=1e-9)
+
+
+def test_units_m_deg_convert_to_mm_rad(tmp_path, rng):
+    p = tmp_path / "paper.toml"
+    p.write_text(PAPER_TOML)
+    r = load_robot(p)
+    ref = presets.paper_6r()
+    assert_allclose(np.asarray(r.dh), np.asarray(ref.dh), atol=1e-12)
+    tool = np.asarray(r.tool)
+    assert_allclose(tool[:3, 3], [0, 0, 100.0])
+    assert_allclose(tool[:3, :3], [[0, 0, 1], [0, 1, 0], [-1, 0, 0]], atol=1e-15)  # Ry(90 deg)
+
+
+@pytest.mark.parametrize("edit,msg", [
+    (lambda s: s.replace('convention = "sdh"', 'convention = "xyz"'), "convention"),
+    (lambda s: s.replace('length_unit = "m"', 'length_unit = "inch"'), "length_unit"),
+    (lambda s: s.replace("a = 0.580", "a = 'long'"), "joint 2 a"),
+    (lambda s: s.replace("a = 0.580\n", ""), "joint 2: missing a"),
+    (lambda s: s.replace("a = 0.580", "a = 0.58\nlength = 3"), "joint 2: unknown key"),
+    (lambda s: "colour = 'red'\n" + s, "unknown top-level key"),
+    (lambda s: s.replace("xyz = [0.0, 0.0, 0.1]", "xyz = [0.0, 0.1]"), "[tool].xyz"),
+    (lambda s: s.replace("a = 0.580", "a = nan"), "not finite"),
+    (lambda s: s.split("[[joints]]")[0] + "joints = 3\n", "at least one [[joints]]"),
+    (lambda s: s.replace("[[joints]]", "[[joints]\n", 1), "not valid TOML"),
+])
+def test_bad_files_name_the_problem(tmp_path, edit, msg):
+    p = tmp_path / "bad.toml"
+    p.write_text(edit(PAPER_TOML))
+    with pytest.raises(RobotFileError, match=None) as e:
+        load_robot(p)
+    assert msg in str(e.value)
+
+
+def test_missing_file():
+    with pytest.raises(RobotFileError, match="not found"):
+        load_robot("/nonexistent/robot.toml")
+
+
+def test_constructor_validation():
+    with pytest.raises(RobotFileError, match="shape"):
+        Robot(np.zeros((6, 3)))
+    with pytest.raises(RobotFileError, match="joint 2: theta is not finite"):
+        Robot(np.array([[0, 0, 0, 0], [np.nan, 0, 0, 0.0]]))
+    with pytest.raises(RobotFileError, match="base is not a rigid transform"):
+        Robot(np.zeros((2, 4)), base=2 * np.eye(4))
+    with pytest.raises(RobotFileError, match="type"):
+        Robot(np.zeros((2, 4)), joint_types=("R", "X"))
+
+
+def test_constructor_does_not_mutate_inputs():
+    dh = np.zeros((2, 4))
+    before = dh.copy()
+    r = Robot(dh)
+    r2 = r.with_dh_delta(jnp.ones((2, 4)))
+    assert np.array_equal(dh, before) and np.array_equal(np.asarray(r.dh), before)
+    assert np.array_equal(np.asarray(r2.dh), np.ones((2, 4)))
