@@ -5,14 +5,18 @@ Units inside jaxcal: millimetres and radians.
 """
 
 from . import _config  # noqa: F401  (enables float64 first)
-from . import derivatives, error_model, kinematics, lie, presets
+from . import derivatives, error_model, identifiability, kinematics, lie, measurements, presets, simulate
+from .calibrate import BatchResult, CalibrationResult, calibrate, calibrate_batch
 from .errors import DataError, JaxcalError, PrecisionError, RobotFileError
 from .kinematics import fk, fk_frames, to_mdh, to_sdh
 from .presets import preset
 from .robot import Robot
+from .measurements import Measurements, UnitWarning, read_measurements, write_measurements
 from .robot_io import load_robot, save_robot
 
 __all__ = [
+    "BatchResult", "CalibrationResult", "Measurements", "UnitWarning", "calibrate", "calibrate_batch",
+    "identifiability", "measurements", "read_measurements", "simulate", "write_measurements",
     "DataError", "JaxcalError", "PrecisionError", "RobotFileError", "Robot",
     "derivatives", "error_model", "fk", "fk_frames", "kinematics", "lie", "load_robot",
     "preset", "presets", "save_robot", "to_mdh", "to_sdh",

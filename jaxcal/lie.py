@@ -99,3 +99,8 @@ def quat_to_matrix(q_wxyz: Float[Array, "*b 4"]) -> Float[Array, "*b 3 3"]:
 def matrix_to_quat(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 4"]:
     """Rotation matrix -> unit quaternion, scalar first."""
     return jaxlie.SO3.from_matrix(R).wxyz
+
+
+def so3_exp_matrix(w: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
+    """Rotation matrix of a rotation vector."""
+    return jaxlie.SO3.exp(w).as_matrix()
