@@ -71,12 +71,14 @@ class Simulation:
 
 def simulate(robot: Robot, *, n_robots: int = 1, n_poses: int = 50, n_val: int = 50, seed: int = 0,
              sigma_pos: float = 0.0, sigma_rot: float = 0.0, base: bool = False, tool: bool = False,
-             scales=None, x_true=None) -> Simulation:
+             scales=None, x_true=None, q=None, q_val=None) -> Simulation:
     """Draw ``n_robots`` true robots around ``robot`` and measure ``n_poses`` poses of each.
 
     **Arguments**: ``scales`` per-parameter std of the true errors (default
     :func:`error_scales`); ``x_true`` fixes the true errors instead, shape ``(m,)`` or
-    ``(R, m)``; ``sigma_pos`` (mm) and ``sigma_rot`` (rad) the measurement noise.
+    ``(R, m)``; ``sigma_pos`` (mm) and ``sigma_rot`` (rad) the measurement noise; ``q`` /
+    ``q_val`` give the calibration / inspection poses instead of drawing them, shape ``(K, n)``
+    (shared by all robots) or ``(R, K, n)`` (then ``n_poses`` / ``n_val`` are ignored).
     """
     m = n_params(robot, base=base, tool=tool)
     k_err, k_q, k_noise, k_val = jax.random.split(jax.random.PRNGKey(seed), 4)
@@ -86,8 +88,13 @@ def simulate(robot: Robot, *, n_robots: int = 1, n_poses: int = 50, n_val: int =
             raise ValueError(f"scales must have {m} entries, got {s.shape}")
         x_true = jax.random.normal(k_err, (n_robots, m), dtype=jnp.float64) * s
     x_true = jnp.broadcast_to(jnp.asarray(x_true, jnp.float64), (n_robots, m))
-    q = sample_poses(k_q, robot, (n_robots, n_poses))
-    q_val = sample_poses(k_val, robot, (n_robots, n_val))
+    n = robot.n_joints
+    q = sample_poses(k_q, robot, (n_robots, n_poses)) if q is None else \
+        jnp.broadcast_to(jnp.asarray(q, jnp.float64), (n_robots,) + np.shape(q)[-2:])
+    q_val = sample_poses(k_val, robot, (n_robots, n_val)) if q_val is None else \
+        jnp.broadcast_to(jnp.asarray(q_val, jnp.float64), (n_robots,) + np.shape(q_val)[-2:])
+    if q.shape[-1] != n or q_val.shape[-1] != n:
+        raise ValueError(f"q and q_val must have {n} joint columns")
     keys = jax.random.split(k_noise, n_robots)
 
     @jax.jit

@@ -1,21 +1,18 @@
-"""The ``jaxcal`` command line."""
+"""``jaxcal verify`` and ``jaxcal info``."""
 
 from __future__ import annotations
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
-                  help="Calibrate the DH parameters of serial robot arms (JAX, float64).")
-console = Console()
+from ._app import app, console, load_robot_arg
 
 
 @app.command()
 def verify(points: int = typer.Option(2000, help="random parameter points per check"),
            seed: int = typer.Option(0)):
     """Check every analytic matrix of the paper (eq. 3-10) against jax.jacfwd."""
-    from .verify import check_all
+    from ..verify import check_all
 
     rows = check_all(points, seed)
     table = Table(title="analytic vs jax.jacfwd (float64)")
@@ -36,23 +33,10 @@ def info(robot: str = typer.Argument(..., help="robot TOML file or preset name")
     """Print a robot's DH table (mm, rad)."""
     import numpy as np
 
-    from .presets import PRESETS, preset
-    from .robot_io import load_robot
-
-    r = preset(robot) if robot in PRESETS else load_robot(robot)
+    r = load_robot_arg(robot)
     table = Table(title=f"{r.name} ({r.convention})")
     for col in ("joint", "type", "theta", "d (mm)", "a (mm)", "alpha"):
         table.add_column(col)
     for i, (row, t) in enumerate(zip(np.asarray(r.dh), r.joint_types), start=1):
         table.add_row(str(i), t, *(f"{v:.6g}" for v in row))
     console.print(table)
-
-
-def main():
-    from .errors import JaxcalError
-
-    try:
-        app()
-    except JaxcalError as e:
-        console.print(f"[red]error:[/red] {e}")
-        raise SystemExit(2)

@@ -1,0 +1,21 @@
+"""The ``jaxcal`` command line. Each sub-command lives in its own module and registers itself
+on the shared Typer ``app`` when imported below."""
+
+from __future__ import annotations
+
+from ._app import app, console, err_console
+
+# --- sub-command modules (one line each) ---
+from . import _verify  # noqa: F401,E402
+# --- end of sub-command modules ---
+
+
+def main():
+    """Entry point: typed jaxcal errors print as one line, without a traceback, exit code 2."""
+    from ..errors import JaxcalError
+
+    try:
+        app()
+    except JaxcalError as e:
+        err_console.print(f"[red]error:[/red] {e}", highlight=False)
+        raise SystemExit(2)
