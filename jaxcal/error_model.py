@@ -27,7 +27,7 @@ from jaxtyping import Array, Float
 
 from .derivatives import OMEGA_TWISTS, OMEGAS
 from .kinematics import fk, fk_frames, joint_dh
-from .lie import adjoint, inv_transform, se3_exp, skew, so3_log
+from .lie import adjoint, inv_transform, se3_exp, so3_log
 from .robot import DH_NAMES, Robot
 
 FRAME_NAMES = ("x", "y", "z", "rx", "ry", "rz")
@@ -86,8 +86,12 @@ def twist_jacobian(robot: Robot, q: Float[Array, "*b n"], *, base: bool = False,
     frames = fk_frames(robot, q)
     p = joint_dh(robot, q)
     local = OMEGA_TWISTS[robot.convention](p[..., 0], p[..., 1], p[..., 2], p[..., 3])  # (..., n, 4, 6)
-    cols = jnp.einsum("...nij,...nkj->...ikn", adjoint(frames), local)  # (..., 6, 4, n)
-    cols = jnp.swapaxes(cols, -1, -2).reshape(cols.shape[:-2] + (4 * robot.n_joints,))
+    # Ad(T_i) [v; w] = [R v + p x R w; R w], written as broadcast multiply-adds (fuses on CPU)
+    R, pos = frames[..., None, :3, :3], frames[..., None, :3, 3]  # (..., n, 1, 3, 3), (..., n, 1, 3)
+    w_s = (R * local[..., None, 3:]).sum(-1)  # (..., n, 4, 3)
+    v_s = (R * local[..., None, :3]).sum(-1) + jnp.cross(pos, w_s)
+    cols = jnp.concatenate([v_s, w_s], -1)  # (..., n, 4, 6)
+    cols = jnp.moveaxis(cols.reshape(cols.shape[:-3] + (4 * robot.n_joints, 6)), -1, -2)
     blocks = [cols]
     if base:
         blocks.append(jnp.broadcast_to(jnp.eye(6), cols.shape[:-1] + (6,)))
@@ -100,7 +104,7 @@ def twist_to_pose_rows(J_twist: Float[Array, "*b 6 m"], p_end: Float[Array, "*b 
     """Spatial twist columns -> first-order change of end position and orientation:
     ``dp = v + w x p_end = v - skew(p_end) w``, ``dr = w``."""
     v, w = J_twist[..., :3, :], J_twist[..., 3:, :]
-    return jnp.concatenate([v - skew(p_end) @ w, w], -2)
+    return jnp.concatenate([v + jnp.cross(w, p_end[..., :, None], axisa=-2, axisb=-2, axisc=-2), w], -2)
 
 
 def identification_jacobian(robot: Robot, q: Float[Array, "*b n"], *, position_only: bool = False,

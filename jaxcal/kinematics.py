@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .lie import make_transform
+from .lie import compose
 from .robot import Robot
 
 
@@ -75,14 +75,14 @@ def fk_frames(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4 4"]
     T = jnp.broadcast_to(robot.base, A.shape[:-3] + (4, 4))
     frames = []
     for i in range(robot.n_joints):
-        T = T @ A[..., i, :, :]
+        T = compose(T, A[..., i, :, :])
         frames.append(T)
     return jnp.stack(frames, -3)
 
 
 def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
     """End pose ``base @ A_1 ... A_n @ tool`` (paper eq. 2 with base and tool)."""
-    return fk_frames(robot, q)[..., -1, :, :] @ robot.tool
+    return compose(fk_frames(robot, q)[..., -1, :, :], robot.tool)
 
 
 def _rx(alpha):

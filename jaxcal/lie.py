@@ -104,3 +104,35 @@ def matrix_to_quat(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 4"]:
 def so3_exp_matrix(w: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
     """Rotation matrix of a rotation vector."""
     return jaxlie.SO3.exp(w).as_matrix()
+
+
+def compose(A: Float[Array, "*b 4 4"], B: Float[Array, "*b 4 4"]) -> Float[Array, "*b 4 4"]:
+    """``A @ B`` for rigid transforms (bottom rows ``0 0 0 1``), as broadcast multiply-adds.
+
+    On CPU, XLA runs batched 4x4 ``matmul`` as many tiny GEMM calls; this elementwise form
+    fuses into one loop and was 2.6x faster for forward kinematics (benchmarks/).
+    """
+    top = (A[..., :3, :3, None] * B[..., None, :3, :]).sum(-2)
+    top = top.at[..., :, 3].add(A[..., :3, 3])
+    bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0], top.dtype), top.shape[:-2] + (1, 4))
+    return jnp.concatenate([top, bottom], -2)
+
+
+def matmul4(A: Float[Array, "*b 4 4"], B: Float[Array, "*b 4 4"]) -> Float[Array, "*b 4 4"]:
+    """General ``A @ B`` of 4x4 matrices as broadcast multiply-adds (see :func:`compose`)."""
+    return (A[..., :, :, None] * B[..., None, :, :]).sum(-2)
+
+
+def so3_right_jacobian_inv(phi: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
+    """Inverse right Jacobian of SO(3): ``log(exp(phi) exp(d)) = phi + Jr^-1(phi) d + O(d^2)``.
+
+    ``Jr^-1 = I + K/2 + c K^2`` with ``K = skew(phi)``, ``c = 1/t^2 - (1 + cos t)/(2 t sin t)``
+    (``t = |phi|``), and the series ``c = 1/12 + t^2/720`` near ``t = 0``.
+    """
+    t2 = jnp.sum(phi * phi, -1)
+    small = t2 < 1e-8
+    t = jnp.sqrt(jnp.where(small, 1.0, t2))
+    c_big = 1.0 / (t * t) - (1.0 + jnp.cos(t)) / (2.0 * t * jnp.sin(t))
+    c = jnp.where(small, 1.0 / 12.0 + t2 / 720.0, c_big)
+    K = skew(phi)
+    return jnp.eye(3) + 0.5 * K + c[..., None, None] * (K @ K)

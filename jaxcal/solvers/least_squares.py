@@ -13,7 +13,7 @@ import lineax as lx
 import optimistix as optx
 
 from ..robot import Robot
-from ._model import pose_model, row_weights, weighted_residual
+from ._model import make_residual, row_weights
 
 
 def make_solver(method: str, rtol: float, atol: float):
@@ -39,8 +39,8 @@ def solve(robot: Robot, q, measured, *, free: tuple[int, ...], m: int, method: s
     **Returns** ``(x, ok, num_steps)``: the full parameter vector, whether optimistix reported
     success, and the number of steps taken.
     """
-    model = pose_model(robot, base=base, tool=tool)
     w = row_weights(position_only, sigma_pos, sigma_rot)
+    residual = make_residual(robot, base=base, tool=tool, position_only=position_only, weights=w)
     free_idx = jnp.asarray(free, dtype=jnp.int32)
     x_start = jnp.zeros(m) if x0 is None else jnp.asarray(x0)
 
@@ -49,7 +49,7 @@ def solve(robot: Robot, q, measured, *, free: tuple[int, ...], m: int, method: s
 
     def fn(y, args):
         q_, meas_ = args
-        return weighted_residual(model, full(y), q_, meas_, w, position_only)
+        return residual(full(y), q_, meas_)
 
     sol = optx.least_squares(fn, make_solver(method, rtol, atol), x_start[free_idx], args=(q, measured),
                              max_steps=max_steps, throw=False)

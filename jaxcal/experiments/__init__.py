@@ -1,0 +1,1 @@
+"""Experiments built on the solvers: Monte Carlo studies and the paper's reproduction."""

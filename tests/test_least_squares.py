@@ -1,0 +1,134 @@
+"""Least-squares calibration against the simulated truth (issue 3)."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+import jaxcal
+from jaxcal.calibrate import calibrate, calibrate_batch, identify
+from jaxcal.simulate import error_scales, sample_poses, simulate
+
+
+def _truth_in_base_set(robot, *, base=False, tool=False, position_only=False, n_poses=40, seed=0):
+    """Simulation whose true errors are zero on the parameters the solver must hold fixed
+    (a truth with errors there is not exactly representable: see docs)."""
+    import jax
+
+    q = np.asarray(sample_poses(jax.random.PRNGKey(seed + 100), robot, (n_poses,)))
+    ident = identify(robot, q, position_only=position_only, estimate_base=base, estimate_tool=tool)
+    scales = error_scales(robot, base=base, tool=tool)
+    scales[list(ident.fixed)] = 0.0
+    sim = simulate(robot, n_robots=3, q=q, seed=seed, scales=scales, base=base, tool=tool)
+    return sim, ident
+
+
+CASES = [
+    ("paper-6r", "gn", False, False, False),
+    ("puma560", "gn", False, False, False),
+    ("ur5", "gn", False, False, False),
+    ("paper-6r", "gn", True, True, False),
+    ("ur5", "gn", True, True, False),
+    ("paper-6r", "gn", False, False, True),
+    ("paper-6r", "lm", False, False, False),
+    ("puma560", "lm", True, True, False),
+]
+
+
+@pytest.mark.parametrize("name,method,base,tool,position_only", CASES)
+def test_noise_free_recovery(name, method, base, tool, position_only):
+    robot = jaxcal.preset(name)
+    sim, ident = _truth_in_base_set(robot, base=base, tool=tool, position_only=position_only,
+                                    n_poses=60 if position_only else 40)
+    res = calibrate_batch(robot, sim.q, sim.measured, method=method, estimate_base=base, estimate_tool=tool,
+                          position_only=position_only, ident=ident)
+    assert res.converged.all(), res.num_steps
+    assert_allclose(res.x, sim.x_true, atol=1e-9, rtol=0)
+    assert np.all(res.x[:, list(ident.fixed)] == 0.0)
+
+
+def test_identifiable_combination_recovered_when_truth_has_fixed_error():
+    """Truth with an error on d3 (not identifiable apart from d2 on the paper arm): the
+    estimate of d2 is d2 + d3 up to the second-order model error (axes 2, 3 are no longer
+    exactly parallel in the true robot)."""
+    robot = jaxcal.preset("paper-6r")
+    sim = simulate(robot, n_robots=3, n_poses=40, seed=5)
+    res = calibrate_batch(robot, sim.q, sim.measured, method="gn")
+    C = res.identifiability.combination_matrix
+    est = res.x[:, list(res.identifiability.base)]
+    expect = sim.x_true @ C.T
+    i_d2 = res.identifiability.base.index(res.names.index("d2"))
+    assert_allclose(est[:, i_d2], sim.x_true[:, 5] + sim.x_true[:, 9], atol=1e-4)
+    # second order: errors ~ 0.005 rad x 0.05 mm scale, far below the first-order size
+    assert np.abs(est - expect).max() < 1e-3 * np.abs(expect).max()
+
+
+def test_linear_one_shot_error_is_a_linearisation_error():
+    """The one-shot linear solve is exact to first order: its error shrinks ~4x when the
+    injected errors halve."""
+    robot = jaxcal.preset("paper-6r")
+    errs = []
+    for s in (1.0, 0.5, 0.25):
+        sim, ident = _truth_in_base_set(robot, n_poses=40, seed=2)
+        x_true = sim.x_true * s
+        sim2 = simulate(robot, n_robots=3, q=sim.q[0], x_true=x_true, seed=2)
+        res = calibrate_batch(robot, sim2.q, sim2.measured, method="linear", ident=ident)
+        errs.append(np.abs(res.x - x_true).max())
+    r1, r2 = errs[0] / errs[1], errs[1] / errs[2]
+    assert 3.5 < r1 < 4.5 and 3.5 < r2 < 4.5, errs
+    assert errs[0] > 1e-6  # and it is not exact: GN's job
+
+
+def test_calibrate_single_result_object():
+    robot = jaxcal.preset("puma560")
+    sim, ident = _truth_in_base_set(robot, base=True, n_poses=30, seed=3)
+    res = calibrate(robot, sim.q[0], sim.measured[0], estimate_base=True)
+    assert res.converged and res.num_steps >= 1
+    assert_allclose(res.x, sim.x_true[0], atol=1e-9)
+    assert res.after["pos_rms_mm"] < 1e-8 < res.before["pos_rms_mm"]
+    # the calibrated robot reproduces the true robot's poses on new joint values
+    from jaxcal.error_model import perturb
+    import jax.numpy as jnp
+
+    true_robot = perturb(robot, jnp.asarray(sim.x_true[0]), base=True)
+    assert_allclose(np.asarray(jaxcal.fk(res.robot, jnp.asarray(sim.q_val[0]))),
+                    np.asarray(jaxcal.fk(true_robot, jnp.asarray(sim.q_val[0]))), atol=1e-8)
+    assert "fixed" in res.table() and res.delta("theta2") == res.x[4]
+
+
+def test_not_converged_is_reported():
+    robot = jaxcal.preset("paper-6r")
+    sim = simulate(robot, n_robots=2, n_poses=30, seed=4, scales=error_scales(robot) * 20)
+    res = calibrate_batch(robot, sim.q, sim.measured, method="gn", max_steps=1)
+    assert not res.converged.any()
+    assert np.all(res.num_steps == 1)
+
+
+def test_rank_deficient_design_reports_not_garbage():
+    """All poses with joints 4..6 at zero and few poses: the report names what is missing, the
+    estimates are finite, fixed parameters are exactly zero."""
+    robot = jaxcal.preset("paper-6r")
+    rng = np.random.default_rng(0)
+    q = np.zeros((12, 6))
+    q[:, :3] = rng.uniform(-1, 1, (12, 3))
+    sim = simulate(robot, n_robots=1, q=q, seed=0)
+    res = calibrate(robot, q, sim.measured[0])
+    rep = res.identifiability.report()
+    assert res.identifiability.rank < 23 and "fixed" in rep
+    assert np.all(np.isfinite(res.x)) and np.all(res.x[list(res.identifiability.fixed)] == 0)
+
+
+def test_inputs_are_checked_and_not_mutated():
+    robot = jaxcal.preset("paper-6r")
+    sim = simulate(robot, n_robots=1, n_poses=20, seed=0)
+    q, meas = sim.q[0].copy(), sim.measured[0].copy()
+    q0, m0 = q.copy(), meas.copy()
+    calibrate(robot, q, meas, method="linear")
+    assert np.array_equal(q, q0) and np.array_equal(meas, m0)
+    with pytest.raises(jaxcal.DataError, match="6 joints"):
+        calibrate(robot, q[:, :5], meas)
+    with pytest.raises(jaxcal.DataError, match="too few poses"):
+        calibrate(robot, q[:3], meas[:3])
+    bad = meas.copy()
+    bad[7, 0, 3] = np.nan
+    with pytest.raises(jaxcal.DataError, match=r"measured: non-finite value at index \(7, 0, 3\)"):
+        calibrate(robot, q, bad)
