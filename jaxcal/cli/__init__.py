@@ -7,7 +7,9 @@ from ._app import app, console, err_console
 
 # --- sub-command modules (one line each) ---
 from . import _verify  # noqa: F401,E402
+from . import _calibrate  # noqa: F401,E402
 from . import _montecarlo  # noqa: F401,E402
+from . import _reproduce  # noqa: F401,E402
 # --- end of sub-command modules ---
 
 

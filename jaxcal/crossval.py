@@ -1,0 +1,518 @@
+"""Calibration of real data with honest held-out validation: base/tool initialisation, a
+choice of parameter sets and ridge priors by K-fold cross-validation, and the final fit.
+
+## Model
+``T(x, q) = exp(xi_b) B0 · A_1(dh + dx_1) ... A_n(dh + dx_n) · X0 exp(xi_t)`` with
+``x = [dx (4n), xi_b (6), xi_t (6)]`` (the layout of :func:`jaxcal.error_model.param_names`
+with base and tool), ``B0, X0`` from :func:`jaxcal.initial_guess.initial_frames`. The DH chain
+has the analytic JVP of :mod:`jaxcal.solvers._model`.
+
+## Objective
+$\\min_y \\sum_{k \\in train} |W e_k(y)|^2 + \\sum_j (p_j y_j)^2$, ``e_k`` the pose error
+(position mm, rotation vector rad) of the measured vs the modelled pose, ``W = diag(1/sigma_pos
+x3, 1/sigma_rot x3)``, ``y`` the free entries of ``x``: the estimated frame twists and the
+identifiable DH errors (base set of :func:`jaxcal.identifiability.analyze`, frames first, so a
+DH error that a frame absorbs is the one held at 0). The prior weights ``p_j`` (extra residual
+rows) make one compiled, vmapped solver serve every candidate parameter set:
+
+* ``0``: the parameter is free;
+* ``1 / s_j``: a ridge (Tikhonov) prior of standard deviation ``s_j`` (``s`` mm for lengths,
+  ``s`` mrad for angles: 1 mm at 1 m lever arm);
+* ``PIN`` (1e8): the parameter is held at 0 (not in the set).
+
+## Noise weighting
+``sigma_pos`` and ``sigma_rot`` are estimated on each training set from the residual of the
+*frames-only* fit (nominal DH, base and tool estimated): the RMS per coordinate / per axis.
+Frames-only residuals are dominated by the model error, which affects position and rotation
+alike, so the ratio is a fair weighting of the two kinds of rows without knowing the sensor.
+
+## Cross-validation
+Folds are a seeded permutation of the poses cut into ``K`` nearly equal parts. Each candidate
+is fitted on ``K-1`` folds (frames initialised from those poses only) and evaluated on the
+held-out fold; the held-out position errors of all folds are pooled into an RMS. The final
+candidate is the one with the lowest pooled held-out position RMS (a simpler candidate within
+1 % of it wins), refitted on all poses. Because picking the best of several candidates on the
+same folds is optimistic, the reported ``heldout_*`` figures come from **nested**
+cross-validation: inside each outer training set the candidate is chosen by an inner ``K``-fold
+CV, and only then evaluated on the outer held-out fold.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .error_model import identification_jacobian, param_names, pose_error
+from .errors import DataError
+from .identifiability import Identifiability, analyze
+from .initial_guess import initial_frames
+from .kinematics import fk
+from .lie import se3_exp
+from .solvers.manifold import Problem, fit_batch
+from .robot import DH_NAMES, Robot
+
+PIN = 1e8
+METHODS = ("gn", "lm", "linear")
+PARAM_SETS = ("auto", "frames", "offsets", "angles", "all")
+RIDGE_GRID_MM = (0.1, 0.3, 1.0, 3.0)
+_KIND = {k: i for i, k in enumerate(DH_NAMES)}
+
+
+# -- candidates --------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Candidate:
+    """A DH parameter set (indices into the 4n DH errors) and an optional ridge prior."""
+
+    name: str
+    dh: tuple[int, ...]
+    """DH errors allowed to move (those not identifiable are dropped later)."""
+    ridge_mm: float | None = None
+    """Prior standard deviation ``s`` (mm for lengths, mrad for angles); None = no prior."""
+
+    @property
+    def complexity(self) -> tuple[int, float]:
+        return (len(self.dh), -(self.ridge_mm or np.inf))
+
+
+def _kinds(n: int, kinds) -> tuple[int, ...]:
+    return tuple(4 * j + _KIND[k] for j in range(n) for k in kinds)
+
+
+def parse_params(spec: str, robot: Robot, ridge_mm: float | None = None) -> list[Candidate]:
+    """Candidates for ``--params``: ``auto`` (frames, offsets, angles, all with a ridge grid
+    and all), one of ``frames|offsets|angles|all``, or a comma-separated list of DH kinds
+    (``theta,d,a,alpha``) and/or parameter names (``theta2, a4``). ``ridge_mm`` adds a prior
+    to an explicit set."""
+    n = robot.n_joints
+    names = robot.param_names()
+    named = {"frames": (), "offsets": _kinds(n, ["theta"]), "angles": _kinds(n, ["theta", "alpha"]),
+             "all": tuple(range(4 * n))}
+    spec = spec.strip()
+    if spec == "auto":
+        cands = [Candidate(k, v) for k, v in named.items() if k != "all"]
+        cands += [Candidate(f"all, ridge {s:g}", named["all"], s) for s in RIDGE_GRID_MM]
+        return cands + [Candidate("all", named["all"])]
+    if spec in named:
+        dh = named[spec]
+    else:
+        idx: set[int] = set()
+        for tok in (t.strip() for t in spec.split(",")):
+            if tok in _KIND:
+                idx.update(_kinds(n, [tok]))
+            elif tok in names:
+                idx.add(names.index(tok))
+            else:
+                raise DataError(f"--params: unknown parameter or set {tok!r}; use auto, frames, offsets, angles, "
+                                f"all, or a comma list of theta, d, a, alpha and names like theta2, a4 "
+                                f"(joints 1..{n})")
+        dh = tuple(sorted(idx))
+    name = spec if ridge_mm is None else f"{spec}, ridge {ridge_mm:g}"
+    return [Candidate(name, dh, ridge_mm)]
+
+
+# -- the batched solver (jaxcal.solvers.manifold) ---------------------------------------------
+
+def _fitter(setup, method: str):
+    """A jit-compiled, vmapped fit for one setup, cached on it (the robot is a compile-time
+    constant)."""
+    cache = setup.__dict__.setdefault("_fitters", {})
+    if method not in cache:
+        prob = _problem(setup)
+
+        def fit(*args):
+            return fit_batch(prob, *args, method=method, max_steps=setup.max_steps)
+
+        cache[method] = jax.jit(fit)
+    return cache[method]
+
+
+# -- errors ------------------------------------------------------------------------------------
+
+def pose_errors(predicted, measured) -> tuple[np.ndarray, np.ndarray]:
+    """Per pose: position error norm (mm) and rotation error angle (deg)."""
+    e = np.asarray(pose_error(jnp.asarray(measured), jnp.asarray(predicted)))
+    return np.linalg.norm(e[..., :3], axis=-1), np.degrees(np.linalg.norm(e[..., 3:], axis=-1))
+
+
+def _rms(v):
+    return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
+
+
+def fold_ids(n_poses: int, k: int, seed: int) -> np.ndarray:
+    """Fold index (0..k-1) of each pose: a seeded permutation cut into k nearly equal parts."""
+    if not 2 <= k <= n_poses:
+        raise DataError(f"--folds must be between 2 and the number of poses ({n_poses}), got {k}")
+    out = np.empty(n_poses, dtype=np.int64)
+    out[np.random.default_rng(seed).permutation(n_poses)] = np.arange(n_poses) % k
+    return out
+
+
+# -- the engine --------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Setup:
+    """Everything fixed before fitting: the robot, the data, the free parameter layout."""
+
+    robot: Robot
+    q: np.ndarray
+    measured: np.ndarray
+    position_only: bool
+    estimate_base: bool
+    estimate_tool: bool
+    method: str
+    candidates: tuple[Candidate, ...]
+    ident: Identifiability
+    """Identifiability of all 4n DH errors + frames over all poses (nominal DH, initial frames)."""
+    free: tuple[int, ...]
+    """Free entries of x: identifiable DH errors of the union of candidates, then frame twists."""
+    n_dh_free: int
+    n_needed: int = 0
+    """Parameters the candidates need on a generic pose set (rank)."""
+    max_steps: int = 50
+
+    @property
+    def names(self) -> list[str]:
+        return param_names(self.robot, base=True, tool=True)
+
+
+def _frame_cols(robot, position_only, estimate_base, estimate_tool):
+    n4 = 4 * robot.n_joints
+    cols = list(range(n4, n4 + 6)) if estimate_base else []
+    if estimate_tool:
+        cols += list(range(n4 + 6, n4 + 9 if position_only else n4 + 12))
+    return cols
+
+
+def make_setup(robot: Robot, q, measured, *, position_only: bool, candidates, estimate_base=True,
+               estimate_tool=True, method="gn", max_steps=50) -> Setup:
+    """Identifiability over all poses (at the all-pose initial frames) and the free layout."""
+    if method not in METHODS:
+        raise DataError(f"--method must be one of {', '.join(METHODS)} for calibrate, got {method!r}")
+    q = np.asarray(q, dtype=np.float64)
+    measured = np.asarray(measured, dtype=np.float64)
+    B, X = initial_frames(robot, q, measured, position_only=position_only, estimate_base=estimate_base,
+                          estimate_tool=estimate_tool)
+    r0 = robot.replace(base=B, tool=np.asarray(robot.tool) @ X)
+    J = np.asarray(identification_jacobian(r0, jnp.asarray(q), position_only=position_only, base=True, tool=True))
+    J = J.reshape(-1, J.shape[-1])
+    names = param_names(robot, base=True, tool=True)
+    n4 = 4 * robot.n_joints
+    frames = _frame_cols(robot, position_only, estimate_base, estimate_tool)
+    union = sorted(set().union(*(c.dh for c in candidates)))
+    order = frames + union  # frames first: a DH error a frame absorbs is the one held at 0
+    a = analyze(J[:, order], [names[i] for i in order])
+    kept = {order[i] for i in a.base}
+    free_frames = [i for i in frames if i in kept]
+    free_dh = [i for i in union if i in kept]
+    fixed_frames = [names[i] for i in frames if i not in kept]
+    if fixed_frames:
+        raise DataError(f"base/tool parameters {', '.join(fixed_frames)} are not identifiable from these poses; "
+                        f"use --no-estimate-base / --no-estimate-tool or more varied poses")
+    # how many parameters the candidates need, from a generic (random, seeded) pose set, so too few
+    # data poses are refused instead of silently dropping parameters
+    from .simulate import sample_poses
+
+    qg = sample_poses(jax.random.PRNGKey(0), robot, (max(60, len(q)),))
+    Jg = np.asarray(identification_jacobian(r0, qg, position_only=position_only, base=True, tool=True))
+    n_need = analyze(Jg.reshape(-1, Jg.shape[-1])[:, order], [names[i] for i in order]).rank
+    rpp = 3 if position_only else 6
+    if len(q) * rpp < n_need:
+        raise DataError(f"too few poses: {len(q)} poses x {rpp} rows = {len(q) * rpp} equations "
+                        f"for {n_need} parameters; need at least {-(-n_need // rpp)} poses")
+    # identifiability report over all DH errors (same ordering rule), for the JSON report
+    all_order = frames + list(range(n4))
+    ident = analyze(J[:, all_order], [names[i] for i in all_order])
+    free = tuple(free_dh) + tuple(free_frames)
+    return Setup(robot=robot, q=q, measured=measured, position_only=position_only, estimate_base=estimate_base,
+                 estimate_tool=estimate_tool, method=method, candidates=tuple(candidates), ident=ident, free=free,
+                 n_dh_free=len(free_dh), n_needed=n_need, max_steps=max_steps)
+
+
+def _prior_vector(setup: Setup, cand: Candidate | None) -> np.ndarray:
+    """Prior weight of each free DH error for a candidate (None = frames only)."""
+    out = np.full(setup.n_dh_free, PIN)
+    if cand is None:
+        return out
+    for j, i in enumerate(setup.free[:setup.n_dh_free]):
+        if i in cand.dh:
+            if cand.ridge_mm is None:
+                out[j] = 0.0
+            else:
+                kind = i % 4
+                s = cand.ridge_mm if kind in (1, 2) else cand.ridge_mm * 1e-3
+                out[j] = 1.0 / s
+    return out
+
+
+def _problem(setup: Setup) -> Problem:
+    return Problem(template=setup.robot, free=setup.free, n_dh_free=setup.n_dh_free,
+                    rows=3 if setup.position_only else 6)
+
+
+def _sigmas(err, mask, position_only):
+    """RMS per coordinate (mm) and per axis (rad) of pose errors ``(K, 6)`` over ``mask``."""
+    n = 3 * mask.sum()
+    sp = np.sqrt(np.sum(mask[:, None] * err[:, :3] ** 2) / n)
+    sr = 1.0 if position_only else np.sqrt(np.sum(mask[:, None] * err[:, 3:] ** 2) / n)
+    return max(sp, 1e-6), max(sr, 1e-9)
+
+
+def _weights(sig):
+    return np.c_[np.repeat(1 / sig[:, :1], 3, 1), np.repeat(1 / sig[:, 1:], 3, 1)]
+
+
+def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
+    """Fit frames only and every candidate on every training mask ``(S, K)`` in two vmapped
+    calls: (A) frames only with unit weights (1 mm, 1 deg), whose training residual gives each
+    mask's ``sigma_pos, sigma_rot``; (B) every candidate from the frames-only solution with
+    those weights.
+
+    **Returns** a dict: ``frames`` (dict of the stage-A fit: ``delta, B, X, ok, steps, pred``,
+    leading axis S), and the stage-B arrays with leading axes ``(S, C)``: ``delta (n, 4)``,
+    ``B``, ``X``, ``ok``, ``steps``, ``pred (K, 4, 4)``; ``sigmas (S, 2)``.
+    """
+    train_masks = np.atleast_2d(np.asarray(train_masks, dtype=bool))
+    S, K = train_masks.shape
+    C = len(candidates)
+    n = setup.robot.n_joints
+    tool0 = np.asarray(setup.robot.tool)
+    B0 = np.empty((S, 4, 4))
+    X0 = np.empty((S, 4, 4))
+    for s in range(S):
+        tr = train_masks[s]
+        B, X = initial_frames(setup.robot, setup.q[tr], setup.measured[tr], position_only=setup.position_only,
+                              estimate_base=setup.estimate_base, estimate_tool=setup.estimate_tool)
+        B0[s], X0[s] = B, tool0 @ X
+    mask = train_masks.astype(np.float64)
+    q, meas = jnp.asarray(setup.q), jnp.asarray(setup.measured)
+    w0 = _weights(np.tile([1.0, np.radians(1.0)], (S, 1)))
+    prior0 = np.tile(_prior_vector(setup, None), (S, 1))
+    fit_a = _fitter(setup, "lm" if setup.method == "linear" else setup.method)
+    (da, Ba, Xa), oka, sta, Ta = fit_a(jnp.zeros((S, n, 4)), jnp.asarray(B0), jnp.asarray(X0), q, meas,
+                                       jnp.asarray(mask), jnp.asarray(w0), jnp.asarray(prior0))
+    ea = np.asarray(pose_error(meas[None], Ta))
+    sig = np.array([_sigmas(ea[s], mask[s], setup.position_only) for s in range(S)])
+    rep = lambda a: np.repeat(np.asarray(a)[:, None], C, axis=1).reshape((S * C,) + np.shape(a)[1:])
+    prior = np.tile(np.stack([_prior_vector(setup, c) for c in candidates]), (S, 1))
+    (d, B, X), ok, st, T = _fitter(setup, setup.method)(
+        jnp.asarray(rep(da)), jnp.asarray(rep(Ba)), jnp.asarray(rep(Xa)), q, meas, jnp.asarray(rep(mask)),
+        jnp.asarray(rep(_weights(sig))), jnp.asarray(prior))
+    sh = lambda a: np.asarray(a).reshape((S, C) + np.shape(a)[1:])
+    return {"frames": {"delta": np.asarray(da), "B": np.asarray(Ba), "X": np.asarray(Xa), "ok": np.asarray(oka),
+                       "steps": np.asarray(sta), "pred": np.asarray(Ta)},
+            "delta": sh(d), "B": sh(B), "X": sh(X), "ok": sh(ok), "steps": sh(st), "pred": sh(T),
+            "B_init": B0, "X_init": X0, "sigmas": sig}
+
+
+# -- the whole procedure -----------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DataCalibration:
+    """What :func:`calibrate_measurements` returns (lengths mm, angles rad unless named)."""
+
+    robot: Robot
+    """The calibrated model, fitted on all poses with the chosen parameter set."""
+    nominal: Robot
+    choice: Candidate
+    """The parameter set chosen by cross-validation (or the one asked for)."""
+    report: dict
+    """JSON-ready summary (see :func:`calibrate_measurements`)."""
+    cv_table: list
+    """Per candidate: name, CV held-out position RMS / max (mm), rotation RMS (deg), train RMS."""
+    per_pose: dict
+    """Per-pose position errors (mm): ``frames_only_heldout``, ``heldout``, ``frames_only_train``,
+    ``train``; rotation errors (deg) ``*_rot``; ``rows``: the CSV data rows."""
+    deltas: dict
+    """name -> (value, standard error) of every estimated parameter (DH errors in mm / rad; base
+    and tool twists relative to the all-pose initial guess, mm / rad)."""
+
+
+def _pooled(pe, re, masks):
+    sel = np.asarray(masks, bool)
+    out = {"pos_rms_mm": _rms(pe[sel]), "pos_max_mm": float(pe[sel].max()), "rot_rms_deg": _rms(re[sel])}
+    return out
+
+
+def _choose(scores: list[float], candidates) -> int:
+    """Lowest score; a simpler candidate (fewer free parameters, stronger prior) within 1 % wins."""
+    best = min(scores)
+    ok = [i for i, s in enumerate(scores) if s <= 1.01 * best]
+    return min(ok, key=lambda i: candidates[i].complexity)
+
+
+def _twist_log(T):
+    from scipy.spatial.transform import Rotation
+
+    T = np.asarray(T)
+    return np.r_[T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_rotvec()]
+
+
+def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, method: str = "gn",
+                           params: str = "auto", ridge_mm: float | None = None, estimate_base: bool = True,
+                           estimate_tool: bool = True, folds: int = 5, seed: int = 0,
+                           rows=None) -> DataCalibration:
+    """Calibrate from measured poses with K-fold (and nested) cross-validation.
+
+    **Arguments**: ``q`` ``(K, n)`` rad; ``measured`` ``(K, 4, 4)`` mm; ``params`` see
+    :func:`parse_params`; ``folds`` ``K`` of the cross-validation (seeded by ``seed``).
+
+    **Returns** a :class:`DataCalibration` whose ``report`` has ``train_rms_mm``,
+    ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_rot_rms_deg`` (nested CV),
+    ``frames_only_*`` (same, nominal DH with base/tool fitted), ``choice``, ``cv``,
+    ``parameters`` (deltas with standard errors), ``unidentifiable``, ``condition_number``,
+    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``.
+    """
+    candidates = parse_params(params, robot, ridge_mm)
+    q = np.asarray(q, dtype=np.float64)
+    measured = np.asarray(measured, dtype=np.float64)
+    K = len(q)
+    setup = make_setup(robot, q, measured, position_only=position_only, candidates=candidates,
+                       estimate_base=estimate_base, estimate_tool=estimate_tool, method=method)
+    fid = fold_ids(K, folds, seed)
+    rpp = 3 if position_only else 6
+    n_train = K - int(np.bincount(fid).max())
+    if n_train * rpp < setup.n_needed:
+        raise DataError(f"too few poses for {folds}-fold cross-validation: training sets of {n_train} poses x {rpp} "
+                        f"rows = {n_train * rpp} equations for {setup.n_needed} parameters; use fewer folds or "
+                        f"more poses")
+    outer = np.stack([fid != o for o in range(folds)])
+    inner, inner_of = [], []
+    if len(candidates) > 1:
+        for o in range(folds):
+            idx = np.flatnonzero(outer[o])
+            if len(idx) < folds:
+                raise DataError(f"too few poses ({K}) for nested {folds}-fold cross-validation")
+            sub = fold_ids(len(idx), folds, seed + 1 + o)
+            for i in range(folds):
+                msk = np.zeros(K, bool)
+                msk[idx[sub != i]] = True
+                inner.append(msk)
+                inner_of.append(o)
+    masks = np.concatenate([outer, np.array(inner).reshape(-1, K), np.ones((1, K), bool)])
+    res = fit_many(setup, masks, candidates)
+    meas_b = measured[None]
+    # frames only (stage A) and candidates (stage B): errors of every pose under every fit
+    fpe, fre = pose_errors(res["frames"]["pred"], meas_b)               # (S, K)
+    pe, re = pose_errors(res["pred"], measured[None, None])             # (S, C, K)
+    held_outer = ~outer
+    scores, cv_table = [], []
+    for c, cand in enumerate(candidates):
+        st = _pooled(pe[:folds, c], re[:folds, c], held_outer)
+        tr = _pooled(pe[:folds, c], re[:folds, c], outer)
+        scores.append(st["pos_rms_mm"])
+        cv_table.append({"name": cand.name, "heldout_rms_mm": st["pos_rms_mm"], "heldout_max_mm": st["pos_max_mm"],
+                         "heldout_rot_rms_deg": st["rot_rms_deg"], "train_rms_mm": tr["pos_rms_mm"],
+                         "converged": bool(res["ok"][:folds, c].all())})
+    c_final = _choose(scores, candidates)
+    # nested: per outer fold, choose on its inner folds, evaluate on the outer held-out fold
+    nested_pe, nested_re = np.zeros(K), np.zeros(K)
+    nested_choice = []
+    for o in range(folds):
+        if len(candidates) > 1:
+            rows_o = [folds + j for j, oo in enumerate(inner_of) if oo == o]
+            ho_o = ~masks[rows_o] & outer[o]
+            sc = [_rms(pe[rows_o, c][ho_o]) for c in range(len(candidates))]
+            c_o = _choose(sc, candidates)
+        else:
+            c_o = 0
+        nested_choice.append(candidates[c_o].name)
+        nested_pe[~outer[o]] = pe[o, c_o, ~outer[o]]
+        nested_re[~outer[o]] = re[o, c_o, ~outer[o]]
+    f_pe, f_re = np.zeros(K), np.zeros(K)
+    for o in range(folds):
+        f_pe[~outer[o]] = fpe[o, ~outer[o]]
+        f_re[~outer[o]] = fre[o, ~outer[o]]
+
+    # the final model: all poses, chosen candidate
+    S = len(masks) - 1
+    delta, B, X = res["delta"][S, c_final], res["B"][S, c_final], res["X"][S, c_final]
+    cal = robot.replace(dh=np.asarray(robot.dh) + delta, base=B, tool=X, name=f"{robot.name}-calibrated")
+    frames_only = robot.replace(base=res["frames"]["B"][S], tool=res["frames"]["X"][S])
+    sig = res["sigmas"][S]
+    deltas, cond = _std_errors(setup, cal, candidates[c_final], sig, res["B_init"][S], res["X_init"][S], delta)
+    names = setup.names
+    active_dh = [names[i] for i in setup.free[:setup.n_dh_free] if i in candidates[c_final].dh]
+    tr_pe, tr_re = pe[S, c_final], re[S, c_final]
+    rep = {
+        "robot": robot.name, "poses": K, "position_only": position_only, "method": method, "folds": folds,
+        "seed": seed, "estimate_base": estimate_base, "estimate_tool": estimate_tool,
+        "choice": candidates[c_final].name, "choice_rule": "lowest K-fold held-out position RMS; a simpler set "
+        "within 1% wins", "nested_choices": nested_choice,
+        "train_rms_mm": _rms(tr_pe), "train_max_mm": float(tr_pe.max()),
+        "train_rot_rms_deg": None if position_only else _rms(tr_re),
+        "heldout_rms_mm": _rms(nested_pe), "heldout_max_mm": float(nested_pe.max()),
+        "heldout_median_mm": float(np.median(nested_pe)),
+        "heldout_rot_rms_deg": None if position_only else _rms(nested_re),
+        "frames_only_train_rms_mm": _rms(fpe[S]), "frames_only_train_max_mm": float(fpe[S].max()),
+        "frames_only_train_rot_rms_deg": None if position_only else _rms(fre[S]),
+        "frames_only_heldout_rms_mm": _rms(f_pe), "frames_only_heldout_max_mm": float(f_pe.max()),
+        "frames_only_heldout_median_mm": float(np.median(f_pe)),
+        "frames_only_heldout_rot_rms_deg": None if position_only else _rms(f_re),
+        "cv": cv_table,
+        "sigma_pos_mm": float(sig[0]), "sigma_rot_deg": None if position_only else float(np.degrees(sig[1])),
+        "parameters": {k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items()},
+        "estimated_dh": active_dh,
+        "unidentifiable": list(setup.ident.fixed_names),
+        "combinations": list(setup.ident.combinations),
+        "condition_number": cond,
+        "converged": bool(res["ok"][S, c_final]), "steps": int(res["steps"][S, c_final]),
+        "cv_fits_converged": int(res["ok"].sum() + res["frames"]["ok"].sum()),
+        "cv_fits": int(res["ok"].size + res["frames"]["ok"].size),
+        "base": _frame_doc(B), "tool": _frame_doc(X),
+    }
+    rows = np.arange(1, K + 1) if rows is None else np.asarray(rows)
+    per_pose = {"rows": rows, "frames_only_heldout": f_pe, "heldout": nested_pe, "frames_only_train": fpe[S],
+                "train": tr_pe, "frames_only_heldout_rot": f_re, "heldout_rot": nested_re,
+                "frames_only": frames_only}
+    return DataCalibration(robot=cal, nominal=robot, choice=candidates[c_final], report=rep, cv_table=cv_table,
+                           per_pose=per_pose, deltas=deltas)
+
+
+def _frame_doc(T):
+    from scipy.spatial.transform import Rotation
+
+    T = np.asarray(T)
+    return {"xyz_mm": [float(v) for v in T[:3, 3]],
+            "rpy_deg": [float(v) for v in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)]}
+
+
+def _std_errors(setup: Setup, cal: Robot, cand: Candidate, sig, B_init, X_init, delta):
+    """Sandwich standard errors of the active parameters at the final fit:
+    ``cov = s^2 (A^T A)^-1 (J^T J) (A^T A)^-1`` with ``A = [W J; P]`` (data and ridge rows),
+    ``s^2`` the weighted residual variance; and the condition number of the scaled ``W J``."""
+    names = setup.names
+    n4 = 4 * setup.robot.n_joints
+    fd = setup.n_dh_free
+    active = [i for i in setup.free[:fd] if i in cand.dh] + list(setup.free[fd:])
+    rows = 3 if setup.position_only else 6
+    w = np.r_[np.full(3, 1 / sig[0]), np.full(3, 1 / sig[1])][:rows]
+    J = np.asarray(identification_jacobian(cal, jnp.asarray(setup.q), base=True, tool=True))[:, :rows][..., active]
+    e = np.asarray(pose_error(jnp.asarray(setup.measured), fk(cal, jnp.asarray(setup.q))))[:, :rows]
+    Jw = (J * w[:, None]).reshape(-1, len(active))
+    r = (e * w).reshape(-1)
+    p = np.zeros(len(active))
+    if cand.ridge_mm is not None:
+        for j, i in enumerate(active):
+            if i < n4:
+                p[j] = 1 / (cand.ridge_mm if i % 4 in (1, 2) else cand.ridge_mm * 1e-3)
+    N = Jw.T @ Jw + np.diag(p ** 2)
+    dof = max(len(r) - len(active), 1)
+    s2 = float(r @ r) / dof
+    Ni = np.linalg.pinv(N)
+    cov = s2 * Ni @ (Jw.T @ Jw) @ Ni
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    xb = _twist_log(np.asarray(cal.base) @ np.linalg.inv(B_init))
+    xt = _twist_log(np.linalg.inv(X_init) @ np.asarray(cal.tool))
+    value = np.r_[np.asarray(delta).reshape(-1), xb, xt]
+    units = ["rad", "mm", "mm", "rad"]
+    out = {}
+    for j, i in enumerate(active):
+        u = units[i % 4] if i < n4 else ("mm" if (i - n4) % 6 < 3 else "rad")
+        out[names[i]] = (float(value[i]), float(se[j]), u)
+    sc = np.linalg.svd(Jw / np.linalg.norm(Jw, axis=0), compute_uv=False)
+    return out, float(sc[0] / sc[-1])

@@ -1,0 +1,42 @@
+"""The real Franka Panda camera data set, end to end through `jaxcal calibrate` (5-fold CV)."""
+
+import json
+
+import numpy as np
+
+from jaxcal import fk, preset
+from jaxcal.measurements import franka_csv_path, read_measurements
+from jaxcal.robot_io import load_robot
+
+from test_cli_calibrate import run_cli
+
+
+def test_franka_calibrate_cli(tmp_path, monkeypatch, capsys):
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "panda", franka_csv_path(), "--length-unit", "m",
+                             "--folds", "5", "--json", tmp_path / "r.json", "--out-robot", tmp_path / "cal.toml",
+                             "--plots", tmp_path / "plots")
+    assert code in (0, None), err
+    rep = json.loads((tmp_path / "r.json").read_text())
+    for key in ("train_rms_mm", "heldout_rms_mm", "heldout_max_mm", "heldout_rot_rms_deg",
+                "frames_only_heldout_rms_mm", "frames_only_heldout_max_mm", "frames_only_heldout_rot_rms_deg",
+                "parameters", "unidentifiable", "condition_number", "converged", "steps", "choice"):
+        assert key in rep
+    assert rep["poses"] == 114 and rep["folds"] == 5 and rep["converged"]
+    # the data's README: frames only ~3.3 mm RMS on the training poses, ~3.5 mm held out
+    assert 3.0 < rep["frames_only_train_rms_mm"] < 3.6
+    assert 3.0 < rep["frames_only_heldout_rms_mm"] < 4.0
+    # calibration must help on poses it never saw; measured 1.44 mm (the 1.2 mm goal is NOT reached)
+    assert rep["heldout_rms_mm"] < 0.5 * rep["frames_only_heldout_rms_mm"]
+    assert rep["heldout_rms_mm"] < 1.6
+    assert rep["heldout_rot_rms_deg"] < rep["frames_only_heldout_rot_rms_deg"]
+    assert rep["heldout_rms_mm"] >= rep["train_rms_mm"]       # held out is never better than training
+    # independent check of the written model: its residual on all poses is the reported training RMS
+    cal = load_robot(tmp_path / "cal.toml")
+    m = read_measurements(franka_csv_path(), preset("panda"), length_unit="m")
+    d = np.linalg.norm(np.asarray(fk(cal, m.q))[:, :3, 3] - m.poses[:, :3, 3], axis=1)
+    assert abs(np.sqrt(np.mean(d ** 2)) - rep["train_rms_mm"]) < 1e-6
+    # the camera sits ~(94, -11, 43) mm from the flange: tool = flange (d = 107 mm) @ camera
+    assert np.allclose(rep["tool"]["xyz_mm"], [94, -11, 107 + 43], atol=15)
+    for name in ("pose_errors.png", "parameters.png"):
+        assert (tmp_path / "plots" / name).stat().st_size > 10_000
+    assert "held-out" in out and rep["choice"] in out
