@@ -21,9 +21,10 @@ from .errors import DataError
 from .identifiability import Identifiability, analyze
 from .kinematics import fk
 from .robot import Robot
-from .solvers import least_squares, linear
+from .solvers import elimination, least_squares, linear
 
 METHODS = ("gn", "lm", "linear")
+ELIMINATION_METHODS = ("elimination", "elimination-literal")  # need a jaxcal.design pose design
 
 
 def _check_inputs(robot: Robot, q, measured, batched: bool):
@@ -145,10 +146,8 @@ def calibrate(robot: Robot, q, measured, *, method: str = "gn", estimate_base: b
     **Returns** a :class:`CalibrationResult`; ``converged`` is False (never silently) when the
     solver hit ``max_steps`` or failed.
     """
-    if method == "elimination" or method == "elimination-literal":
-        raise NotImplementedError("the elimination method needs its own pose design: see jaxcal.solvers.elimination")
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in METHODS + ELIMINATION_METHODS:
+        raise ValueError(f"method must be one of {METHODS + ELIMINATION_METHODS}, got {method!r}")
     q, measured = _check_inputs(robot, q, measured, batched=False)
     m = n_params(robot, base=estimate_base, tool=estimate_tool)
     rows = 3 if position_only else 6
@@ -157,9 +156,14 @@ def calibrate(robot: Robot, q, measured, *, method: str = "gn", estimate_base: b
                         f"for {m} parameters")
     ident = identify(robot, q, position_only=position_only, estimate_base=estimate_base, estimate_tool=estimate_tool)
     sp, sr = _sigmas(position_only, sigma_pos_mm, sigma_rot_rad)
-    x, ok, steps = _solve_batch(robot, q[None], measured[None], jnp.float64(sp), jnp.float64(sr), method=method,
-                                free=tuple(ident.base), m=m, position_only=position_only, base=estimate_base,
-                                tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps)
+    if method in ELIMINATION_METHODS:
+        x, ok, steps, _ = elimination.calibrate_design_batch(
+            robot, q[None], measured[None], sp, sr, literal=method == "elimination-literal", max_steps=max_steps,
+            tol=atol, position_only=position_only, base=estimate_base, tool=estimate_tool)
+    else:
+        x, ok, steps = _solve_batch(robot, q[None], measured[None], jnp.float64(sp), jnp.float64(sr), method=method,
+                                    free=tuple(ident.base), m=m, position_only=position_only, base=estimate_base,
+                                    tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps)
     x = np.asarray(x[0])
     if not np.all(np.isfinite(x)):
         raise DataError("the solver produced non-finite parameters; the data are probably inconsistent "
@@ -194,16 +198,21 @@ def calibrate_batch(robot: Robot, q, measured, *, method: str = "gn", estimate_b
     """:func:`calibrate` for ``R`` data sets of the same nominal robot at once: ``q`` ``(R, K,
     n)``, ``measured`` ``(R, K, 4, 4)``; one compiled, vmapped call (no Python loop over
     robots). The base set comes from the first data set unless ``ident`` is given."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in METHODS + ELIMINATION_METHODS:
+        raise ValueError(f"method must be one of {METHODS + ELIMINATION_METHODS}, got {method!r}")
     q, measured = _check_inputs(robot, q, measured, batched=True)
     m = n_params(robot, base=estimate_base, tool=estimate_tool)
     if ident is None:
         ident = identify(robot, q[0], position_only=position_only, estimate_base=estimate_base,
                          estimate_tool=estimate_tool)
     sp, sr = _sigmas(position_only, sigma_pos_mm, sigma_rot_rad)
-    x, ok, steps = _solve_batch(robot, q, measured, jnp.float64(sp), jnp.float64(sr), method=method,
-                                free=tuple(ident.base), m=m, position_only=position_only, base=estimate_base,
-                                tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps)
+    if method in ELIMINATION_METHODS:
+        x, ok, steps, _ = elimination.calibrate_design_batch(
+            robot, q, measured, sp, sr, literal=method == "elimination-literal", max_steps=max_steps, tol=atol,
+            position_only=position_only, base=estimate_base, tool=estimate_tool)
+    else:
+        x, ok, steps = _solve_batch(robot, q, measured, jnp.float64(sp), jnp.float64(sr), method=method,
+                                    free=tuple(ident.base), m=m, position_only=position_only, base=estimate_base,
+                                    tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps)
     return BatchResult(x=np.asarray(x), converged=np.asarray(ok), num_steps=np.asarray(steps),
                        identifiability=ident, names=tuple(ident.names), method=method)

@@ -1,0 +1,134 @@
+"""The elimination method (paper section 2.3): the cancellation it relies on, its pose design,
+the literal variant on a generic arm, the robust variant on the paper's arm, PUMA 560 and UR5.
+
+Every check compares against autodiff or against the simulated true robot, never against
+numbers printed by the solver itself.
+"""
+
+import jax
+import jax.numpy as jnp
+import jaxlie
+import numpy as np
+import pytest
+from numpy.testing import assert_array_equal
+
+import jaxcal
+from jaxcal import design
+from jaxcal.calibrate import identify
+from jaxcal import simulate as S
+from jaxcal.error_model import param_names, perturb, twist_jacobian
+from jaxcal.errors import DataError
+from jaxcal.kinematics import fk
+from jaxcal.lie import inv_transform
+from jaxcal.solvers import elimination as el
+
+
+def _generic_arm(seed=1, n=6):
+    """Random SDH arm with no (nearly) parallel or intersecting consecutive axes:
+    |alpha| in [0.5, 2.6] rad, |a|, |d| in [50, 300] mm."""
+    rng = np.random.default_rng(seed)
+    sgn = lambda: rng.choice([-1.0, 1.0], n)
+    dh = np.c_[rng.uniform(-np.pi, np.pi, n), sgn() * rng.uniform(50, 300, n), sgn() * rng.uniform(50, 300, n),
+               sgn() * rng.uniform(0.5, 2.6, n)]
+    return jaxcal.Robot(dh, name="generic")
+
+
+def _autodiff_twist_jac(robot, q):
+    """d log(T(x) T(0)^-1) / dx at x = 0, by forward-mode autodiff through exact FK."""
+    T0 = fk(robot, q)
+    f = lambda x: jaxlie.SE3.from_matrix(fk(perturb(robot, x), q) @ inv_transform(T0)).log()
+    return jax.jacfwd(f)(jnp.zeros(4 * robot.n_joints))
+
+
+@pytest.mark.parametrize("name", ["paper-6r", "generic"])
+def test_pair_differences_cancel_earlier_joints_exactly(name):
+    robot = _generic_arm() if name == "generic" else jaxcal.preset(name)
+    N = robot.n_joints
+    q = np.asarray(design.design_poses(jax.random.PRNGKey(5), robot, n_pairs=1, n_abs=0))
+    J = np.asarray(twist_jacobian(robot, jnp.asarray(q)))
+    for n in range(N, 1, -1):
+        r0 = (N - n) * 2
+        Jp, Jq = _autodiff_twist_jac(robot, q[r0]), _autodiff_twist_jac(robot, q[r0 + 1])
+        np.testing.assert_allclose(J[r0], Jp, atol=1e-9)  # analytic columns = autodiff
+        D_an, D_ad = J[r0] - J[r0 + 1], np.asarray(Jp - Jq)
+        prefix = list(range(4 * (n - 2)))  # joints 1..n-2: the same frames in both poses
+        td = [4 * (n - 2), 4 * (n - 2) + 1]  # theta_{n-1}, d_{n-1}: z_{n-2} axis, via T_{n-1} (rounding)
+        assert_array_equal(D_an[:, prefix], 0.0)  # bitwise zero in the analytic form
+        np.testing.assert_allclose(D_an[:, td], 0.0, atol=1e-11)
+        np.testing.assert_allclose(D_ad[:, prefix + td], 0.0, atol=1e-9)  # and zero by autodiff
+        kept = [4 * (n - 1) + k for k in range(4)] + [4 * (n - 2) + 2, 4 * (n - 2) + 3]
+        assert np.linalg.norm(D_ad[:, kept], axis=0).min() > 1e-3 or (name == "paper-6r" and n == 3)
+    # paper arm, step 3: axes 2 and 3 parallel, so d3's column vanishes too (not exactly: rounding)
+    if name == "paper-6r":
+        d3 = param_names(robot).index("d3")
+        r0 = (N - 3) * 2
+        D = np.asarray(_autodiff_twist_jac(robot, q[r0]) - _autodiff_twist_jac(robot, q[r0 + 1]))
+        np.testing.assert_allclose(D[:, d3], 0.0, atol=1e-12)
+
+
+def test_design_structure_and_limits():
+    robot = jaxcal.preset("puma560")
+    q = np.asarray(design.design_poses(jax.random.PRNGKey(0), robot, n_pairs=3, n_abs=2, batch_shape=(4,)))
+    assert q.shape == (4, 2 * 5 * 3 + 2, 6)
+    lim = np.asarray(robot.q_limits)
+    assert np.all((q >= lim[:, 0]) & (q <= lim[:, 1]))
+    assert design.infer_layout(q, 6) == design.Layout(6, 3, 2)
+    bad = q[0].copy()
+    bad[design.Layout(6, 3, 2).rows(4)[0], 0] += 0.1  # a step-4 pair no longer shares joint 1
+    with pytest.raises(DataError):
+        design.check_design(bad, design.Layout(6, 3, 2))
+    with pytest.raises(DataError):
+        jaxcal.calibrate(robot, lim.mean(1) + np.zeros((32, 6)), np.tile(np.eye(4), (32, 1, 1)),
+                         method="elimination")
+
+
+def _val_rms(robot, x, sim):
+    T = jax.vmap(lambda xx, qv: fk(perturb(robot, xx), qv))(jnp.asarray(x), jnp.asarray(sim.q_val))
+    d = np.linalg.norm(np.asarray(T)[..., :3, 3] - sim.true_val[..., :3, 3], axis=-1)
+    return np.sqrt(np.mean(d ** 2))
+
+
+def test_literal_variant_works_on_a_generic_arm():
+    robot = _generic_arm()
+    q = design.design_poses(jax.random.PRNGKey(1), robot, n_pairs=2, n_abs=2)
+    plan = el.make_plan(robot, q)
+    assert plan.fixed == ()  # no parallel axes: every parameter identifiable
+    assert max(s.cond_scaled for s in plan.steps) < 1e4
+    errs = []
+    # a one-pass first-order method: exact to first order, so its error shrinks like |x|^2. Its
+    # truncation error is strongly amplified (unweighted rows, back-substitution): at the default
+    # error size (f = 1) it is far off even here, see docs/elimination.md.
+    for f in (1e-3, 1e-5):
+        sim = S.simulate(robot, n_robots=2, q=q, seed=4, scales=f * S.error_scales(robot))
+        x, ok, _ = el.solve_batch(robot, jnp.asarray(sim.q), jnp.asarray(sim.measured), 1.0, 1e-3,
+                                  plan=plan, literal=True)
+        assert np.all(ok)
+        errs.append(np.abs(np.asarray(x) - sim.x_true).max() / np.abs(sim.x_true).max())
+    assert errs[1] < 0.05  # within 5 % of the true errors when they are small
+    assert errs[1] < 3e-2 * errs[0]  # relative error ~ |x|: 100x smaller errors, 100x better
+
+
+def test_literal_variant_is_singular_on_the_paper_arm():
+    robot = jaxcal.preset("paper-6r")
+    q = design.design_poses(jax.random.PRNGKey(0), robot, n_pairs=4, n_abs=2)
+    steps = {s.joint: s for s in el.make_plan(robot, q).steps}
+    assert steps[3].cond_raw > 1e12 and np.isinf(steps[3].cond_scaled)
+    assert all(np.isfinite(steps[n].cond_scaled) for n in (6, 5, 4, 2, 1))
+
+
+@pytest.mark.parametrize("name,fixed", [("paper-6r", ("d3",)), ("puma560", ("d3",)), ("ur5", ("d3", "d4"))])
+def test_robust_variant_recovers_the_identifiable_set(name, fixed):
+    robot = jaxcal.preset(name)
+    q = design.design_poses(jax.random.PRNGKey(2), robot, n_pairs=2, n_abs=2)
+    plan = el.make_plan(robot, q)
+    assert tuple(plan.names[j] for j in plan.fixed) == fixed
+    gn_ident = identify(robot, q)  # GN's base set on the same poses
+    assert gn_ident.fixed == plan.fixed
+    scales = S.error_scales(robot)
+    scales[list(plan.fixed)] = 0.0  # truths with no error on what the design cannot see
+    sim = S.simulate(robot, n_robots=2, q=q, seed=6, scales=scales)
+    res = jaxcal.calibrate_batch(robot, sim.q, sim.measured, method="elimination")
+    assert np.all(res.converged) and res.num_steps.max() <= 8
+    assert np.abs(res.x - sim.x_true).max() <= 1e-9
+    assert _val_rms(robot, res.x, sim) <= 1e-6
+    assert np.all(res.x[:, list(plan.fixed)] == 0.0)
