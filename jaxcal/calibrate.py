@@ -27,7 +27,9 @@ METHODS = ("gn", "lm", "linear")
 ELIMINATION_METHODS = ("elimination", "elimination-literal")  # need a jaxcal.design pose design
 
 
-def _check_inputs(robot: Robot, q, measured, batched: bool):
+def _check_inputs(robot: Robot, q, measured, batched: bool, position_only: bool = False):
+    if not isinstance(robot, Robot):
+        raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}")
     q = as_f64(q, "q")
     measured = as_f64(measured, "measured")
     lead = 2 if batched else 1
@@ -41,10 +43,65 @@ def _check_inputs(robot: Robot, q, measured, batched: bool):
         if bad.any():
             idx = np.argwhere(bad)[0]
             raise DataError(f"{name}: non-finite value at index {tuple(int(i) for i in idx)}")
+    Mn = np.asarray(measured)
+    bad_row = np.abs(Mn[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(-1) > 1e-9
+    if bad_row.any():
+        idx = tuple(int(i) for i in np.argwhere(bad_row)[0])
+        raise DataError(f"measured{list(idx)}: bottom row is {Mn[idx][3].tolist()}, not [0, 0, 0, 1]")
+    if not position_only:
+        R = Mn[..., :3, :3]
+        err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max((-1, -2))
+        bad_rot = (err > 1e-6) | (np.linalg.det(R) < 0)
+        if bad_rot.any():
+            idx = tuple(int(i) for i in np.argwhere(bad_rot)[0])
+            raise DataError(f"measured{list(idx)}: rotation is not a proper rotation matrix (|R R^T - I| = "
+                            f"{err[idx]:.3g}); {int(bad_rot.sum())} such pose(s); use position_only=True if "
+                            "only positions were measured")
     return q, measured
 
 
+def _check_units(robot: Robot, q, measured, batched: bool):
+    """Refuse a length-unit mismatch: the spread of the measured points (RMS distance to their
+    centroid, independent of the unknown measurement frame) must be within 3x of the nominal
+    model's at the same joint values (m read as mm gives 1000x)."""
+    Q, M = (q, measured) if batched else (q[None], measured[None])
+    if Q.shape[1] < 2:
+        return
+    P_mod = np.asarray(fk(robot, Q))[..., :3, 3]
+    P_mea = np.asarray(M)[..., :3, 3]
+
+    def spread(P):
+        return np.sqrt(np.mean(np.sum((P - P.mean(-2, keepdims=True)) ** 2, -1), -1))
+
+    s_mod, s_mea = spread(P_mod), spread(P_mea)
+    for i, (a, b) in enumerate(zip(s_mod, s_mea)):
+        if a > 1.0 and not (a / 3.0 <= b <= 3.0 * a):
+            where = f" (data set {i})" if batched else ""
+            raise DataError(f"measured{where}: positions spread {b:.4g} mm around their centroid, the nominal "
+                            f"model's {a:.4g} mm at the same joint values: lengths must be in mm (were they "
+                            f"given in metres?) and q in rad")
+
+
+def _check_options(method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_scale):
+    if method not in METHODS + ELIMINATION_METHODS:
+        raise DataError(f"method must be one of {METHODS + ELIMINATION_METHODS}, got {method!r}")
+    for name, v in (("sigma_pos_mm", sigma_pos_mm), ("sigma_rot_rad", sigma_rot_rad), ("loss_scale", loss_scale)):
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v) \
+                or v < 0 or (name == "loss_scale" and v == 0):
+            raise DataError(f"{name} must be a finite {'positive' if name == 'loss_scale' else 'non-negative'} "
+                            f"number (or None), got {v!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+        raise DataError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    if loss not in least_squares.LOSSES:
+        raise DataError(f"loss must be one of {least_squares.LOSSES}, got {loss!r}")
+    if loss != "l2" and method not in ("gn", "lm"):
+        raise DataError(f"loss={loss!r} needs method 'gn' or 'lm' (iteratively reweighted), got {method!r}")
+
+
 def _sigmas(position_only, sigma_pos_mm, sigma_rot_rad):
+    """Row weights ``1/sigma``; None or 0 means the default (1 mm, 1 mrad)."""
     sp = 1.0 if sigma_pos_mm is None or sigma_pos_mm <= 0 else float(sigma_pos_mm)
     sr = 1e-3 if sigma_rot_rad is None or sigma_rot_rad <= 0 else float(sigma_rot_rad)
     return sp, sr
@@ -52,16 +109,48 @@ def _sigmas(position_only, sigma_pos_mm, sigma_rot_rad):
 
 @eqx.filter_jit
 def _solve_batch(robot, q, measured, sig_pos, sig_rot, *, method, free, m, position_only, base, tool,
-                 rtol, atol, max_steps):
+                 rtol, atol, max_steps, loss="l2", loss_scale=None):
     def one(q_, meas_):
         if method == "linear":
             return linear.solve(robot, q_, meas_, free=free, m=m, position_only=position_only, base=base,
                                 tool=tool, sigma_pos=sig_pos, sigma_rot=sig_rot)
         return least_squares.solve(robot, q_, meas_, free=free, m=m, method=method, position_only=position_only,
                                    base=base, tool=tool, sigma_pos=sig_pos, sigma_rot=sig_rot, rtol=rtol,
-                                   atol=atol, max_steps=max_steps)
+                                   atol=atol, max_steps=max_steps, loss=loss, loss_scale=loss_scale)
 
     return jax.vmap(one)(q, measured)
+
+
+@eqx.filter_jit
+def _pose_norms(robot, x, q, measured, sig_pos, sig_rot, *, position_only, base, tool):
+    """Per-pose norms of the weighted residual rows of the model ``perturb(robot, x)``,
+    batched over a leading robot axis: ``(R, K)``."""
+    from .solvers._model import row_weights
+
+    def one(x_, q_, m_):
+        e = pose_error(m_, fk(perturb(robot, x_, base=base, tool=tool), q_))
+        e = e[..., :3] if position_only else e
+        return jnp.linalg.norm(e * row_weights(position_only, sig_pos, sig_rot), axis=-1)
+
+    return jax.vmap(one)(x, q, measured)
+
+
+def _outlier_report(norms, dof, loss, loss_scale):
+    """``(scale, outlier mask, degraded)`` per data set from per-pose residual norms ``(R, K)``.
+
+    An outlier is a pose whose norm exceeds ``OUTLIER_K[dof]`` robust scales; a plain (L2) fit
+    with outliers is *degraded* (least squares spreads them over every parameter); a robust fit
+    is degraded only if more than a third of the poses are outliers (then the robust scale
+    itself is not trustworthy)."""
+    norms = np.asarray(norms)
+    if loss_scale is None:
+        scale = np.maximum(np.median(norms, -1) / np.sqrt(least_squares._CHI2_MEDIAN[dof]), least_squares.SCALE_FLOOR)
+    else:
+        scale = np.full(norms.shape[0], float(loss_scale))
+    mask = norms > least_squares.OUTLIER_K[dof] * scale[:, None]
+    frac = mask.mean(-1)
+    degraded = (frac > 1 / 3) if loss != "l2" else mask.any(-1)
+    return scale, mask, degraded
 
 
 def residual_stats(robot: Robot, q, measured, *, position_only: bool) -> dict:
@@ -93,6 +182,14 @@ class CalibrationResult:
     position_only: bool
     estimate_base: bool
     estimate_tool: bool
+    loss: str = "l2"
+    outliers: tuple[int, ...] = ()  # pose indices whose standardised residual norm is > OUTLIER_K
+    degraded: bool = False          # True: outliers spoil this fit (plain L2 fit with outliers) -> try loss="huber"
+    robust_scale: float = float("nan")  # per-row noise scale (weighted units) used to judge outliers
+
+    def not_identified(self) -> dict[str, str]:
+        """``{parameter: why}`` for every parameter held at 0 (see :meth:`Identifiability.reasons`)."""
+        return self.identifiability.reasons()
 
     def delta(self, name: str) -> float:
         return float(self.x[self.names.index(name)])
@@ -133,7 +230,7 @@ def identify(robot: Robot, q, *, position_only=False, estimate_base=False, estim
 def calibrate(robot: Robot, q, measured, *, method: str = "gn", estimate_base: bool = False,
               estimate_tool: bool = False, position_only: bool = False, sigma_pos_mm: float | None = None,
               sigma_rot_rad: float | None = None, rtol: float = 1e-8, atol: float = 1e-10,
-              max_steps: int = 50) -> CalibrationResult:
+              max_steps: int = 50, loss: str = "l2", loss_scale: float | None = None) -> CalibrationResult:
     """Calibrate ``robot`` from joint values ``q`` ``(K, n)`` and measured poses ``measured``
     ``(K, 4, 4)`` (mm; with ``position_only=True`` only the translation column is used).
 
@@ -141,14 +238,23 @@ def calibrate(robot: Robot, q, measured, *, method: str = "gn", estimate_base: b
     Levenberg–Marquardt on the exact residual) | ``"linear"`` (one-shot pseudo-inverse around
     the nominal model); ``estimate_base`` / ``estimate_tool`` add 6 twist parameters each;
     ``sigma_pos_mm``, ``sigma_rot_rad`` weight position vs rotation rows by ``1/sigma`` (defaults
-    1 mm and 1 mrad); ``rtol``/``atol``/``max_steps`` go to optimistix.
+    1 mm and 1 mrad); ``rtol``/``atol``/``max_steps`` go to optimistix; ``loss`` ``"l2"`` |
+    ``"huber"`` | ``"cauchy"`` (robust, gn/lm only: iteratively reweighted, see
+    :mod:`jaxcal.solvers.least_squares`), ``loss_scale`` the noise scale per residual row in
+    weighted units (``1`` = one sigma; default: a robust estimate from the residuals).
 
     **Returns** a :class:`CalibrationResult`; ``converged`` is False (never silently) when the
-    solver hit ``max_steps`` or failed.
+    solver hit ``max_steps`` or failed; ``outliers`` the pose indices with gross residuals and
+    ``degraded`` True when a plain fit is spoiled by them; ``not_identified()`` says which
+    parameters were held at 0 and why.
+
+    **Raises** :class:`jaxcal.DataError` for bad input (shapes, non-finite values, poses that are
+    not rigid transforms, lengths apparently not in mm, too few poses, bad options) and when
+    the solver produces non-finite parameters.
     """
-    if method not in METHODS + ELIMINATION_METHODS:
-        raise ValueError(f"method must be one of {METHODS + ELIMINATION_METHODS}, got {method!r}")
-    q, measured = _check_inputs(robot, q, measured, batched=False)
+    _check_options(method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_scale)
+    q, measured = _check_inputs(robot, q, measured, batched=False, position_only=position_only)
+    _check_units(robot, q, measured, batched=False)
     m = n_params(robot, base=estimate_base, tool=estimate_tool)
     rows = 3 if position_only else 6
     if q.shape[0] * rows < m:
@@ -163,12 +269,16 @@ def calibrate(robot: Robot, q, measured, *, method: str = "gn", estimate_base: b
     else:
         x, ok, steps = _solve_batch(robot, q[None], measured[None], jnp.float64(sp), jnp.float64(sr), method=method,
                                     free=tuple(ident.base), m=m, position_only=position_only, base=estimate_base,
-                                    tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps)
+                                    tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps, loss=loss,
+                                    loss_scale=None if loss_scale is None else jnp.float64(loss_scale))
     x = np.asarray(x[0])
     if not np.all(np.isfinite(x)):
         raise DataError("the solver produced non-finite parameters; the data are probably inconsistent "
                         "with the robot (check units and joint order)")
     cal = perturb(robot, jnp.asarray(x), base=estimate_base, tool=estimate_tool)
+    norms = _pose_norms(robot, jnp.asarray(x)[None], q[None], measured[None], jnp.float64(sp), jnp.float64(sr),
+                        position_only=position_only, base=estimate_base, tool=estimate_tool)
+    scale, mask, degraded = _outlier_report(norms, rows, loss, loss_scale)
     se = _std_errors(robot, q, measured, x, ident, position_only=position_only, base=estimate_base,
                      tool=estimate_tool, sp=sp, sr=sr)
     return CalibrationResult(
@@ -176,7 +286,9 @@ def calibrate(robot: Robot, q, measured, *, method: str = "gn", estimate_base: b
         converged=bool(ok[0]), num_steps=int(steps[0]),
         before=residual_stats(robot, q, measured, position_only=position_only),
         after=residual_stats(cal, q, measured, position_only=position_only),
-        position_only=position_only, estimate_base=estimate_base, estimate_tool=estimate_tool)
+        position_only=position_only, estimate_base=estimate_base, estimate_tool=estimate_tool, loss=loss,
+        outliers=tuple(int(i) for i in np.flatnonzero(mask[0])), degraded=bool(degraded[0]),
+        robust_scale=float(scale[0]))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,19 +301,37 @@ class BatchResult:
     identifiability: Identifiability
     names: tuple[str, ...]
     method: str
+    loss: str = "l2"
+    outlier_mask: np.ndarray | None = None  # (R, K) bool: gross residual (see CalibrationResult.outliers)
+    degraded: np.ndarray | None = None      # (R,) bool
+    nonfinite: np.ndarray | None = None     # (R,) bool: solver gave non-finite values; x set to 0, not converged
+
+    def outliers(self, i: int) -> tuple[int, ...]:
+        """Pose indices flagged as outliers in data set ``i``."""
+        return tuple(int(k) for k in np.flatnonzero(self.outlier_mask[i]))
 
 
 def calibrate_batch(robot: Robot, q, measured, *, method: str = "gn", estimate_base: bool = False,
                     estimate_tool: bool = False, position_only: bool = False, sigma_pos_mm: float | None = None,
                     sigma_rot_rad: float | None = None, rtol: float = 1e-8, atol: float = 1e-10,
-                    max_steps: int = 50, ident: Identifiability | None = None) -> BatchResult:
+                    max_steps: int = 50, ident: Identifiability | None = None, loss: str = "l2",
+                    loss_scale: float | None = None) -> BatchResult:
     """:func:`calibrate` for ``R`` data sets of the same nominal robot at once: ``q`` ``(R, K,
     n)``, ``measured`` ``(R, K, 4, 4)``; one compiled, vmapped call (no Python loop over
-    robots). The base set comes from the first data set unless ``ident`` is given."""
-    if method not in METHODS + ELIMINATION_METHODS:
-        raise ValueError(f"method must be one of {METHODS + ELIMINATION_METHODS}, got {method!r}")
-    q, measured = _check_inputs(robot, q, measured, batched=True)
+    robots). The base set comes from the first data set unless ``ident`` is given. A data set
+    whose solve gives non-finite values is reported (``nonfinite``, ``converged`` False) with
+    ``x`` = 0, never NaN."""
+    _check_options(method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_scale)
+    q, measured = _check_inputs(robot, q, measured, batched=True, position_only=position_only)
+    _check_units(robot, q, measured, batched=True)
     m = n_params(robot, base=estimate_base, tool=estimate_tool)
+    rows = 3 if position_only else 6
+    if q.shape[1] * rows < m:
+        raise DataError(f"too few poses: {q.shape[1]} poses x {rows} rows = {q.shape[1] * rows} equations "
+                        f"for {m} parameters")
+    if ident is not None and tuple(ident.names) != tuple(param_names(robot, base=estimate_base, tool=estimate_tool)):
+        raise DataError(f"ident is for parameters {ident.names[:3]}... ({len(ident.names)}), this calibration "
+                        f"has {m}: pass the analysis of the same robot, base and tool options")
     if ident is None:
         ident = identify(robot, q[0], position_only=position_only, estimate_base=estimate_base,
                          estimate_tool=estimate_tool)
@@ -213,6 +343,15 @@ def calibrate_batch(robot: Robot, q, measured, *, method: str = "gn", estimate_b
     else:
         x, ok, steps = _solve_batch(robot, q, measured, jnp.float64(sp), jnp.float64(sr), method=method,
                                     free=tuple(ident.base), m=m, position_only=position_only, base=estimate_base,
-                                    tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps)
-    return BatchResult(x=np.asarray(x), converged=np.asarray(ok), num_steps=np.asarray(steps),
-                       identifiability=ident, names=tuple(ident.names), method=method)
+                                    tool=estimate_tool, rtol=rtol, atol=atol, max_steps=max_steps, loss=loss,
+                                    loss_scale=None if loss_scale is None else jnp.float64(loss_scale))
+    x, ok = np.array(x), np.array(ok)
+    nonfinite = ~np.all(np.isfinite(x), axis=-1)
+    x[nonfinite] = 0.0
+    ok[nonfinite] = False
+    norms = _pose_norms(robot, jnp.asarray(x), q, measured, jnp.float64(sp), jnp.float64(sr),
+                        position_only=position_only, base=estimate_base, tool=estimate_tool)
+    _, mask, degraded = _outlier_report(norms, rows, loss, loss_scale)
+    return BatchResult(x=x, converged=ok, num_steps=np.asarray(steps), identifiability=ident,
+                       names=tuple(ident.names), method=method, loss=loss, outlier_mask=mask, degraded=degraded,
+                       nonfinite=nonfinite)

@@ -96,6 +96,22 @@ def compensate(calibrated: Robot, targets, q_start, *, position_only: bool = Fal
         raise DataError(f"q_start must have shape (K, {calibrated.n_joints}), got {q_start.shape}")
     if targets.shape != (q_start.shape[0], 4, 4):
         raise DataError(f"targets must have shape ({q_start.shape[0]}, 4, 4), got {targets.shape}")
+    for name, a in (("targets", targets), ("q_start", q_start)):
+        bad = ~np.isfinite(np.asarray(a))
+        if bad.any():
+            raise DataError(f"{name}: non-finite value at index {tuple(int(i) for i in np.argwhere(bad)[0])}")
+    if not position_only:
+        R = np.asarray(targets)[:, :3, :3]
+        err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max((1, 2))
+        bad = (err > 1e-6) | (np.linalg.det(R) < 0)
+        if bad.any():
+            raise DataError(f"targets[{int(np.argmax(bad))}]: rotation is not a proper rotation matrix; "
+                            "use position_only=True for position targets")
+    for name, v in (("rot_weight_mm", rot_weight_mm), ("damping", damping), ("tol_mm", tol_mm)):
+        if not (np.isfinite(v) and v > 0):
+            raise DataError(f"{name} must be a finite positive number, got {v!r}")
+    if int(max_steps) < 1:
+        raise DataError(f"max_steps must be >= 1, got {max_steps!r}")
     q, ep, er, ok, steps = _ik(calibrated, targets, q_start, bool(position_only), float(rot_weight_mm),
                                float(damping), int(max_steps), float(tol_mm))
     return Compensation(q=np.asarray(q), pos_residual_mm=np.asarray(ep),

@@ -46,6 +46,12 @@ def param_names(robot: Robot, *, base: bool = False, tool: bool = False) -> list
 
 def perturb(robot: Robot, x: Float[Array, "m"], *, base: bool = False, tool: bool = False) -> Robot:
     """The robot with parameter errors ``x`` applied (exactly, not to first order)."""
+    m = n_params(robot, base=base, tool=tool)
+    if jnp.ndim(x) != 1 or jnp.shape(x)[0] != m:
+        from .errors import DataError
+
+        raise DataError(f"x must have shape ({m},) = {robot.n_joints} joints x 4 DH errors"
+                        f"{' + 6 base' if base else ''}{' + 6 tool' if tool else ''}, got {jnp.shape(x)}")
     n4 = 4 * robot.n_joints
     out = robot.with_dh_delta(x[:n4].reshape(robot.n_joints, 4))
     k = n4

@@ -70,6 +70,26 @@ class Identifiability:
     def fixed_names(self) -> tuple[str, ...]:
         return tuple(self.names[i] for i in self.fixed)
 
+    def reasons(self) -> dict[str, str]:
+        """``{name: why}`` for every fixed (held at 0, not identified) parameter, in parameter
+        order: no effect at all on this pose set, or not separable from named base parameters
+        (whose estimates absorb it), or linearly dependent on the base set."""
+        m = len(self.names)
+        out = {}
+        for k, j in enumerate(self.fixed):
+            name = self.names[j]
+            if name in self.unidentifiable:
+                out[name] = ("no effect on the measurements over this pose set (zero column of the "
+                             "identification Jacobian: e.g. a joint that never moves, or too few distinct poses)")
+                continue
+            absorbers = [self.names[b] for i, b in enumerate(self.base) if abs(self.combination_matrix[i, j]) > 1e-6]
+            if absorbers:
+                out[name] = (f"not separable from {', '.join(absorbers)} on this pose set (rank {self.rank} of {m}); "
+                             f"held at 0, its effect is absorbed by their estimates")
+            else:
+                out[name] = f"linearly dependent on the base set (rank {self.rank} of {m}); held at 0"
+        return out
+
     def report(self) -> str:
         """Multi-line, human-readable summary."""
         m = len(self.names)

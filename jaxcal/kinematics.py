@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .errors import DataError
 from .lie import compose
 from .robot import Robot
 
@@ -54,7 +55,14 @@ LINKS = {"sdh": sdh_link, "mdh": mdh_link}
 def joint_dh(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4"]:
     """DH values of every link at joint values ``q``: the joint variable is added to theta
     (revolute) or d (prismatic)."""
+    if isinstance(q, np.ndarray) and q.dtype.kind not in "biuf":
+        raise DataError(f"q: expected real numbers, got dtype {q.dtype}")
     q = jnp.asarray(q)
+    if q.ndim < 1 or q.shape[-1] != robot.n_joints:
+        raise DataError(f"q must have shape (..., {robot.n_joints}) (one value per joint of {robot.name!r}), "
+                        f"got {q.shape}")
+    if not jnp.issubdtype(q.dtype, jnp.floating) and not jnp.issubdtype(q.dtype, jnp.integer):
+        raise DataError(f"q: expected real numbers, got dtype {q.dtype}")
     rev = robot.revolute_mask
     add = jnp.stack([q * rev, q * (1.0 - rev), jnp.zeros_like(q), jnp.zeros_like(q)], -1)
     return robot.dh + add

@@ -213,6 +213,34 @@ def _unit_warnings(q, pos, robot, lu_name, lu, au_name, rows, src):
                           f"did you mean angle_unit='deg' (--angle-unit deg)?", UnitWarning, stacklevel=3)
 
 
+def _mixed_units(q, pos, robot, rows, src):
+    """Raise `DataError` when some rows are in another unit than the rest: a few positions
+    ~1000x closer to / farther from the measurement origin than the median row (metres among
+    millimetres or the reverse), or a minority of rows with revolute joint values beyond both
+    2*pi and the joint limits (degrees among radians)."""
+    r = np.linalg.norm(pos, axis=1)
+    med = float(np.median(r))
+    if len(r) >= 3 and med > 0:
+        odd = np.flatnonzero((r * 100 < med) | (r > 100 * med))
+        if 0 < odd.size < len(r) / 2:
+            k = odd[0]
+            raise DataError(f"{src}: mixed length units? row {rows[k]}: position norm {r[k]:.4g} mm vs a median "
+                            f"of {med:.4g} mm over all rows ({odd.size} such row(s): "
+                            f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit")
+    revolute = np.array([t == "R" for t in robot.joint_types])
+    if revolute.any() and len(q) >= 3:
+        lim = np.abs(np.asarray(robot.q_limits)).max(axis=1)
+        bound = np.maximum(2 * math.pi, lim) * 1.05
+        over = (np.abs(q) > bound) & revolute
+        odd = np.flatnonzero(over.any(axis=1))
+        if 0 < odd.size < len(q) / 2:
+            k = odd[0]
+            j = int(np.flatnonzero(over[k])[0])
+            raise DataError(f"{src}: mixed angle units? row {rows[k]}, column 'q{j + 1}': {q[k, j]:.6g} rad is beyond "
+                            f"2*pi and the joint limits while most rows are not ({odd.size} such row(s): "
+                            f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit")
+
+
 def read_measurements(path, robot, *, length_unit=None, angle_unit=None) -> Measurements:
     """Read a measurement CSV (see the module docstring) for `robot`; returns mm and rad.
 
@@ -247,6 +275,7 @@ def read_measurements(path, robot, *, length_unit=None, angle_unit=None) -> Meas
                             f"{norm[k]:.6g}, not 1 (tolerance {QUAT_NORM_TOL:g}); {bad.size} such row(s)")
         quat = quat / norm[:, None]
         poses[:, :3, :3] = Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_matrix()
+    _mixed_units(q, pos, robot, rows, src)
     _unit_warnings(q, pos, robot, lu_name, lu, au_name, rows, src)
     return Measurements(q=q, poses=poses, position_only=position_only, source=path.name, rows=rows)
 

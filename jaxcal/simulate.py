@@ -15,7 +15,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ._config import as_f64
 from .error_model import n_params, perturb
+from .errors import DataError
 from .kinematics import fk
 from .lie import so3_exp_matrix
 from .robot import Robot
@@ -79,22 +81,48 @@ def simulate(robot: Robot, *, n_robots: int = 1, n_poses: int = 50, n_val: int =
     ``(R, m)``; ``sigma_pos`` (mm) and ``sigma_rot`` (rad) the measurement noise; ``q`` /
     ``q_val`` give the calibration / inspection poses instead of drawing them, shape ``(K, n)``
     (shared by all robots) or ``(R, K, n)`` (then ``n_poses`` / ``n_val`` are ignored).
+
+    **Raises** :class:`jaxcal.DataError` for bad counts, negative or non-finite noise, wrong
+    shapes and non-finite values, naming the argument.
     """
+    if not isinstance(robot, Robot):
+        raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}")
+    for name, v, lo in (("n_robots", n_robots, 1), ("n_poses", n_poses, 1), ("n_val", n_val, 0), ("seed", seed, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise DataError(f"{name} must be an integer >= {lo}, got {v!r}")
+    for name, v in (("sigma_pos", sigma_pos), ("sigma_rot", sigma_rot)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v) \
+                or v < 0:
+            raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
     m = n_params(robot, base=base, tool=tool)
     k_err, k_q, k_noise, k_val = jax.random.split(jax.random.PRNGKey(seed), 4)
     if x_true is None:
         s = error_scales(robot, base=base, tool=tool) if scales is None else np.asarray(scales, float)
-        if s.shape != (m,):
-            raise ValueError(f"scales must have {m} entries, got {s.shape}")
+        if s.shape != (m,) or not np.all(np.isfinite(s)) or np.any(s < 0):
+            raise DataError(f"scales must be {m} finite numbers >= 0, got shape {s.shape}")
         x_true = jax.random.normal(k_err, (n_robots, m), dtype=jnp.float64) * s
-    x_true = jnp.broadcast_to(jnp.asarray(x_true, jnp.float64), (n_robots, m))
+    x_true = as_f64(x_true, "x_true")
+    if x_true.shape not in ((m,), (n_robots, m)) or not bool(jnp.all(jnp.isfinite(x_true))):
+        raise DataError(f"x_true must be finite with shape ({m},) or ({n_robots}, {m}), got {x_true.shape}")
+    x_true = jnp.broadcast_to(x_true, (n_robots, m))
+    for name, a in (("q", q), ("q_val", q_val)):
+        if a is None:
+            continue
+        a = np.asarray(as_f64(a, name))
+        if a.ndim not in (2, 3) or a.shape[-1] != robot.n_joints or (a.ndim == 3 and a.shape[0] != n_robots):
+            raise DataError(f"{name} must have shape (K, {robot.n_joints}) or ({n_robots}, K, {robot.n_joints}), "
+                            f"got {a.shape}")
+        if name == "q" and a.shape[-2] < 1:
+            raise DataError("q must hold at least one pose")
+        if not np.all(np.isfinite(a)):
+            raise DataError(f"{name}: non-finite value at index {tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])}")
     n = robot.n_joints
     q = sample_poses(k_q, robot, (n_robots, n_poses)) if q is None else \
         jnp.broadcast_to(jnp.asarray(q, jnp.float64), (n_robots,) + np.shape(q)[-2:])
     q_val = sample_poses(k_val, robot, (n_robots, n_val)) if q_val is None else \
         jnp.broadcast_to(jnp.asarray(q_val, jnp.float64), (n_robots,) + np.shape(q_val)[-2:])
     if q.shape[-1] != n or q_val.shape[-1] != n:
-        raise ValueError(f"q and q_val must have {n} joint columns")
+        raise DataError(f"q and q_val must have {n} joint columns")
     keys = jax.random.split(k_noise, n_robots)
 
     @jax.jit

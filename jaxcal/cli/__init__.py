@@ -20,5 +20,8 @@ def main():
     try:
         app()
     except JaxcalError as e:
-        err_console.print(f"[red]error:[/red] {e}", highlight=False)
+        # soft_wrap: one line however long (rich would wrap at the terminal width); markup off so
+        # that brackets in the message ([tool].xyz, measured[3]) are printed as they are
+        err_console.print("[red]error:[/red] ", end="", highlight=False)
+        err_console.print(str(e), highlight=False, markup=False, soft_wrap=True)
         raise SystemExit(2)

@@ -28,11 +28,18 @@ def montecarlo(
     json_out: Path = typer.Option(None, "--json", help="write the summary as JSON"),
 ):
     """Calibrate N simulated robots at once; report speed, accuracy vs truth and vs the CRLB."""
+    from ..calibrate import ELIMINATION_METHODS, METHODS
+    from ..errors import DataError
     from ..experiments.montecarlo import run_montecarlo
 
     r = load_robot_arg(robot)
-    if robots < 1 or poses < 1:
-        raise typer.BadParameter("--robots and --poses must be >= 1")
+    if robots < 1 or poses < 1 or val_poses < 1 or repeats < 1:
+        raise DataError(f"--robots, --poses, --val-poses and --repeats must be >= 1, got {robots}, {poses}, "
+                        f"{val_poses}, {repeats}")
+    if method not in METHODS + ELIMINATION_METHODS:
+        raise DataError(f"--method must be one of {', '.join(METHODS + ELIMINATION_METHODS)}, got {method!r}")
+    if not (noise_mm >= 0 and noise_rad >= 0):
+        raise DataError(f"--noise-mm and --noise-rad must be >= 0, got {noise_mm}, {noise_rad}")
     with console.status("starting") as status:
         out = run_montecarlo(r, n_robots=robots, n_poses=poses, n_val=val_poses, sigma_pos=noise_mm,
                              sigma_rot=noise_rad, method=method, seed=seed, position_only=position_only,

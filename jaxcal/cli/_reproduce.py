@@ -24,8 +24,12 @@ def reproduce(
     """Reproduce the paper's simulation experiment on its Table 1 arm (Table 2, Figs. 3-6)."""
     from ..experiments.reproduce import METHODS, run_reproduce
 
-    if noise_mm < 0 or noise_rad < 0:
-        raise typer.BadParameter("noise sigmas must be >= 0")
+    from ..errors import DataError
+
+    if not (noise_mm >= 0 and noise_rad >= 0):
+        raise DataError(f"--noise-mm and --noise-rad must be >= 0, got {noise_mm}, {noise_rad}")
+    if pairs < 1 or inspect < 1 or repeats < 1:
+        raise DataError(f"--pairs, --inspect and --repeats must be >= 1, got {pairs}, {inspect}, {repeats}")
     with console.status("starting") as status:
         s = run_reproduce(out, seed=seed, sigma_pos=noise_mm, sigma_rot=noise_rad, n_pairs=pairs,
                           n_inspect=inspect, repeats=repeats, progress=lambda m: status.update(m))

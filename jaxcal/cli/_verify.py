@@ -12,8 +12,13 @@ from ._app import app, console, load_robot_arg
 def verify(points: int = typer.Option(2000, help="random parameter points per check"),
            seed: int = typer.Option(0)):
     """Check every analytic matrix of the paper (eq. 3-10) against jax.jacfwd."""
+    from ..errors import DataError
     from ..verify import check_all
 
+    if points < 40:
+        raise DataError(f"--points must be >= 40 (the fixed special-angle points come first), got {points}")
+    if seed < 0:
+        raise DataError(f"--seed must be >= 0, got {seed}")
     rows = check_all(points, seed)
     table = Table(title="analytic vs jax.jacfwd (float64)")
     for col in ("matrix", "max |error|", "tolerance", "ok"):

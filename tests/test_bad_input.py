@@ -1,0 +1,353 @@
+"""Bad input never passes silently (issue 8): every public entry point (Python API and CLI)
+raises a typed jaxcal error whose message names the offending row / column / parameter; the
+CLI prints it as one line without a traceback and exits non-zero.
+
+Each case is one row of a table (name -> call, expected error type, message pattern), so the
+list doubles as the record of what was tried."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import jaxcal
+from jaxcal import DataError, RobotFileError
+from jaxcal.calibrate import calibrate, calibrate_batch, identify
+from jaxcal.compensate import compensate
+from jaxcal.error_model import identification_jacobian, perturb
+from jaxcal.measurements import read_measurements, write_measurements
+from jaxcal.robot_io import load_robot
+from jaxcal.simulate import simulate
+
+ROBOT = jaxcal.preset("paper-6r")
+SIM = simulate(ROBOT, n_robots=2, n_poses=20, seed=0, sigma_pos=0.01, sigma_rot=1e-5)
+Q, M = SIM.q[0], SIM.measured[0]
+
+
+def _with(a, idx, value):
+    b = np.array(a, copy=True)
+    b[idx] = value
+    return b
+
+
+def _scaled_pos(m, s):
+    b = np.array(m, copy=True)
+    b[..., :3, 3] *= s
+    return b
+
+
+# -- Python API ------------------------------------------------------------------------------
+PY = {
+    # Robot(...)
+    "Robot dh wrong shape": (lambda: jaxcal.Robot(np.zeros((6, 3))), RobotFileError, r"shape \(n_joints, 4\)"),
+    "Robot dh 3-D": (lambda: jaxcal.Robot(np.zeros((1, 6, 4))), RobotFileError, r"got \(1, 6, 4\)"),
+    "Robot no joints": (lambda: jaxcal.Robot(np.zeros((0, 4))), RobotFileError, "at least one joint"),
+    "Robot dh nan": (lambda: jaxcal.Robot(_with(np.zeros((3, 4)), (2, 1), np.nan)), RobotFileError,
+                     "joint 3: d is not finite"),
+    "Robot dh strings": (lambda: jaxcal.Robot(np.array([["a"] * 4])), DataError, "dh: expected real numbers"),
+    "Robot dh complex": (lambda: jaxcal.Robot(np.zeros((2, 4), complex)), DataError, "complex"),
+    "Robot convention": (lambda: jaxcal.Robot(np.zeros((2, 4)), convention="dh"), RobotFileError, "convention"),
+    "Robot joint types count": (lambda: jaxcal.Robot(np.zeros((2, 4)), joint_types=("R", "R", "P")),
+                                RobotFileError, "3 joint types for 2 joints"),
+    "Robot joint type X": (lambda: jaxcal.Robot(np.zeros((2, 4)), joint_types=("R", "X")), RobotFileError,
+                           "joint 2: type"),
+    "Robot base 3x3": (lambda: jaxcal.Robot(np.zeros((2, 4)), base=np.eye(3)), RobotFileError, "base must be a 4x4"),
+    "Robot tool not rigid": (lambda: jaxcal.Robot(np.zeros((2, 4)), tool=2 * np.eye(4)), RobotFileError,
+                             "tool is not a rigid"),
+    "Robot tool nan": (lambda: jaxcal.Robot(np.zeros((2, 4)), tool=np.full((4, 4), np.nan)), RobotFileError,
+                       "tool transform has non-finite"),
+    "Robot limits shape": (lambda: jaxcal.Robot(np.zeros((2, 4)), q_limits=np.zeros((3, 2))), RobotFileError,
+                           r"q_limits must have shape \(2, 2\)"),
+    "Robot limits inverted": (lambda: jaxcal.Robot(np.zeros((2, 4)), q_limits=[[0, 1], [1, 0]]), RobotFileError,
+                              "joint 2: lower limit"),
+    # fk / identification Jacobian / perturb
+    "fk q one value": (lambda: jaxcal.fk(ROBOT, np.zeros(1)), DataError, r"q must have shape \(\.\.\., 6\).*got \(1,\)"),
+    "fk q 5 joints": (lambda: jaxcal.fk(ROBOT, np.zeros((4, 5))), DataError, r"got \(4, 5\)"),
+    "fk q scalar": (lambda: jaxcal.fk(ROBOT, 0.0), DataError, r"got \(\)"),
+    "fk q strings": (lambda: jaxcal.fk(ROBOT, np.array(["a"] * 6)), DataError, "expected real numbers"),
+    "jacobian q 7 joints": (lambda: identification_jacobian(ROBOT, np.zeros((3, 7))), DataError, r"got \(3, 7\)"),
+    "perturb x too long": (lambda: perturb(ROBOT, np.zeros(30)), DataError, r"x must have shape \(24,\)"),
+    "perturb x base missing": (lambda: perturb(ROBOT, np.zeros(24), base=True), DataError,
+                               r"\(30,\) = 6 joints x 4 DH errors \+ 6 base"),
+    # calibrate
+    "calibrate q 5 joints": (lambda: calibrate(ROBOT, Q[:, :5], M), DataError, "n = 6 joints"),
+    "calibrate measured count": (lambda: calibrate(ROBOT, Q, M[:-1]), DataError, r"measured must have shape \(20, 4, 4\)"),
+    "calibrate q nan": (lambda: calibrate(ROBOT, _with(Q, (4, 2), np.nan), M), DataError,
+                        r"q: non-finite value at index \(4, 2\)"),
+    "calibrate measured inf": (lambda: calibrate(ROBOT, Q, _with(M, (7, 1, 3), np.inf)), DataError,
+                               r"measured: non-finite value at index \(7, 1, 3\)"),
+    "calibrate q complex": (lambda: calibrate(ROBOT, Q.astype(complex), M), DataError, "complex"),
+    "calibrate q 1-D": (lambda: calibrate(ROBOT, Q[0], M[0]), DataError, r"q must have shape \(K, n\)"),
+    "calibrate no poses": (lambda: calibrate(ROBOT, Q[:0], M[:0]), DataError, "too few poses: 0 poses"),
+    "calibrate too few poses": (lambda: calibrate(ROBOT, Q[:3], M[:3]), DataError, "3 poses x 6 rows = 18"),
+    "calibrate rotation not rigid": (lambda: calibrate(ROBOT, Q, _with(M, (3, 0, 0), 2.0)), DataError,
+                                     r"measured\[3\]: rotation is not a proper rotation"),
+    "calibrate bottom row": (lambda: calibrate(ROBOT, Q, _with(M, (5, 3, 0), 1.0)), DataError,
+                             r"measured\[5\]: bottom row"),
+    "calibrate metres as mm": (lambda: calibrate(ROBOT, Q, _scaled_pos(M, 1e-3)), DataError,
+                               r"positions spread .* \(were they given in metres\?\)"),
+    "calibrate method": (lambda: calibrate(ROBOT, Q, M, method="newton"), DataError, "method must be one of"),
+    "calibrate sigma nan": (lambda: calibrate(ROBOT, Q, M, sigma_pos_mm=float("nan")), DataError, "sigma_pos_mm"),
+    "calibrate sigma negative": (lambda: calibrate(ROBOT, Q, M, sigma_rot_rad=-1e-3), DataError, "sigma_rot_rad"),
+    "calibrate max_steps 0": (lambda: calibrate(ROBOT, Q, M, max_steps=0), DataError, "max_steps"),
+    "calibrate loss unknown": (lambda: calibrate(ROBOT, Q, M, loss="tukey"), DataError, "loss must be one of"),
+    "calibrate loss with linear": (lambda: calibrate(ROBOT, Q, M, method="linear", loss="huber"), DataError,
+                                   "needs method 'gn' or 'lm'"),
+    "calibrate loss_scale 0": (lambda: calibrate(ROBOT, Q, M, loss="huber", loss_scale=0.0), DataError,
+                               "loss_scale"),
+    "calibrate robot not Robot": (lambda: calibrate("paper-6r", Q, M), DataError, "robot must be a jaxcal.Robot"),
+    # calibrate_batch
+    "batch unbatched q": (lambda: calibrate_batch(ROBOT, Q, M), DataError, r"\(R, K, n\)"),
+    "batch q nan": (lambda: calibrate_batch(ROBOT, _with(SIM.q, (1, 3, 0), np.nan), SIM.measured), DataError,
+                    r"q: non-finite value at index \(1, 3, 0\)"),
+    "batch too few poses": (lambda: calibrate_batch(ROBOT, SIM.q[:, :2], SIM.measured[:, :2]), DataError,
+                            "too few poses: 2 poses"),
+    "batch metres in one data set": (lambda: calibrate_batch(ROBOT, SIM.q, np.stack([SIM.measured[0],
+                                                                                    _scaled_pos(SIM.measured[1], 1e-3)])),
+                                     DataError, r"measured \(data set 1\)"),
+    "batch ident of other options": (lambda: calibrate_batch(ROBOT, SIM.q, SIM.measured, estimate_base=True,
+                                                             ident=identify(ROBOT, Q)),
+                                     DataError, "ident is for"),
+    # simulate
+    "simulate n_poses 0": (lambda: simulate(ROBOT, n_poses=0), DataError, "n_poses must be an integer >= 1"),
+    "simulate n_robots 0": (lambda: simulate(ROBOT, n_robots=0), DataError, "n_robots"),
+    "simulate sigma nan": (lambda: simulate(ROBOT, sigma_pos=float("nan")), DataError, "sigma_pos"),
+    "simulate sigma negative": (lambda: simulate(ROBOT, sigma_rot=-1.0), DataError, "sigma_rot"),
+    "simulate x_true shape": (lambda: simulate(ROBOT, x_true=np.zeros(5)), DataError, r"x_true .* got \(5,\)"),
+    "simulate q nan": (lambda: simulate(ROBOT, q=np.full((5, 6), np.nan)), DataError, r"q: non-finite value at index \(0, 0\)"),
+    "simulate q 5 joints": (lambda: simulate(ROBOT, q=np.zeros((5, 5))), DataError, r"q must have shape \(K, 6\)"),
+    "simulate scales shape": (lambda: simulate(ROBOT, scales=np.ones(3)), DataError, "scales must be 24"),
+    # compensate
+    "compensate targets nan": (lambda: compensate(ROBOT, _with(M[:2], (1, 0, 3), np.nan), Q[:2]), DataError,
+                               r"targets: non-finite value at index \(1, 0, 3\)"),
+    "compensate q_start nan": (lambda: compensate(ROBOT, M[:2], _with(Q[:2], (0, 4), np.inf)), DataError,
+                               r"q_start: non-finite value at index \(0, 4\)"),
+    "compensate q_start 5 joints": (lambda: compensate(ROBOT, M[:2], Q[:2, :5]), DataError, r"\(K, 6\)"),
+    "compensate targets not rigid": (lambda: compensate(ROBOT, _with(M[:2], (1, 0, 0), 3.0), Q[:2]), DataError,
+                                     r"targets\[1\]: rotation"),
+    "compensate damping negative": (lambda: compensate(ROBOT, M[:2], Q[:2], damping=-1.0), DataError, "damping"),
+}
+
+
+@pytest.mark.parametrize("case", list(PY))
+def test_python_api(case):
+    call, err, pattern = PY[case]
+    with pytest.raises(err, match=pattern):
+        call()
+
+
+# -- robot files (TOML) ----------------------------------------------------------------------
+GOOD_TOML = """name = "two"
+convention = "sdh"
+length_unit = "mm"
+angle_unit = "rad"
+[[joints]]
+theta = 0.0
+d = 100.0
+a = 200.0
+alpha = 1.5707963267948966
+[[joints]]
+theta = 0.1
+d = 0.0
+a = 300.0
+alpha = 0.0
+limits = [-2.0, 2.0]
+[tool]
+xyz = [0.0, 0.0, 50.0]
+rpy = [0.0, 0.0, 0.0]
+"""
+
+TOML = {
+    "unknown top-level key": ("colour = 'red'\n" + GOOD_TOML, "unknown top-level key(s) ['colour']"),
+    "unknown joint key": (GOOD_TOML.replace("a = 300.0", "a = 300.0\noffset = 1"), "joint 2: unknown key(s) ['offset']"),
+    "unknown tool key": (GOOD_TOML.replace("rpy = [0.0, 0.0, 0.0]", "rpy = [0.0, 0.0, 0.0]\nscale = 1"),
+                         "[tool]: unknown key(s) ['scale']"),
+    "missing field": (GOOD_TOML.replace("d = 100.0\n", ""), "joint 1: missing d"),
+    "missing all joints": ('name = "x"\n', "needs at least one [[joints]]"),
+    "wrong type string": (GOOD_TOML.replace("a = 300.0", "a = '300'"), "joint 2 a: expected a number"),
+    "wrong type bool": (GOOD_TOML.replace("d = 100.0", "d = true"), "joint 1 d: expected a number"),
+    "wrong type joints": (GOOD_TOML.split("[[joints]]")[0] + "joints = 'RR'\n", "needs at least one [[joints]]"),
+    "non-finite": (GOOD_TOML.replace("a = 200.0", "a = inf"), "joint 1 a: not finite"),
+    "bad joint type": (GOOD_TOML.replace("alpha = 0.0", "alpha = 0.0\ntype = 'S'"), "joint 2: type must be 'R' or 'P'"),
+    "limits wrong length": (GOOD_TOML.replace("limits = [-2.0, 2.0]", "limits = [-2.0, 0.0, 2.0]"),
+                            "joint 2: limits must be [lower, upper]"),
+    "limits inverted": (GOOD_TOML.replace("limits = [-2.0, 2.0]", "limits = [2.0, -2.0]"),
+                        "joint 2: lower limit is not below"),
+    "tool xyz wrong length": (GOOD_TOML.replace("xyz = [0.0, 0.0, 50.0]", "xyz = [0.0, 50.0]"), "[tool].xyz"),
+    "bad length unit": (GOOD_TOML.replace('length_unit = "mm"', 'length_unit = "inch"'), "length_unit"),
+    "bad convention": (GOOD_TOML.replace('convention = "sdh"', 'convention = "dh"'), "convention"),
+    "name not a string": (GOOD_TOML.replace('name = "two"', "name = 2"), "name must be a string"),
+    "not TOML": (GOOD_TOML.replace("[[joints]]", "[[joints]\n", 1), "not valid TOML"),
+    "empty file": ("", "needs at least one [[joints]]"),
+}
+
+
+def test_good_toml_loads(tmp_path):
+    p = tmp_path / "good.toml"
+    p.write_text(GOOD_TOML)
+    r = load_robot(p)
+    assert r.n_joints == 2 and r.joint_types == ("R", "R")
+
+
+@pytest.mark.parametrize("case", list(TOML))
+def test_robot_file(tmp_path, case):
+    text, msg = TOML[case]
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    with pytest.raises(RobotFileError) as e:
+        load_robot(p)
+    assert msg in str(e.value)
+
+
+def test_robot_file_joint_count_vs_data(tmp_path):
+    """A 2-joint robot file with 6-joint measurement data: the inconsistent joint count is named."""
+    p = tmp_path / "two.toml"
+    p.write_text(GOOD_TOML)
+    d = tmp_path / "six.csv"
+    write_measurements(d, Q, M)
+    with pytest.raises(DataError, match=r"robot has 2 joints, file has q1\.\.q6"):
+        read_measurements(d, load_robot(p))
+    with pytest.raises(DataError, match="n = 2 joints"):
+        calibrate(load_robot(p), Q, M)
+
+
+# -- measurement files -------------------------------------------------------------------------
+def _csv_lines():
+    """A good measurement file for ROBOT (mm, rad) as lines of text."""
+    buf = []
+    header = ",".join([f"q{j}" for j in range(1, 7)] + ["x", "y", "z"])
+    buf.append(header)
+    for qk, mk in zip(Q, M):
+        buf.append(",".join(repr(float(v)) for v in list(qk) + list(mk[:3, 3])))
+    return buf
+
+
+LINES = _csv_lines()
+
+
+def _mixed_m(lines):
+    out = list(lines)
+    vals = out[3].split(",")
+    out[3] = ",".join(vals[:6] + [repr(float(v) / 1000) for v in vals[6:]])  # data row 3 in metres
+    return out
+
+
+def _mixed_deg(lines):
+    out = list(lines)
+    vals = out[5].split(",")
+    out[5] = ",".join([repr(float(v) * 180 / np.pi) if i == 1 else v for i, v in enumerate(vals)])  # row 5: q2 deg
+    vals = out[5].split(",")
+    vals[1] = "100.0"  # well beyond 2*pi
+    out[5] = ",".join(vals)
+    return out
+
+
+CSV = {
+    "empty": ([], "file is empty"),
+    "blank lines only": (["", ""], "file is empty"),
+    "header only": (LINES[:1], "header only, no data rows"),
+    "duplicated column": ([LINES[0] + ",x"] + [r + ",1.0" for r in LINES[1:]], "duplicated column name 'x' (columns 7 and 10)"),
+    "unknown column": ([LINES[0] + ",temp"] + [r + ",1.0" for r in LINES[1:]], "unknown column(s) 'temp'"),
+    "missing column": ([LINES[0].replace(",z", "")] + [r.rsplit(",", 1)[0] for r in LINES[1:]], "missing column(s) 'z'"),
+    "7 joint columns": ([LINES[0].replace("q6", "q6,q7")] + [r.replace(",", ",0.0,", 1) for r in LINES[1:]],
+                        "robot has 6 joints, file has q1..q7"),
+    "not a number": (LINES[:4] + [LINES[4].replace(LINES[4].split(",")[7], "abc")] + LINES[5:],
+                     "row 4 (line 5), column 'y': not a number: 'abc'"),
+    "nan value": (LINES[:2] + [LINES[2].replace(LINES[2].split(",")[0], "nan", 1)] + LINES[3:],
+                  "row 2 (line 3), column 'q1': value 'nan' is not finite"),
+    "ragged row": (LINES[:3] + [LINES[3].rsplit(",", 1)[0]] + LINES[4:], "row 3 (line 4): 8 fields"),
+    "mixed units m among mm": (_mixed_m(LINES), "mixed length units? row 3"),
+    "mixed units deg among rad": (_mixed_deg(LINES), "mixed angle units? row 5, column 'q2'"),
+}
+
+
+@pytest.mark.parametrize("case", list(CSV))
+def test_measurement_file(tmp_path, case):
+    lines, msg = CSV[case]
+    p = tmp_path / "m.csv"
+    p.write_text("\n".join(lines) + ("\n" if lines else ""))
+    with pytest.raises(DataError) as e:
+        read_measurements(p, ROBOT)
+    assert msg in str(e.value)
+
+
+def test_good_file_reads(tmp_path):
+    p = tmp_path / "m.csv"
+    p.write_text("\n".join(LINES) + "\n")
+    meas = read_measurements(p, ROBOT)
+    np.testing.assert_array_equal(meas.q, Q)
+
+
+# -- command line ------------------------------------------------------------------------------
+def run_cli(monkeypatch, capsys, *args):
+    """`jaxcal ARGS` in-process through the real entry point `jaxcal.cli.main`."""
+    from jaxcal.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["jaxcal", *map(str, args)])
+    with pytest.raises(SystemExit) as e:
+        main()
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err
+
+
+def _files(tmp_path):
+    good_csv = tmp_path / "good.csv"
+    good_csv.write_text("\n".join(LINES) + "\n")
+    bad_toml = tmp_path / "bad.toml"
+    bad_toml.write_text(TOML["missing field"][0])
+    header_only = tmp_path / "header.csv"
+    header_only.write_text(LINES[0] + "\n")
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("\n".join(_mixed_m(LINES)) + "\n")
+    return dict(good=good_csv, bad_toml=bad_toml, header=header_only, mixed=mixed)
+
+
+CLI = {
+    "info bad robot file": (lambda f: ["info", f["bad_toml"]], "joint 1: missing d"),
+    "info missing robot file": (lambda f: ["info", "no-such-robot"], "robot file not found: no-such-robot"),
+    "verify --points 0": (lambda f: ["verify", "--points", "0"], "--points must be >= 40"),
+    "montecarlo --method bogus": (lambda f: ["montecarlo", "paper-6r", "--robots", "2", "--poses", "10", "--method",
+                                             "bogus"], "--method must be one of"),
+    "montecarlo --robots 0": (lambda f: ["montecarlo", "paper-6r", "--robots", "0"], "--robots, --poses"),
+    "montecarlo --val-poses 0": (lambda f: ["montecarlo", "paper-6r", "--val-poses", "0"], "--val-poses"),
+    "montecarlo --noise-mm -1": (lambda f: ["montecarlo", "paper-6r", "--noise-mm", "-1"], "--noise-mm and"),
+    "montecarlo bad robot": (lambda f: ["montecarlo", f["bad_toml"]], "joint 1: missing d"),
+    "reproduce --noise-mm -1": (lambda f: ["reproduce", "--noise-mm", "-1", "--out", f["good"].parent / "o"],
+                                "--noise-mm and --noise-rad must be >= 0"),
+    "reproduce --pairs 0": (lambda f: ["reproduce", "--pairs", "0", "--out", f["good"].parent / "o"], "--pairs"),
+    "calibrate header-only file": (lambda f: ["calibrate", "paper-6r", f["header"]], "header only, no data rows"),
+    "calibrate mixed units": (lambda f: ["calibrate", "paper-6r", f["mixed"]], "mixed length units?"),
+    "calibrate missing data": (lambda f: ["calibrate", "paper-6r", f["good"].parent / "none.csv"],
+                               "measurement file not found"),
+    "calibrate --method bogus": (lambda f: ["calibrate", "paper-6r", f["good"], "--method", "bogus"], "--method"),
+    "calibrate --folds 1": (lambda f: ["calibrate", "paper-6r", f["good"], "--folds", "1"], "--folds"),
+    "calibrate --length-unit inch": (lambda f: ["calibrate", "paper-6r", f["good"], "--length-unit", "inch"],
+                                     "length_unit must be one of"),
+    "compensate header-only targets": (lambda f: ["compensate", "paper-6r", f["header"]], "header only"),
+    "compensate bad robot": (lambda f: ["compensate", f["bad_toml"], f["good"]], "joint 1: missing d"),
+}
+
+
+@pytest.mark.parametrize("case", list(CLI))
+def test_cli_one_line_exit_2(tmp_path, monkeypatch, capsys, case):
+    args, msg = CLI[case]
+    code, out, err = run_cli(monkeypatch, capsys, *args(_files(tmp_path)))
+    assert code == 2, (code, out, err)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert msg in lines[0], err
+    assert "Traceback" not in err + out
+
+
+def test_cli_entry_point_subprocess(tmp_path):
+    """The installed `jaxcal` script itself: one line on stderr, exit code 2, no traceback."""
+    exe = Path(sys.executable).with_name("jaxcal")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from jaxcal.cli import main; main()"]
+    f = _files(tmp_path)
+    p = subprocess.run(cmd + ["calibrate", "paper-6r", str(f["header"])], capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 2
+    assert p.stderr.strip().count("\n") == 0 and "header only, no data rows" in p.stderr
+    assert "Traceback" not in p.stderr + p.stdout

@@ -1,0 +1,131 @@
+"""Degenerate designs (issue 8): all poses identical, joints that never move, rank-deficient
+designs. The result says which parameters could not be identified and why, and never returns
+NaN, for calibrate and calibrate_batch with gn, lm and linear."""
+
+import numpy as np
+import pytest
+
+import jaxcal
+from jaxcal.calibrate import calibrate, calibrate_batch
+from jaxcal.simulate import sample_poses, simulate
+
+ROBOT = jaxcal.preset("paper-6r")
+K = 12
+_rng = np.random.default_rng(11)
+_q = np.asarray(sample_poses(__import__("jax").random.PRNGKey(3), ROBOT, (K,)))
+
+
+def _identical():
+    return np.tile(_q[:1], (K, 1))
+
+
+def _joint6_still():
+    q = _q.copy()
+    q[:, 5] = 0.3
+    return q
+
+
+def _wrist_still():
+    q = _q.copy()
+    q[:, 3:] = 0.0
+    return q
+
+
+def _one_joint_moves():
+    q = np.tile(_q[:1], (K, 1))
+    q[:, 0] = np.linspace(-1, 1, K)
+    return q
+
+
+DESIGNS = {"identical poses": _identical, "joint 6 never moves": _joint6_still,
+           "wrist never moves": _wrist_still, "only joint 1 moves": _one_joint_moves}
+
+
+def _check_result(x, ident, converged=True):
+    assert np.all(np.isfinite(x))
+    assert np.all(x[..., list(ident.fixed)] == 0.0)
+    reasons = ident.reasons()
+    assert set(reasons) == set(ident.fixed_names) and len(reasons) > 0
+    assert all(isinstance(v, str) and v for v in reasons.values())
+
+
+@pytest.mark.parametrize("method", ["gn", "lm", "linear"])
+@pytest.mark.parametrize("design", list(DESIGNS))
+def test_calibrate_degenerate(design, method):
+    q = DESIGNS[design]()
+    sim = simulate(ROBOT, q=q, seed=2, sigma_pos=0.01, sigma_rot=1e-5)
+    res = calibrate(ROBOT, q, sim.measured[0], method=method)
+    ident = res.identifiability
+    assert ident.rank < 24
+    _check_result(res.x, ident)
+    assert res.not_identified() == ident.reasons()
+    # the fit is no worse than the nominal model on its own data
+    assert res.after["pos_rms_mm"] <= res.before["pos_rms_mm"] + 1e-9
+    assert np.all(np.isfinite(res.std_errors))
+
+
+@pytest.mark.parametrize("method", ["gn", "lm", "linear"])
+@pytest.mark.parametrize("design", list(DESIGNS))
+def test_calibrate_batch_degenerate(design, method):
+    q = DESIGNS[design]()
+    sim = simulate(ROBOT, n_robots=1, q=q, seed=2, sigma_pos=0.01, sigma_rot=1e-5)  # R=1: shares the compile
+    res = calibrate_batch(ROBOT, sim.q, sim.measured, method=method)
+    _check_result(res.x, res.identifiability)
+    assert not res.nonfinite.any()
+
+
+def test_identical_poses_rank_and_reasons():
+    """K identical full poses give 6 independent equations: rank 6, and the reasons say why."""
+    q = _identical()
+    sim = simulate(ROBOT, q=q, seed=2)
+    res = calibrate(ROBOT, q, sim.measured[0])
+    assert res.identifiability.rank == 6
+    why = res.not_identified()
+    assert len(why) == 18
+    assert all(("not separable" in v) or ("no effect" in v) or ("dependent" in v) for v in why.values())
+
+
+def test_joint_that_never_moves_names_its_offset():
+    """Joint 6 fixed: theta6 is not separable from the tool-side parameters; with the wrist
+    still, the reasons name combinations (rank 23 of 24 or lower)."""
+    res = calibrate(ROBOT, _wrist_still(), simulate(ROBOT, q=_wrist_still(), seed=2).measured[0])
+    why = res.not_identified()
+    assert any(k.endswith(("4", "5", "6")) for k in why)
+    assert all("rank" in v or "no effect" in v for v in why.values())
+
+
+def test_batch_data_set_with_its_own_degeneracy_never_nan():
+    """The base set comes from data set 0; data set 1 is degenerate (identical poses), so its
+    normal equations are singular on that base set. No NaN: reported and zeroed."""
+    q0 = _q
+    q1 = _identical()
+    sim = simulate(ROBOT, n_robots=2, q=np.stack([q0, q1]), seed=4)
+    for method in ("gn", "lm", "linear"):
+        res = calibrate_batch(ROBOT, sim.q, sim.measured, method=method)
+        assert np.all(np.isfinite(res.x)), method
+        if res.nonfinite[1]:
+            assert not res.converged[1] and np.all(res.x[1] == 0)
+        assert not res.nonfinite[0]
+
+
+def test_too_few_poses_says_how_many():
+    q = _q[:3]
+    sim = simulate(ROBOT, q=q, seed=2)
+    with pytest.raises(jaxcal.DataError, match=r"3 poses x 6 rows = 18 equations for 24 parameters"):
+        calibrate(ROBOT, q, sim.measured[0])
+    with pytest.raises(jaxcal.DataError, match="too few poses"):
+        calibrate_batch(ROBOT, sim.q, sim.measured)
+
+
+def test_divergence_is_a_result_code_not_nan():
+    """Absurd data (every measured pose from a wildly wrong robot): converged False or a finite
+    estimate, never NaN/inf; not converged within max_steps is reported."""
+    rng = np.random.default_rng(0)
+    sim = simulate(ROBOT, q=_q, seed=5, x_true=rng.normal(size=24) * np.tile([0.5, 30, 30, 0.5], 6))
+    for method in ("gn", "lm"):
+        try:
+            res = calibrate(ROBOT, _q, sim.measured[0], method=method, max_steps=3)
+        except jaxcal.DataError as e:  # non-finite solver output is refused, typed
+            assert "non-finite" in str(e)
+            continue
+        assert np.all(np.isfinite(res.x)) and not res.converged
