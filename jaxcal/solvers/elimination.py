@@ -43,6 +43,7 @@ from ..errors import DataError
 from ..identifiability import analyze
 from ..kinematics import fk
 from ..lie import inv_transform, skew, vee
+from . import _small_linalg as small
 from ..robot import Robot
 
 __all__ = ["Plan", "StepInfo", "calibrate_design_batch", "make_plan", "solve", "solve_batch", "step_conditions"]
@@ -164,8 +165,8 @@ def _pose_cov(p, sigma_pos, sigma_rot):
 
 
 def _whiten(cov, *arrs):
-    L = jnp.linalg.cholesky(jnp.where(jnp.isfinite(cov), cov, 1.0))
-    return [jax.scipy.linalg.solve_triangular(L, a, lower=True) for a in arrs]
+    L = small.cholesky(jnp.where(jnp.isfinite(cov), cov, 1.0))
+    return [small.solve_lower(L, a) for a in arrs]
 
 
 def _lstsq_scaled(A, b):
@@ -173,15 +174,12 @@ def _lstsq_scaled(A, b):
     construction, :func:`make_plan`). Non-finite input gives NaN (checked by the caller)."""
     bad = ~(jnp.all(jnp.isfinite(A)) & jnp.all(jnp.isfinite(b)))
     A, b = jnp.where(bad, 0.0, A), jnp.where(bad, 0.0, b)
-    s = jnp.linalg.norm(A, axis=0)
-    s = jnp.where(s > 0, s, 1.0)
-    Q, R = jnp.linalg.qr(A / s)
-    y = jax.scipy.linalg.solve_triangular(R, Q.T @ b, lower=False) / s
+    y = small.lstsq_normal(A, b)  # no LAPACK custom calls in the loop (see _small_linalg)
     return jnp.where(bad, jnp.nan, y)
 
 
 def _normal_solve(A, b):
-    return jnp.linalg.solve(A.T @ A, A.T @ b)
+    return jnp.linalg.solve(A.T @ A, A.T @ b)  # literal: one pass, no loop, a plain inverse
 
 
 def _sweep(model: Robot, q, measured, plan: Plan, literal: bool, sigma_pos, sigma_rot, stacked: bool = False):
