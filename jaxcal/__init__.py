@@ -5,7 +5,7 @@ Units inside jaxcal: millimetres and radians.
 """
 
 from . import _config  # noqa: F401  (enables float64 first)
-from . import derivatives, error_model, identifiability, kinematics, lie, measurements, presets, simulate
+from . import derivatives, design, error_model, identifiability, kinematics, lie, measurements, presets, simulate
 from .calibrate import BatchResult, CalibrationResult, calibrate, calibrate_batch
 from .errors import DataError, JaxcalError, PrecisionError, RobotFileError
 from .kinematics import fk, fk_frames, to_mdh, to_sdh

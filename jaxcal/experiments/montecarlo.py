@@ -53,8 +53,17 @@ def run_montecarlo(robot: Robot, *, n_robots: int = 1000, n_poses: int = 100, n_
     step = progress or (lambda s: None)
     noisy = sigma_pos > 0 or sigma_rot > 0
     step("simulating")
+    q = None
+    if method.startswith("elimination"):
+        # the elimination method needs its pair design; n_poses sets the pairs per step
+        from ..design import design_poses
+
+        n_pairs = max(1, (n_poses - 2) // (2 * (robot.n_joints - 1)))
+        q = design_poses(jax.random.fold_in(jax.random.PRNGKey(seed), 7), robot, n_pairs=n_pairs, n_abs=2,
+                         batch_shape=(n_robots,))
+        n_poses = int(q.shape[-2])
     sim = simulate(robot, n_robots=n_robots, n_poses=n_poses, n_val=n_val, seed=seed, sigma_pos=sigma_pos,
-                   sigma_rot=sigma_rot, base=estimate_base, tool=estimate_tool)
+                   sigma_rot=sigma_rot, base=estimate_base, tool=estimate_tool, q=q)
     ident = identify(robot, sim.q[0], position_only=position_only, estimate_base=estimate_base,
                      estimate_tool=estimate_tool)
     kw = dict(method=method, estimate_base=estimate_base, estimate_tool=estimate_tool, position_only=position_only,
