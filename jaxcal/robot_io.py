@@ -146,4 +146,6 @@ def robot_to_dict(robot: Robot) -> dict:
 
 def save_robot(robot: Robot, path) -> None:
     """Write a robot TOML file (mm, rad)."""
-    Path(path).write_text(tomli_w.dumps(robot_to_dict(robot)))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(tomli_w.dumps(robot_to_dict(robot)))

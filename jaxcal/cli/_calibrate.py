@@ -90,6 +90,7 @@ def calibrate(
         save_robot(res.robot, out_robot)
         console.print(f"calibrated robot written to {out_robot}")
     if json_out is not None:
+        Path(json_out).parent.mkdir(parents=True, exist_ok=True)
         Path(json_out).write_text(json.dumps(rep, indent=2))
         console.print(f"report written to {json_out}")
     if plots is not None:
@@ -142,6 +143,7 @@ def compensate(
         lines = [",".join(header)]
         for qk, ep, er, ok in zip(res.q / scale, res.pos_residual_mm, res.rot_residual_deg, res.converged):
             lines.append(",".join([repr(float(v)) for v in qk] + [repr(float(ep)), repr(float(er)), str(int(ok))]))
+        Path(out).parent.mkdir(parents=True, exist_ok=True)
         Path(out).write_text("\n".join(lines) + "\n")
         console.print(f"compensated commands written to {out}")
     if n_ok < len(res.q):
