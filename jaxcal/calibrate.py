@@ -100,6 +100,21 @@ def _check_options(method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_sc
         raise DataError(f"loss={loss!r} needs method 'gn' or 'lm' (iteratively reweighted), got {method!r}")
 
 
+def _prepare(robot, q, measured, *, batched, method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_scale,
+             position_only, estimate_base, estimate_tool):
+    """Validate options and data (shapes, finiteness, rigid poses, units, enough poses); return
+    ``(q, measured, m, rows)``: float64 arrays, the number of parameters, rows per pose."""
+    _check_options(method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_scale)
+    q, measured = _check_inputs(robot, q, measured, batched=batched, position_only=position_only)
+    _check_units(robot, q, measured, batched=batched)
+    m = n_params(robot, base=estimate_base, tool=estimate_tool)
+    rows = 3 if position_only else 6
+    k = q.shape[-2]
+    if k * rows < m:
+        raise DataError(f"too few poses: {k} poses x {rows} rows = {k * rows} equations for {m} parameters")
+    return q, measured, m, rows
+
+
 def _sigmas(position_only, sigma_pos_mm, sigma_rot_rad):
     """Row weights ``1/sigma``; None or 0 means the default (1 mm, 1 mrad)."""
     sp = 1.0 if sigma_pos_mm is None or sigma_pos_mm <= 0 else float(sigma_pos_mm)
@@ -252,14 +267,10 @@ def calibrate(robot: Robot, q, measured, *, method: str = "gn", estimate_base: b
     not rigid transforms, lengths apparently not in mm, too few poses, bad options) and when
     the solver produces non-finite parameters.
     """
-    _check_options(method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_scale)
-    q, measured = _check_inputs(robot, q, measured, batched=False, position_only=position_only)
-    _check_units(robot, q, measured, batched=False)
-    m = n_params(robot, base=estimate_base, tool=estimate_tool)
-    rows = 3 if position_only else 6
-    if q.shape[0] * rows < m:
-        raise DataError(f"too few poses: {q.shape[0]} poses x {rows} rows = {q.shape[0] * rows} equations "
-                        f"for {m} parameters")
+    q, measured, m, rows = _prepare(robot, q, measured, batched=False, method=method, sigma_pos_mm=sigma_pos_mm,
+                                    sigma_rot_rad=sigma_rot_rad, max_steps=max_steps, loss=loss,
+                                    loss_scale=loss_scale, position_only=position_only,
+                                    estimate_base=estimate_base, estimate_tool=estimate_tool)
     ident = identify(robot, q, position_only=position_only, estimate_base=estimate_base, estimate_tool=estimate_tool)
     sp, sr = _sigmas(position_only, sigma_pos_mm, sigma_rot_rad)
     if method in ELIMINATION_METHODS:
@@ -321,14 +332,10 @@ def calibrate_batch(robot: Robot, q, measured, *, method: str = "gn", estimate_b
     robots). The base set comes from the first data set unless ``ident`` is given. A data set
     whose solve gives non-finite values is reported (``nonfinite``, ``converged`` False) with
     ``x`` = 0, never NaN."""
-    _check_options(method, sigma_pos_mm, sigma_rot_rad, max_steps, loss, loss_scale)
-    q, measured = _check_inputs(robot, q, measured, batched=True, position_only=position_only)
-    _check_units(robot, q, measured, batched=True)
-    m = n_params(robot, base=estimate_base, tool=estimate_tool)
-    rows = 3 if position_only else 6
-    if q.shape[1] * rows < m:
-        raise DataError(f"too few poses: {q.shape[1]} poses x {rows} rows = {q.shape[1] * rows} equations "
-                        f"for {m} parameters")
+    q, measured, m, rows = _prepare(robot, q, measured, batched=True, method=method, sigma_pos_mm=sigma_pos_mm,
+                                    sigma_rot_rad=sigma_rot_rad, max_steps=max_steps, loss=loss,
+                                    loss_scale=loss_scale, position_only=position_only,
+                                    estimate_base=estimate_base, estimate_tool=estimate_tool)
     if ident is not None and tuple(ident.names) != tuple(param_names(robot, base=estimate_base, tool=estimate_tool)):
         raise DataError(f"ident is for parameters {ident.names[:3]}... ({len(ident.names)}), this calibration "
                         f"has {m}: pass the analysis of the same robot, base and tool options")

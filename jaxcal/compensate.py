@@ -28,7 +28,7 @@ from ._config import as_f64
 from .error_model import identification_jacobian, pose_error
 from .errors import DataError
 from .kinematics import fk
-from .measurements import (ANGLE_UNITS, LENGTH_UNITS, POSITION_COLUMNS, QUAT_COLUMNS, _JOINT_RE, _names,
+from .measurements import (ANGLE_UNITS, LENGTH_UNITS, POSITION_COLUMNS, QUAT_COLUMNS, _JOINT_RE, _names, check_column_names,
                            _parse_rows, _read_records, _unit)
 from .robot import Robot
 
@@ -142,15 +142,8 @@ def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Ta
         raise DataError(f"{src}: file is empty; expected a header with q1..q{robot.n_joints} and/or x, y, z")
     header = records[0][1]
     n = robot.n_joints
-    seen: dict[str, int] = {}
-    for i, name in enumerate(header):
-        if name in seen:
-            raise DataError(f"{src}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1})")
-        seen[name] = i
     expected = f"expected x, y, z [qw, qx, qy, qz] and/or q1..q{n}"
-    unknown = [c for c in header if c not in POSITION_COLUMNS + QUAT_COLUMNS and not _JOINT_RE.fullmatch(c)]
-    if unknown:
-        raise DataError(f"{src}: unknown column(s) {_names(unknown)}; {expected}")
+    seen = check_column_names(header, src, expected)
     joints = sorted(int(_JOINT_RE.fullmatch(c).group(1)) for c in header if _JOINT_RE.fullmatch(c))
     if joints and joints != list(range(1, n + 1)):
         raise DataError(f"{src}: joint columns {_names(f'q{j}' for j in joints)} do not match the robot's "

@@ -115,17 +115,24 @@ def _names(cols) -> str:
     return ", ".join(repr(c) for c in cols)
 
 
-def _check_header(header, n, src):
-    """Map column name -> index; raise DataError for duplicated, unknown or missing columns."""
+def check_column_names(header, src, expected) -> dict[str, int]:
+    """Map column name -> index; raise DataError for duplicated or unknown columns (``expected``
+    describes the allowed ones in the message). Shared by the measurement and target readers."""
     seen: dict[str, int] = {}
     for i, name in enumerate(header):
         if name in seen:
             raise DataError(f"{src}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1})")
         seen[name] = i
-    expected = f"expected q1..q{n}, x, y, z and optionally qw, qx, qy, qz"
     unknown = [c for c in header if c not in POSITION_COLUMNS + QUAT_COLUMNS and not _JOINT_RE.fullmatch(c)]
     if unknown:
         raise DataError(f"{src}: unknown column(s) {_names(unknown)}; {expected}")
+    return seen
+
+
+def _check_header(header, n, src):
+    """Map column name -> index; raise DataError for duplicated, unknown or missing columns."""
+    expected = f"expected q1..q{n}, x, y, z and optionally qw, qx, qy, qz"
+    seen = check_column_names(header, src, expected)
     joints = sorted(int(_JOINT_RE.fullmatch(c).group(1)) for c in header if _JOINT_RE.fullmatch(c))
     if joints != list(range(1, n + 1)):
         if joints and joints == list(range(1, len(joints) + 1)):
