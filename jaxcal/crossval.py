@@ -4,8 +4,8 @@ choice of parameter sets and ridge priors by K-fold cross-validation, and the fi
 ## Model
 ``T(x, q) = exp(xi_b) B0 · A_1(dh + dx_1) ... A_n(dh + dx_n) · X0 exp(xi_t)`` with
 ``x = [dx (4n), xi_b (6), xi_t (6)]`` (the layout of :func:`jaxcal.error_model.param_names`
-with base and tool), ``B0, X0`` from :func:`jaxcal.initial_guess.initial_frames`. The DH chain
-has the analytic JVP of :mod:`jaxcal.solvers._model`.
+with base and tool), ``B0, X0`` from :func:`jaxcal.initial_guess.initial_frames`. Fitted by
+:mod:`jaxcal.solvers.manifold` with the analytic identification Jacobian.
 
 ## Objective
 $\\min_y \\sum_{k \\in train} |W e_k(y)|^2 + \\sum_j (p_j y_j)^2$, ``e_k`` the pose error
@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -51,7 +50,6 @@ from .errors import DataError
 from .identifiability import Identifiability, analyze
 from .initial_guess import initial_frames
 from .kinematics import fk
-from .lie import se3_exp
 from .solvers.manifold import Problem, fit_batch
 from .robot import DH_NAMES, Robot
 

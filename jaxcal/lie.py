@@ -110,17 +110,12 @@ def compose(A: Float[Array, "*b 4 4"], B: Float[Array, "*b 4 4"]) -> Float[Array
     """``A @ B`` for rigid transforms (bottom rows ``0 0 0 1``), as broadcast multiply-adds.
 
     On CPU, XLA runs batched 4x4 ``matmul`` as many tiny GEMM calls; this elementwise form
-    fuses into one loop and was 2.6x faster for forward kinematics (benchmarks/).
+    fuses into one loop and was 2.6x faster for forward kinematics.
     """
     top = (A[..., :3, :3, None] * B[..., None, :3, :]).sum(-2)
     top = top.at[..., :, 3].add(A[..., :3, 3])
     bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0], top.dtype), top.shape[:-2] + (1, 4))
     return jnp.concatenate([top, bottom], -2)
-
-
-def matmul4(A: Float[Array, "*b 4 4"], B: Float[Array, "*b 4 4"]) -> Float[Array, "*b 4 4"]:
-    """General ``A @ B`` of 4x4 matrices as broadcast multiply-adds (see :func:`compose`)."""
-    return (A[..., :, :, None] * B[..., None, :, :]).sum(-2)
 
 
 def so3_right_jacobian_inv(phi: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:

@@ -11,7 +11,6 @@ import os
 import tempfile
 from pathlib import Path
 
-import numpy as np
 
 from jaxcal.experiments.reproduce import run_reproduce
 

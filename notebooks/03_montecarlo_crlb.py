@@ -16,7 +16,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-import numpy as np
 
 import jaxcal
 from jaxcal.experiments.montecarlo import run_montecarlo

@@ -25,3 +25,17 @@ def random_transform(rng, scale=100.0):
     T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
     T[:3, 3] = rng.normal(size=3) * scale
     return T
+
+
+def run_cli(monkeypatch, capsys, *args):
+    """`jaxcal ARGS` in-process through the real entry point `jaxcal.cli.main`; returns
+    (exit code, stdout, stderr)."""
+    import sys
+
+    from jaxcal.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["jaxcal", *map(str, args)])
+    with pytest.raises(SystemExit) as e:
+        main()
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err

@@ -281,15 +281,7 @@ def test_good_file_reads(tmp_path):
 
 
 # -- command line ------------------------------------------------------------------------------
-def run_cli(monkeypatch, capsys, *args):
-    """`jaxcal ARGS` in-process through the real entry point `jaxcal.cli.main`."""
-    from jaxcal.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["jaxcal", *map(str, args)])
-    with pytest.raises(SystemExit) as e:
-        main()
-    out = capsys.readouterr()
-    return e.value.code, out.out, out.err
+from conftest import run_cli  # noqa: E402
 
 
 def _files(tmp_path):

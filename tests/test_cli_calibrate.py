@@ -1,7 +1,6 @@
 """`jaxcal calibrate` / `jaxcal compensate` on the command line: bad input gives one clear line and
 exit code 2 (through the real entry point `jaxcal.cli.main`); compensation output."""
 
-import sys
 
 import numpy as np
 import pytest
@@ -12,16 +11,7 @@ from jaxcal.measurements import UnitWarning, write_measurements
 from jaxcal.robot_io import load_robot, save_robot
 from jaxcal.simulate import simulate
 
-
-def run_cli(monkeypatch, capsys, *args):
-    """Run `jaxcal ARGS` in-process through `jaxcal.cli.main`; returns (exit code, stdout, stderr)."""
-    from jaxcal.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["jaxcal", *map(str, args)])
-    with pytest.raises(SystemExit) as e:
-        main()
-    out = capsys.readouterr()
-    return e.value.code, out.out, out.err
+from conftest import run_cli  # noqa: E402
 
 
 @pytest.fixture(scope="module")

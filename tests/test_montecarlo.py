@@ -64,7 +64,6 @@ def test_cli_montecarlo_writes_json(tmp_path):
 def test_montecarlo_elimination_uses_its_pair_design():
     """--method elimination draws the pair design (n_poses sets the pairs per step) and
     recovers noise-free truths with zero error on the held parameter."""
-    from jaxcal.simulate import error_scales
 
     out = run_montecarlo(jaxcal.preset("paper-6r"), n_robots=4, n_poses=22, n_val=10, sigma_pos=0.0,
                          sigma_rot=0.0, method="elimination", seed=3, repeats=1)

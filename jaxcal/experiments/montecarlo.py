@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import statistics
 import time
-from contextlib import nullcontext
 
 import jax
 import jax.numpy as jnp

@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import jaxlie
 import numpy as np
 
-from ..design import Layout, check_design, infer_layout
+from ..design import Layout, infer_layout
 from ..error_model import param_names, perturb, twist_jacobian
 from ..errors import DataError
 from ..identifiability import analyze
