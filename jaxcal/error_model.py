@@ -22,11 +22,12 @@ Two error representations are provided:
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .derivatives import OMEGA_TWISTS, OMEGAS
-from .kinematics import fk, fk_frames, joint_dh
+from .kinematics import check_q, fk, fk_frames, joint_dh
 from .lie import adjoint, inv_transform, se3_exp, so3_log
 from .robot import DH_NAMES, Robot
 
@@ -68,6 +69,7 @@ def perturb(robot: Robot, x: Float[Array, "m"], *, base: bool = False, tool: boo
     return out
 
 
+@eqx.filter_jit
 def pose_error(T_a: Float[Array, "*b 4 4"], T_b: Float[Array, "*b 4 4"]) -> Float[Array, "*b 6"]:
     """Pose of ``T_a`` relative to ``T_b`` in the common (base) frame:
     ``[p_a - p_b, log(R_a R_b^T)]`` (mm, rad)."""
@@ -88,7 +90,12 @@ def error_twist_matrix(robot: Robot, q: Float[Array, "*b n"], delta: Float[Array
 def twist_jacobian(robot: Robot, q: Float[Array, "*b n"], *, base: bool = False,
                    tool: bool = False) -> Float[Array, "*b 6 m"]:
     """Analytic adjoint form of eq. (10): columns ``Ad(T_i) vee(Omega_k)`` (spatial twists
-    ``[v, w]`` of ``dT T^{-1}``), plus base and tool twist columns when asked."""
+    ``[v, w]`` of ``dT T^{-1}``), plus base and tool twist columns when asked. Jit-compiled."""
+    return _twist_jacobian(robot, check_q(robot, q), base=base, tool=tool)
+
+
+@eqx.filter_jit
+def _twist_jacobian(robot: Robot, q, *, base: bool, tool: bool):
     frames = fk_frames(robot, q)
     p = joint_dh(robot, q)
     local = OMEGA_TWISTS[robot.convention](p[..., 0], p[..., 1], p[..., 2], p[..., 3])  # (..., n, 4, 6)
@@ -119,7 +126,13 @@ def identification_jacobian(robot: Robot, q: Float[Array, "*b n"], *, position_o
 
     Rows: 3 position (mm) then 3 rotation (rad) per pose, in the base/measurement frame; only
     the 3 position rows with ``position_only=True``. Columns: see the module docstring.
+    Jit-compiled (per robot structure, ``q`` shape and options).
     """
+    return _identification_jacobian(robot, check_q(robot, q), position_only=position_only, base=base, tool=tool)
+
+
+@eqx.filter_jit
+def _identification_jacobian(robot: Robot, q, *, position_only: bool, base: bool, tool: bool):
     J = twist_jacobian(robot, q, base=base, tool=tool)
     p_end = fk(robot, q)[..., :3, 3]
     J = twist_to_pose_rows(J, p_end)

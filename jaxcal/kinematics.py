@@ -7,6 +7,7 @@ over a static, small ``n`` (unrolled by XLA); there is no loop over poses.
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -52,17 +53,23 @@ def mdh_link(theta, d, a, alpha) -> Float[Array, "*b 4 4"]:
 LINKS = {"sdh": sdh_link, "mdh": mdh_link}
 
 
-def joint_dh(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4"]:
-    """DH values of every link at joint values ``q``: the joint variable is added to theta
-    (revolute) or d (prismatic)."""
-    if isinstance(q, np.ndarray) and q.dtype.kind not in "biuf":
+def check_q(robot: Robot, q) -> Float[Array, "*b n"]:
+    """Validate joint values (real numbers, last axis one per joint) before they enter jit:
+    :class:`jaxcal.DataError` naming the problem otherwise. Tracers pass through unchanged."""
+    if not hasattr(q, "dtype"):
+        q = np.asarray(q)
+    if q.dtype.kind not in "biuf":
         raise DataError(f"q: expected real numbers, got dtype {q.dtype}")
-    q = jnp.asarray(q)
     if q.ndim < 1 or q.shape[-1] != robot.n_joints:
         raise DataError(f"q must have shape (..., {robot.n_joints}) (one value per joint of {robot.name!r}), "
                         f"got {q.shape}")
-    if not jnp.issubdtype(q.dtype, jnp.floating) and not jnp.issubdtype(q.dtype, jnp.integer):
-        raise DataError(f"q: expected real numbers, got dtype {q.dtype}")
+    return q
+
+
+def joint_dh(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4"]:
+    """DH values of every link at joint values ``q``: the joint variable is added to theta
+    (revolute) or d (prismatic)."""
+    q = jnp.asarray(check_q(robot, q))
     rev = robot.revolute_mask
     add = jnp.stack([q * rev, q * (1.0 - rev), jnp.zeros_like(q), jnp.zeros_like(q)], -1)
     return robot.dh + add
@@ -77,8 +84,14 @@ def link_transforms(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n
 def fk_frames(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4 4"]:
     """Frames ``T_i = base @ A_1 ... A_i`` for i = 1..n (the paper's T_i, with the base).
 
-    The tool transform is not included; see :func:`fk`.
+    The tool transform is not included; see :func:`fk`. Jit-compiled (per robot structure and
+    ``q`` shape).
     """
+    return _fk_frames(robot, check_q(robot, q))
+
+
+@eqx.filter_jit
+def _fk_frames(robot: Robot, q):
     A = link_transforms(robot, q)
     T = jnp.broadcast_to(robot.base, A.shape[:-3] + (4, 4))
     frames = []
@@ -89,8 +102,13 @@ def fk_frames(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4 4"]
 
 
 def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
-    """End pose ``base @ A_1 ... A_n @ tool`` (paper eq. 2 with base and tool)."""
-    return compose(fk_frames(robot, q)[..., -1, :, :], robot.tool)
+    """End pose ``base @ A_1 ... A_n @ tool`` (paper eq. 2 with base and tool). Jit-compiled."""
+    return _fk(robot, check_q(robot, q))
+
+
+@eqx.filter_jit
+def _fk(robot: Robot, q):
+    return compose(_fk_frames(robot, q)[..., -1, :, :], robot.tool)
 
 
 def _rx(alpha):

@@ -1,0 +1,229 @@
+"""The limit (issue 7.3): FLOPs per pose of FK and of the identification Jacobian against the
+measured throughput, as a fraction of this machine's float64 peak; and the levers tried.
+
+FLOPs per pose are counted two ways: by hand (the arithmetic the closed form needs, below) and
+by XLA's cost analysis of the compiled function. Peak: (a) measured float64 GEMM throughput
+(``numpy`` / OpenBLAS and ``jnp.dot``, 2000x2000, the best a BLAS reaches here); (b) the
+nominal ``cores x GHz x FLOP/cycle`` with FLOP/cycle from the CPU flags (AVX-512: 2 FMA
+pipes x 8 doubles x 2 = 32; AVX2: 16).
+
+Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform poses):
+* jaxcal as shipped: links unrolled in Python, fused elementwise rigid products;
+* ``lax.scan`` over the links instead of the unrolled loop;
+* batch-major ("structure of arrays") layout: every matrix entry a ``(K,)`` vector;
+* chunking: ``lax.map`` over blocks of poses so intermediates stay in cache;
+* autodiff ``jacfwd`` through FK instead of the closed-form Jacobian;
+* XLA CPU flags (each in a fresh process; ``--flags`` to choose).
+
+    python benchmarks/bench_roofline.py [--poses 100000] [--json docs/bench/roofline.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+HAND_NOTE = (
+    "hand count, n links: a link matrix 6 mul/add after sin/cos of theta (alpha constant: its "
+    "sin/cos fold); a rigid product A@B (3x3 rotation, translation) 27+18 (rotation) + 9+9 "
+    "(translation) = 63; FK = n+1 products (links + tool) + n links -> 63(n+1)+6n. Jacobian: "
+    "frames n products (63n) + per joint 4 columns, each R v + R w (2 x 15) + p x w (9) + the end "
+    "position lever w x p_end (9) and an add (3) = 51 -> 63n + 6n + 204n + FK end position (63)")
+
+
+def hand_flops(n: int) -> dict:
+    return {"FK": 63 * (n + 1) + 6 * n, "Jacobian": 63 * n + 6 * n + 204 * n + 63}
+
+
+def time_fn(fn, *args, repeats=7):
+    import jax
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn(*args))
+    first = time.perf_counter() - t0
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        runs.append(time.perf_counter() - t0)
+    return first, runs
+
+
+def xla_flops(fn, *args) -> float:
+    ca = fn.lower(*args).compile().cost_analysis()
+    ca = ca[0] if isinstance(ca, (list, tuple)) else ca
+    return float(ca.get("flops", float("nan")))
+
+
+def cpu_peak() -> dict:
+    import numpy as np
+    import jax.numpy as jnp
+    flags = open("/proc/cpuinfo").read()
+    mhz = [float(l.split(":")[1]) for l in flags.splitlines() if l.startswith("cpu MHz")]
+    per_cycle = 32 if " avx512f" in flags else 16 if " fma" in flags else 4
+    cores = os.cpu_count()
+    nominal = cores * (mhz[0] * 1e6 if mhz else float("nan")) * per_cycle
+    n = 2000
+    a = np.random.default_rng(0).standard_normal((n, n))
+    runs = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        a @ a
+        runs.append(time.perf_counter() - t0)
+    ja = jnp.asarray(a)
+    f, jruns = time_fn(lambda x: x @ x, ja, repeats=5)
+    return {"numpy_dgemm_flops": 2 * n ** 3 / min(runs), "jax_dgemm_flops": 2 * n ** 3 / min(jruns),
+            "nominal_flops": nominal, "ghz": mhz[0] / 1e3 if mhz else None, "flop_per_cycle_per_core": per_cycle,
+            "cores": cores}
+
+
+# -- the variants ------------------------------------------------------------------------------
+
+def variants(robot):
+    import jax
+    import jax.numpy as jnp
+    import jaxcal
+    from jaxcal.error_model import identification_jacobian, perturb, pose_error
+    from jaxcal.kinematics import LINKS, joint_dh
+    from jaxcal.lie import compose
+
+    def fk_scan(q):
+        A = LINKS[robot.convention](*jnp.moveaxis(joint_dh(robot, q), -1, 0))  # (K, n, 4, 4)
+        T0 = jnp.broadcast_to(robot.base, A.shape[:-3] + (4, 4))
+        T, _ = jax.lax.scan(lambda T, Ai: (compose(T, Ai), None), T0, jnp.moveaxis(A, -3, 0))
+        return compose(T, robot.tool)
+
+    def fk_soa(q):
+        """Batch-major: the 12 entries of the running transform as (K,) vectors."""
+        p = joint_dh(robot, q)  # (K, n, 4)
+        R = [[robot.base[i, j] * jnp.ones(q.shape[:-1]) for j in range(3)] for i in range(3)]
+        t = [robot.base[i, 3] * jnp.ones(q.shape[:-1]) for i in range(3)]
+        for i in range(robot.n_joints):
+            A = LINKS[robot.convention](p[..., i, 0], p[..., i, 1], p[..., i, 2], p[..., i, 3])
+            Ar = [[A[..., r, c] for c in range(4)] for r in range(3)]
+            t = [R[r][0] * Ar[0][3] + R[r][1] * Ar[1][3] + R[r][2] * Ar[2][3] + t[r] for r in range(3)]
+            R = [[R[r][0] * Ar[0][c] + R[r][1] * Ar[1][c] + R[r][2] * Ar[2][c] for c in range(3)] for r in range(3)]
+        tool = robot.tool
+        t = [R[r][0] * tool[0, 3] + R[r][1] * tool[1, 3] + R[r][2] * tool[2, 3] + t[r] for r in range(3)]
+        R = [[R[r][0] * tool[0, c] + R[r][1] * tool[1, c] + R[r][2] * tool[2, c] for c in range(3)] for r in range(3)]
+        top = jnp.stack([jnp.stack(R[r] + [t[r]], -1) for r in range(3)], -2)
+        bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0]), top.shape[:-2] + (1, 4))
+        return jnp.concatenate([top, bottom], -2)
+
+    def chunked(f, size):
+        def g(q):
+            K = q.shape[0]
+            pad = (-K) % size
+            qp = jnp.concatenate([q, jnp.zeros((pad, q.shape[1]))]) if pad else q
+            out = jax.lax.map(f, qp.reshape(-1, size, q.shape[1]))
+            return out.reshape((-1,) + out.shape[2:])[:K]
+        return g
+
+    jac = lambda q: identification_jacobian(robot, q)
+    m = 4 * robot.n_joints
+
+    def jac_jacfwd(q):
+        def err(x, qk):
+            return pose_error(jaxcal.fk(perturb(robot, x), qk), jaxcal.fk(robot, qk))
+        return jax.vmap(lambda qk: jax.jacfwd(err)(jnp.zeros(m), qk))(q)
+
+    fk = lambda q: jaxcal.fk(robot, q)
+    return {
+        "FK": {"jaxcal (unrolled, fused)": fk, "lax.scan over links": fk_scan, "batch-major (SoA)": fk_soa,
+               "chunked 1024 (lax.map)": chunked(fk, 1024), "chunked 8192 (lax.map)": chunked(fk, 8192)},
+        "Jacobian": {"jaxcal (closed form)": jac, "jacfwd through FK": jac_jacfwd,
+                     "chunked 1024 (lax.map)": chunked(jac, 1024), "chunked 8192 (lax.map)": chunked(jac, 8192)},
+    }
+
+
+def measure(poses: int, repeats: int, only_default=False) -> dict:
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+    import jaxcal
+    robot = jaxcal.preset("paper-6r")
+    Q = jnp.asarray(np.random.default_rng(0).uniform(-np.pi, np.pi, (poses, 6)))
+    ref = {"FK": np.asarray(jaxcal.fk(robot, Q[:100])),
+           "Jacobian": np.asarray(jaxcal.error_model.identification_jacobian(robot, Q[:100]))}
+    out = {}
+    for op, vs in variants(robot).items():
+        out[op] = {}
+        for name, f in vs.items():
+            if only_default and not name.startswith("jaxcal"):
+                continue
+            jf = jax.jit(f)
+            got = np.asarray(jf(Q[:100]))
+            assert np.allclose(got, ref[op], atol=1e-8), f"{op} {name} disagrees with jaxcal"
+            first, runs = time_fn(jf, Q, repeats=repeats)
+            med = statistics.median(runs)
+            out[op][name] = {"median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
+                             "poses_per_s": poses / med, "xla_flops_per_pose": xla_flops(jf, Q) / poses}
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--poses", type=int, default=100_000)
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--flags", nargs="*", default=[
+        "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
+        "--xla_cpu_enable_fast_math=true", "--xla_cpu_use_thunk_runtime=false"])
+    ap.add_argument("--json")
+    ap.add_argument("--_child", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args._child:
+        print(json.dumps(measure(args.poses, args.repeats, only_default=True)))
+        return
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from _util import machine
+    print("machine:", machine())
+    peak = cpu_peak()
+    print(f"float64 peak: nominal {peak['nominal_flops'] / 1e9:.1f} GFLOP/s ({peak['cores']} cores x "
+          f"{peak['ghz']:.2f} GHz x {peak['flop_per_cycle_per_core']} FLOP/cycle); measured dgemm numpy "
+          f"{peak['numpy_dgemm_flops'] / 1e9:.1f}, jax {peak['jax_dgemm_flops'] / 1e9:.1f} GFLOP/s")
+    hand = hand_flops(6)
+    print("FLOPs per pose by hand:", hand, "\n  (" + HAND_NOTE + ")")
+    res = measure(args.poses, args.repeats)
+    ref_peak = max(peak["numpy_dgemm_flops"], peak["jax_dgemm_flops"])
+    print(f"\n{args.poses} poses; fraction = hand FLOPs x poses/s / peak (measured dgemm | nominal)")
+    rows = []
+    for op, vs in res.items():
+        base = vs[next(iter(vs))]["median_s"]
+        for name, r in vs.items():
+            gf = hand[op] * r["poses_per_s"]
+            r.update(gflops_hand=gf / 1e9, frac_dgemm=gf / ref_peak, frac_nominal=gf / peak["nominal_flops"],
+                     speedup_vs_shipped=base / r["median_s"])
+            print(f"{op:9s} {name:26s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
+                  f"{r['max_s'] * 1e3:.2f}) {r['poses_per_s']:>11,.0f} poses/s  x{r['speedup_vs_shipped']:.2f}  "
+                  f"XLA {r['xla_flops_per_pose']:6.0f} FLOP/pose  {r['gflops_hand']:6.2f} GFLOP/s = "
+                  f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%}  compile {r['compile_s']:.2f} s")
+    flag_rows = {}
+    for flags in args.flags:
+        env = dict(os.environ, XLA_FLAGS=flags)
+        p = subprocess.run([sys.executable, __file__, "--_child", "--poses", str(args.poses), "--repeats",
+                            str(args.repeats)], env=env, capture_output=True, text=True)
+        if p.returncode != 0:
+            msg = (p.stderr.strip().splitlines() or ["?"])[-1][:160]
+            print(f"XLA_FLAGS={flags!r}: not accepted by this jaxlib ({msg})")
+            flag_rows[flags] = {"error": msg}
+            continue
+        r = json.loads(p.stdout.strip().splitlines()[-1])
+        flag_rows[flags] = r
+        for op, vs in r.items():
+            for name, x in vs.items():
+                ratio = res[op][name]["median_s"] / x["median_s"]
+                print(f"XLA_FLAGS={flags!r}: {op:9s} median {x['median_s'] * 1e3:8.2f} ms  x{ratio:.2f} vs default")
+    if args.json:
+        os.makedirs(os.path.dirname(args.json) or ".", exist_ok=True)
+        with open(args.json, "w") as f:
+            json.dump({"machine": machine(), "poses": args.poses, "peak": peak, "hand_flops_per_pose": hand,
+                       "hand_note": HAND_NOTE, "variants": res, "xla_flags": flag_rows}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
