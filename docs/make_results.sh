@@ -6,3 +6,5 @@ jaxcal reproduce --noise-mm 0.02 --noise-rad 2e-5 --out docs/reproduce/noisy
 jaxcal montecarlo paper-6r --robots 1000 --poses 100 --noise-mm 0.02 --noise-rad 2e-5 --json docs/montecarlo/gn_1000.json
 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m \
     --json docs/franka/report.json --out-robot docs/franka/panda-calibrated.toml --plots docs/franka
+jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-depth-scale \
+    --json docs/franka/report_depth_scale.json

@@ -172,6 +172,9 @@ class Setup:
     n_needed: int = 0
     """Parameters the candidates need on a generic pose set (rank)."""
     max_steps: int = 50
+    depth_scale: bool = False
+    """Estimate the camera depth scale (:func:`jaxcal.solvers.manifold.apply_depth_scale`) in
+    every candidate (not in the frames-only stage)."""
 
     @property
     def names(self) -> list[str]:
@@ -187,7 +190,7 @@ def _frame_cols(robot, position_only, estimate_base, estimate_tool):
 
 
 def make_setup(robot: Robot, q, measured, *, position_only: bool, candidates, estimate_base=True,
-               estimate_tool=True, method="gn", max_steps=50) -> Setup:
+               estimate_tool=True, method="gn", max_steps=50, depth_scale=False) -> Setup:
     """Identifiability over all poses (at the all-pose initial frames) and the free layout."""
     if method not in METHODS:
         raise DataError(f"--method must be one of {', '.join(METHODS)} for calibrate, got {method!r}")
@@ -228,7 +231,7 @@ def make_setup(robot: Robot, q, measured, *, position_only: bool, candidates, es
     free = tuple(free_dh) + tuple(free_frames)
     return Setup(robot=robot, q=q, measured=measured, position_only=position_only, estimate_base=estimate_base,
                  estimate_tool=estimate_tool, method=method, candidates=tuple(candidates), ident=ident, free=free,
-                 n_dh_free=len(free_dh), n_needed=n_need, max_steps=max_steps)
+                 n_dh_free=len(free_dh), n_needed=n_need, max_steps=max_steps, depth_scale=depth_scale)
 
 
 def _prior_vector(setup: Setup, cand: Candidate | None) -> np.ndarray:
@@ -249,7 +252,7 @@ def _prior_vector(setup: Setup, cand: Candidate | None) -> np.ndarray:
 
 def _problem(setup: Setup) -> Problem:
     return Problem(template=setup.robot, free=setup.free, n_dh_free=setup.n_dh_free,
-                    rows=3 if setup.position_only else 6)
+                    rows=3 if setup.position_only else 6, depth_scale=setup.depth_scale)
 
 
 def _sigmas(err, mask, position_only):
@@ -272,7 +275,8 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
 
     **Returns** a dict: ``frames`` (dict of the stage-A fit: ``delta, B, X, ok, steps, pred``,
     leading axis S), and the stage-B arrays with leading axes ``(S, C)``: ``delta (n, 4)``,
-    ``B``, ``X``, ``ok``, ``steps``, ``pred (K, 4, 4)``; ``sigmas (S, 2)``.
+    ``B``, ``X``, ``ok``, ``steps``, ``pred (K, 4, 4)``, ``depth_scale`` (0 unless estimated);
+    ``sigmas (S, 2)``.
     """
     train_masks = np.atleast_2d(np.asarray(train_masks, dtype=bool))
     S, K = train_masks.shape
@@ -289,22 +293,24 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
     mask = train_masks.astype(np.float64)
     q, meas = jnp.asarray(setup.q), jnp.asarray(setup.measured)
     w0 = _weights(np.tile([1.0, np.radians(1.0)], (S, 1)))
-    prior0 = np.tile(_prior_vector(setup, None), (S, 1))
+    ds = [PIN] if setup.depth_scale else []  # frames-only stage: depth scale held at 0
+    prior0 = np.tile(np.r_[_prior_vector(setup, None), ds], (S, 1))
     fit_a = _fitter(setup, "lm" if setup.method == "linear" else setup.method)
-    (da, Ba, Xa), oka, sta, Ta = fit_a(jnp.zeros((S, n, 4)), jnp.asarray(B0), jnp.asarray(X0), q, meas,
+    (da, Ba, Xa, _), oka, sta, Ta = fit_a(jnp.zeros((S, n, 4)), jnp.asarray(B0), jnp.asarray(X0), q, meas,
                                        jnp.asarray(mask), jnp.asarray(w0), jnp.asarray(prior0))
     ea = np.asarray(pose_error(meas[None], Ta))
     sig = np.array([_sigmas(ea[s], mask[s], setup.position_only) for s in range(S)])
     rep = lambda a: np.repeat(np.asarray(a)[:, None], C, axis=1).reshape((S * C,) + np.shape(a)[1:])
-    prior = np.tile(np.stack([_prior_vector(setup, c) for c in candidates]), (S, 1))
-    (d, B, X), ok, st, T = _fitter(setup, setup.method)(
+    ds = [0.0] if setup.depth_scale else []  # candidates: depth scale free
+    prior = np.tile(np.stack([np.r_[_prior_vector(setup, c), ds] for c in candidates]), (S, 1))
+    (d, B, X, dsc), ok, st, T = _fitter(setup, setup.method)(
         jnp.asarray(rep(da)), jnp.asarray(rep(Ba)), jnp.asarray(rep(Xa)), q, meas, jnp.asarray(rep(mask)),
         jnp.asarray(rep(_weights(sig))), jnp.asarray(prior))
     sh = lambda a: np.asarray(a).reshape((S, C) + np.shape(a)[1:])
     return {"frames": {"delta": np.asarray(da), "B": np.asarray(Ba), "X": np.asarray(Xa), "ok": np.asarray(oka),
                        "steps": np.asarray(sta), "pred": np.asarray(Ta)},
             "delta": sh(d), "B": sh(B), "X": sh(X), "ok": sh(ok), "steps": sh(st), "pred": sh(T),
-            "B_init": B0, "X_init": X0, "sigmas": sig}
+            "B_init": B0, "X_init": X0, "sigmas": sig, "depth_scale": sh(dsc)}
 
 
 # -- the whole procedure -----------------------------------------------------------------------
@@ -353,7 +359,7 @@ def _twist_log(T):
 def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, method: str = "gn",
                            params: str = "auto", ridge_mm: float | None = None, estimate_base: bool = True,
                            estimate_tool: bool = True, folds: int = 5, seed: int = 0,
-                           rows=None) -> DataCalibration:
+                           rows=None, depth_scale: bool = False) -> DataCalibration:
     """Calibrate from measured poses with K-fold (and nested) cross-validation.
 
     **Arguments**: ``q`` ``(K, n)`` rad; ``measured`` ``(K, 4, 4)`` mm; ``params`` see
@@ -363,14 +369,23 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
     ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_rot_rms_deg`` (nested CV),
     ``frames_only_*`` (same, nominal DH with base/tool fitted), ``choice``, ``cv``,
     ``parameters`` (deltas with standard errors), ``unidentifiable``, ``condition_number``,
-    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``.
+    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``, ``camera_depth_scale``.
+
+    ``depth_scale=True`` adds the camera depth-scale measurement model
+    (:func:`jaxcal.solvers.manifold.apply_depth_scale`, one unknown in every candidate) for
+    camera-on-flange data whose target-relative pose comes from PnP: predictions (and so the
+    held-out errors) are of what the camera reports.
     """
+    if depth_scale and position_only:
+        raise DataError("the camera depth scale needs full poses (the camera's optical axis); the data are "
+                        "position-only")
     candidates = parse_params(params, robot, ridge_mm)
     q = np.asarray(q, dtype=np.float64)
     measured = np.asarray(measured, dtype=np.float64)
     K = len(q)
     setup = make_setup(robot, q, measured, position_only=position_only, candidates=candidates,
-                       estimate_base=estimate_base, estimate_tool=estimate_tool, method=method)
+                       estimate_base=estimate_base, estimate_tool=estimate_tool, method=method,
+                       depth_scale=depth_scale)
     fid = fold_ids(K, folds, seed)
     rpp = 3 if position_only else 6
     n_train = K - int(np.bincount(fid).max())
@@ -452,6 +467,7 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
         "frames_only_heldout_median_mm": float(np.median(f_pe)),
         "frames_only_heldout_rot_rms_deg": None if position_only else _rms(f_re),
         "cv": cv_table,
+        "camera_depth_scale": float(res["depth_scale"][S, c_final]) if depth_scale else None,
         "sigma_pos_mm": float(sig[0]), "sigma_rot_deg": None if position_only else float(np.degrees(sig[1])),
         "parameters": {k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items()},
         "estimated_dh": active_dh,
