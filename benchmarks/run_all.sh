@@ -6,7 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")"
 out=../docs/bench
 mkdir -p "$out"
-run() { local name=$1; shift; echo "== $name: python $*"; python "$@" 2>&1 | grep -v '^WARNING' | tee "$out/$name.txt"; }
+# ONLY="kinematics roofline" runs a subset
+run() { local name=$1; shift; [[ -z "${ONLY:-}" || " $ONLY " == *" $name "* ]] || return 0; echo "== $name: python $*"; python "$@" 2>&1 | grep -v '^WARNING' | tee "$out/$name.txt"; }
 run kinematics bench_kinematics.py
 run gn_batch bench_gn_batch.py --repeats 3
 run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/python --json "$out/vs_pybotics.json"
