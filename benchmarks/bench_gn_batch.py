@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import time
 
 import jax
 import jax.numpy as jnp
@@ -21,7 +20,7 @@ import jaxcal
 from jaxcal.calibrate import calibrate_batch, identify
 from jaxcal.error_model import perturb, pose_error
 from jaxcal.simulate import simulate
-from _util import machine, summary
+from _util import machine, summary, timed
 
 
 def autodiff_gn(robot, free, m, sp, sr):
@@ -62,14 +61,8 @@ def main():
             method = name.split()[1]
             call = lambda method=method: calibrate_batch(robot, sim.q, sim.measured, method=method, sigma_pos_mm=sp,
                                                          sigma_rot_rad=sr, ident=ident)
-        t0 = time.perf_counter()
+        first, runs = timed(call, repeats=args.repeats)
         out = call()
-        first = time.perf_counter() - t0
-        runs = []
-        for _ in range(args.repeats):
-            t0 = time.perf_counter()
-            out = call()
-            runs.append(time.perf_counter() - t0)
         med = statistics.median(runs)
         conv = out.converged.mean() if hasattr(out, "converged") else float(np.mean(out[1]))
         steps = out.num_steps.max() if hasattr(out, "num_steps") else int(np.max(out[2]))

@@ -193,7 +193,6 @@ def main():
     res = measure(args.poses, args.repeats)
     ref_peak = max(peak["numpy_dgemm_flops"], peak["jax_dgemm_flops"])
     print(f"\n{args.poses} poses; fraction = hand FLOPs x poses/s / peak (measured dgemm | nominal)")
-    rows = []
     for op, vs in res.items():
         base = vs[next(iter(vs))]["median_s"]
         for name, r in vs.items():

@@ -142,7 +142,7 @@ def main():
     import numpy as np
     import jaxcal
     from jaxcal.error_model import perturb
-    from _util import machine, summary
+    from _util import machine, summary, timed
 
     robot, free, sim = make_problem(args.poses, args.val, args.noise_mm, args.seed)
     x_true = sim.x_true[0]
@@ -161,14 +161,8 @@ def main():
     # jaxcal: warm runs of the public calibrate(), and a cold process
     call = lambda: jaxcal.calibrate(robot, sim.q[0], sim.measured[0], position_only=True, method="gn",
                                     sigma_pos_mm=args.noise_mm)
-    t0 = time.perf_counter()
+    first, runs = timed(call, repeats=args.repeats)
     res = call()
-    first = time.perf_counter() - t0
-    runs = []
-    for _ in range(args.repeats):
-        t0 = time.perf_counter()
-        res = call()
-        runs.append(time.perf_counter() - t0)
     rows["jaxcal gn (calibrate)"] = {"median_s": statistics.median(runs), "times_s": runs, "x_fit": res.x,
                                      "success": res.converged, "steps": res.num_steps}
     print(f"jaxcal gn warm        {summary(runs)}  first call in this process {first:.2f} s; "
