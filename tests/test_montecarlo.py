@@ -70,3 +70,23 @@ def test_montecarlo_elimination_uses_its_pair_design():
     assert out["n_poses"] == 2 * 5 * 2 + 2  # 2 pairs per step x 5 steps + 2 absolute poses
     assert out["converged_fraction"] == 1.0
     assert out["validation_pos_rms_mm"] < 1e-4  # only the d3 truth error's second-order trace
+
+
+def test_batched_crlb_equals_per_robot_crlb():
+    """The stacked-QR CRLB of the Monte Carlo study against identifiability.crlb robot by robot."""
+    from jaxcal.calibrate import identify
+    from jaxcal.error_model import identification_jacobian
+    from jaxcal.experiments.montecarlo import _crlb_batch
+    from jaxcal.identifiability import crlb, row_sigmas
+    from jaxcal.simulate import simulate
+    robot = jaxcal.preset("puma560")
+    for position_only in (False, True):
+        q = simulate(robot, n_robots=4, n_poses=30, seed=3).q
+        ident = identify(robot, q[0], position_only=position_only)
+        sig = row_sigmas(30, position_only=position_only, sigma_pos_mm=0.02,
+                         sigma_rot_rad=None if position_only else 2e-5)
+        ref = np.mean([crlb(np.asarray(identification_jacobian(robot, qr, position_only=position_only)), sig, ident)
+                       for qr in q], axis=0)
+        got = _crlb_batch(robot, q, ident, position_only=position_only, base=False, tool=False, sigma_pos=0.02,
+                          sigma_rot=2e-5)
+        np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
