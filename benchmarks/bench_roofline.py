@@ -86,6 +86,7 @@ def cpu_peak() -> dict:
 def variants(robot):
     import jax
     import jax.numpy as jnp
+    import numpy as np
     import jaxcal
     from jaxcal.error_model import identification_jacobian, perturb, pose_error
     from jaxcal.kinematics import LINKS, joint_dh
@@ -98,20 +99,26 @@ def variants(robot):
         return compose(T, robot.tool)
 
     def fk_soa(q):
-        """Batch-major: the 12 entries of the running transform as (K,) vectors."""
-        p = joint_dh(robot, q)  # (K, n, 4)
-        R = [[robot.base[i, j] * jnp.ones(q.shape[:-1]) for j in range(3)] for i in range(3)]
-        t = [robot.base[i, 3] * jnp.ones(q.shape[:-1]) for i in range(3)]
+        """Batch-major, fully scalarised (SDH): joint angles as (n, K) rows, every entry of the
+        running transform a (K,) vector, nothing stacked until the end."""
+        assert robot.convention == "sdh"
+        dh = np.asarray(robot.dh)
+        qT = q.T
+        R = [[jnp.float64(robot.base[i, j]) for j in range(3)] for i in range(3)]
+        t = [jnp.float64(robot.base[i, 3]) for i in range(3)]
         for i in range(robot.n_joints):
-            A = LINKS[robot.convention](p[..., i, 0], p[..., i, 1], p[..., i, 2], p[..., i, 3])
-            Ar = [[A[..., r, c] for c in range(4)] for r in range(3)]
-            t = [R[r][0] * Ar[0][3] + R[r][1] * Ar[1][3] + R[r][2] * Ar[2][3] + t[r] for r in range(3)]
-            R = [[R[r][0] * Ar[0][c] + R[r][1] * Ar[1][c] + R[r][2] * Ar[2][c] for c in range(3)] for r in range(3)]
-        tool = robot.tool
+            th0, d, a, al = dh[i]
+            ct, st = jnp.cos(qT[i] + th0), jnp.sin(qT[i] + th0)
+            ca, sa = np.cos(al), np.sin(al)
+            A = [[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0.0, sa, ca, d]]
+            t = [R[r][0] * A[0][3] + R[r][1] * A[1][3] + R[r][2] * A[2][3] + t[r] for r in range(3)]
+            R = [[R[r][0] * A[0][c] + R[r][1] * A[1][c] + R[r][2] * A[2][c] for c in range(3)] for r in range(3)]
+        tool = np.asarray(robot.tool)
         t = [R[r][0] * tool[0, 3] + R[r][1] * tool[1, 3] + R[r][2] * tool[2, 3] + t[r] for r in range(3)]
         R = [[R[r][0] * tool[0, c] + R[r][1] * tool[1, c] + R[r][2] * tool[2, c] for c in range(3)] for r in range(3)]
-        top = jnp.stack([jnp.stack(R[r] + [t[r]], -1) for r in range(3)], -2)
-        bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0]), top.shape[:-2] + (1, 4))
+        K = q.shape[0]
+        top = jnp.stack([jnp.stack([jnp.broadcast_to(x, (K,)) for x in R[r] + [t[r]]], -1) for r in range(3)], -2)
+        bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0]), (K, 1, 4))
         return jnp.concatenate([top, bottom], -2)
 
     def chunked(f, size):
@@ -133,7 +140,7 @@ def variants(robot):
 
     fk = lambda q: jaxcal.fk(robot, q)
     return {
-        "FK": {"jaxcal (unrolled, fused)": fk, "lax.scan over links": fk_scan, "batch-major (SoA)": fk_soa,
+        "FK": {"jaxcal (unrolled, fused)": fk, "lax.scan over links": fk_scan, "batch-major, scalarised (SoA)": fk_soa,
                "chunked 1024 (lax.map)": chunked(fk, 1024), "chunked 8192 (lax.map)": chunked(fk, 8192)},
         "Jacobian": {"jaxcal (closed form)": jac, "jacfwd through FK": jac_jacfwd,
                      "chunked 1024 (lax.map)": chunked(jac, 1024), "chunked 8192 (lax.map)": chunked(jac, 8192)},
@@ -149,7 +156,9 @@ def measure(poses: int, repeats: int, only_default=False) -> dict:
     Q = jnp.asarray(np.random.default_rng(0).uniform(-np.pi, np.pi, (poses, 6)))
     ref = {"FK": np.asarray(jaxcal.fk(robot, Q[:100])),
            "Jacobian": np.asarray(jaxcal.error_model.identification_jacobian(robot, Q[:100]))}
-    out = {}
+    # the floor set by the transcendentals: sin and cos of every joint angle, nothing else
+    first, runs = time_fn(jax.jit(lambda q: jnp.sin(q) + jnp.cos(q)), Q, repeats=repeats)
+    out = {"sincos_only": {"median_s": statistics.median(runs), "min_s": min(runs), "max_s": max(runs)}}
     for op, vs in variants(robot).items():
         out[op] = {}
         for name, f in vs.items():
@@ -160,7 +169,9 @@ def measure(poses: int, repeats: int, only_default=False) -> dict:
             assert np.allclose(got, ref[op], atol=1e-8), f"{op} {name} disagrees with jaxcal"
             first, runs = time_fn(jf, Q, repeats=repeats)
             med = statistics.median(runs)
-            out[op][name] = {"median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
+            hlo = jf.lower(Q).compile().as_text()
+            n_fusions = sum(1 for line in hlo.splitlines() if " fusion(" in line and "kind=k" in line)
+            out[op][name] = {"fusions": n_fusions, "median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
                              "poses_per_s": poses / med,
                              # XLA's cost analysis counts a loop body once: no figure for lax.map
                              "xla_flops_per_pose": None if "lax.map" in name else xla_flops(jf, Q) / poses}
@@ -193,6 +204,9 @@ def main():
     res = measure(args.poses, args.repeats)
     ref_peak = max(peak["numpy_dgemm_flops"], peak["jax_dgemm_flops"])
     print(f"\n{args.poses} poses; fraction = hand FLOPs x poses/s / peak (measured dgemm | nominal)")
+    sc = res.pop("sincos_only")
+    print(f"sin + cos of all {args.poses} x 6 joint angles alone: median {sc['median_s'] * 1e3:.2f} ms "
+          f"(min {sc['min_s'] * 1e3:.2f}, max {sc['max_s'] * 1e3:.2f})")
     for op, vs in res.items():
         base = vs[next(iter(vs))]["median_s"]
         for name, r in vs.items():
@@ -203,7 +217,8 @@ def main():
             print(f"{op:9s} {name:26s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
                   f"{r['max_s'] * 1e3:.2f}) {r['poses_per_s']:>11,.0f} poses/s  x{r['speedup_vs_shipped']:.2f}  "
                   f"XLA {xf} FLOP/pose  {r['gflops_hand']:6.2f} GFLOP/s = "
-                  f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%}  compile {r['compile_s']:.2f} s")
+                  f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%}  compile {r['compile_s']:.2f} s  "
+                  f"{r['fusions']} loop fusions")
     flag_rows = {}
     for flags in args.flags:
         env = dict(os.environ, XLA_FLAGS=flags)
@@ -217,6 +232,8 @@ def main():
         r = json.loads(p.stdout.strip().splitlines()[-1])
         flag_rows[flags] = r
         for op, vs in r.items():
+            if op == "sincos_only":
+                continue
             for name, x in vs.items():
                 ratio = res[op][name]["median_s"] / x["median_s"]
                 print(f"XLA_FLAGS={flags!r}: {op:9s} median {x['median_s'] * 1e3:8.2f} ms  x{ratio:.2f} vs default")
@@ -224,7 +241,7 @@ def main():
         os.makedirs(os.path.dirname(args.json) or ".", exist_ok=True)
         with open(args.json, "w") as f:
             json.dump({"machine": machine(), "poses": args.poses, "peak": peak, "hand_flops_per_pose": hand,
-                       "hand_note": HAND_NOTE, "variants": res, "xla_flags": flag_rows}, f, indent=1)
+                       "hand_note": HAND_NOTE, "variants": res, "sincos_only": sc, "xla_flags": flag_rows}, f, indent=1)
 
 
 if __name__ == "__main__":
