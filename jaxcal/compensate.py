@@ -17,7 +17,6 @@ command. Targets may be positions only (3 rows) or full poses.
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -29,7 +28,7 @@ from .error_model import identification_jacobian, pose_error
 from .errors import DataError
 from .kinematics import fk
 from .measurements import (ANGLE_UNITS, LENGTH_UNITS, POSITION_COLUMNS, QUAT_COLUMNS, _JOINT_RE, _names, check_column_names,
-                           _parse_rows, _read_records, _unit)
+                           _parse_rows, _unit, open_table)
 from .robot import Robot
 
 
@@ -135,12 +134,8 @@ def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Ta
     targets are where the nominal model puts them). Errors name the row and column."""
     lu, _ = _unit(length_unit, LENGTH_UNITS, "length_unit", "mm")
     au, _ = _unit(angle_unit, ANGLE_UNITS, "angle_unit", "rad")
-    path = Path(path)
-    src = str(path)
-    records = _read_records(path)
-    if not records:
-        raise DataError(f"{src}: file is empty; expected a header with q1..q{robot.n_joints} and/or x, y, z")
-    header = records[0][1]
+    path, src, records, header = open_table(
+        path, f"expected a header with q1..q{robot.n_joints} and/or x, y, z")
     n = robot.n_joints
     expected = f"expected x, y, z [qw, qx, qy, qz] and/or q1..q{n}"
     seen = check_column_names(header, src, expected)

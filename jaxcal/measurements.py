@@ -248,6 +248,16 @@ def _mixed_units(q, pos, robot, rows, src):
                             f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit")
 
 
+def open_table(path, expected: str):
+    """``(path, source name, records, header)`` of a CSV; :class:`DataError` if it is empty
+    (``expected`` says what the header should hold)."""
+    path = Path(path)
+    records = _read_records(path)
+    if not records:
+        raise DataError(f"{path}: file is empty; {expected}")
+    return path, str(path), records, records[0][1]
+
+
 def read_measurements(path, robot, *, length_unit=None, angle_unit=None) -> Measurements:
     """Read a measurement CSV (see the module docstring) for `robot`; returns mm and rad.
 
@@ -256,12 +266,7 @@ def read_measurements(path, robot, *, length_unit=None, angle_unit=None) -> Meas
     """
     lu, lu_name = _unit(length_unit, LENGTH_UNITS, "length_unit", "mm")
     au, au_name = _unit(angle_unit, ANGLE_UNITS, "angle_unit", "rad")
-    path = Path(path)
-    src = str(path)
-    records = _read_records(path)
-    if not records:
-        raise DataError(f"{src}: file is empty; expected a header row q1..q{robot.n_joints},x,y,z[,qw,qx,qy,qz]")
-    header = records[0][1]
+    path, src, records, header = open_table(path, f"expected a header row q1..q{robot.n_joints},x,y,z[,qw,qx,qy,qz]")
     n = robot.n_joints
     cols, position_only = _check_header(header, n, src)
     if len(records) == 1:
