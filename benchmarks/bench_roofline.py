@@ -8,9 +8,13 @@ nominal ``cores x GHz x FLOP/cycle`` with FLOP/cycle from the CPU flags (AVX-512
 pipes x 8 doubles x 2 = 32; AVX2: 16).
 
 Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform poses):
-* jaxcal as shipped: links unrolled in Python, fused elementwise rigid products;
-* ``lax.scan`` over the links instead of the unrolled loop;
-* batch-major ("structure of arrays") layout: every matrix entry a ``(K,)`` vector;
+* jaxcal as shipped: structure of arrays (every entry of the running transform a ``(K,)``
+  vector) with a ``lax.scan`` over the links, so each link's entries are materialised once;
+* jaxcal before (commit 1bd4056): 4x4 matrices, links unrolled in Python, fused elementwise
+  rigid products; its Jacobian from those frames by broadcasting;
+* ``lax.scan`` over the links with 4x4 matrices;
+* structure of arrays, links unrolled: XLA CPU fuses the chain into each output entry and
+  recomputes it (the finding that led to the shipped form);
 * chunking: ``lax.map`` over blocks of poses so intermediates stay in cache;
 * autodiff ``jacfwd`` through FK instead of the closed-form Jacobian;
 * XLA CPU flags (each in a fresh process; ``--flags`` to choose).
@@ -89,8 +93,33 @@ def variants(robot):
     import numpy as np
     import jaxcal
     from jaxcal.error_model import identification_jacobian, perturb, pose_error
-    from jaxcal.kinematics import LINKS, joint_dh
+    from jaxcal.derivatives import OMEGA_TWISTS
+    from jaxcal.error_model import twist_to_pose_rows
+    from jaxcal.kinematics import LINKS, joint_dh, link_transforms
     from jaxcal.lie import compose
+
+    def frames_before(q):
+        A = link_transforms(robot, q)
+        T = jnp.broadcast_to(robot.base, A.shape[:-3] + (4, 4))
+        frames = []
+        for i in range(robot.n_joints):
+            T = compose(T, A[..., i, :, :])
+            frames.append(T)
+        return jnp.stack(frames, -3)
+
+    def fk_before(q):
+        return compose(frames_before(q)[..., -1, :, :], robot.tool)
+
+    def jac_before(q):
+        frames = frames_before(q)
+        p = joint_dh(robot, q)
+        local = OMEGA_TWISTS[robot.convention](p[..., 0], p[..., 1], p[..., 2], p[..., 3])
+        R, pos = frames[..., None, :3, :3], frames[..., None, :3, 3]
+        w_s = (R * local[..., None, 3:]).sum(-1)
+        v_s = (R * local[..., None, :3]).sum(-1) + jnp.cross(pos, w_s)
+        cols = jnp.concatenate([v_s, w_s], -1)
+        cols = jnp.moveaxis(cols.reshape(cols.shape[:-3] + (4 * robot.n_joints, 6)), -1, -2)
+        return twist_to_pose_rows(cols, compose(frames[..., -1, :, :], robot.tool)[..., :3, 3])
 
     def fk_scan(q):
         A = LINKS[robot.convention](*jnp.moveaxis(joint_dh(robot, q), -1, 0))  # (K, n, 4, 4)
@@ -140,9 +169,11 @@ def variants(robot):
 
     fk = lambda q: jaxcal.fk(robot, q)
     return {
-        "FK": {"jaxcal (unrolled, fused)": fk, "lax.scan over links": fk_scan, "batch-major, scalarised (SoA)": fk_soa,
+        "FK": {"jaxcal (SoA, lax.scan)": fk, "before: 4x4 unrolled, fused": fk_before,
+               "4x4, lax.scan over links": fk_scan, "SoA, links unrolled": fk_soa,
                "chunked 1024 (lax.map)": chunked(fk, 1024), "chunked 8192 (lax.map)": chunked(fk, 8192)},
-        "Jacobian": {"jaxcal (closed form)": jac, "jacfwd through FK": jac_jacfwd,
+        "Jacobian": {"jaxcal (closed form, SoA)": jac, "before: closed form, 4x4": jac_before,
+                     "jacfwd through FK": jac_jacfwd,
                      "chunked 1024 (lax.map)": chunked(jac, 1024), "chunked 8192 (lax.map)": chunked(jac, 8192)},
     }
 
@@ -214,7 +245,7 @@ def main():
             xf = "   n/a" if r["xla_flops_per_pose"] is None else f"{r['xla_flops_per_pose']:6.0f}"
             r.update(gflops_hand=gf / 1e9, frac_dgemm=gf / ref_peak, frac_nominal=gf / peak["nominal_flops"],
                      speedup_vs_shipped=base / r["median_s"])
-            print(f"{op:9s} {name:26s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
+            print(f"{op:9s} {name:30s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
                   f"{r['max_s'] * 1e3:.2f}) {r['poses_per_s']:>11,.0f} poses/s  x{r['speedup_vs_shipped']:.2f}  "
                   f"XLA {xf} FLOP/pose  {r['gflops_hand']:6.2f} GFLOP/s = "
                   f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%}  compile {r['compile_s']:.2f} s  "

@@ -138,3 +138,22 @@ def mdh_omega_twists(theta, d, a, alpha) -> Float[Array, "*b 4 6"]:
 PARTIALS = {"sdh": sdh_partials, "mdh": mdh_partials}
 OMEGAS = {"sdh": sdh_omegas, "mdh": mdh_omegas}
 OMEGA_TWISTS = {"sdh": sdh_omega_twists, "mdh": mdh_omega_twists}
+
+
+def omega_twist_entries(convention: str, c, s, d, a, alpha) -> list[tuple[list, list]]:
+    """Closed form of :data:`OMEGA_TWISTS` as ``[(v, w)]`` for ``k = theta, d, a, alpha``, each
+    entry an array or a Python 0/1, for the structure-of-arrays Jacobian
+    (:func:`jaxcal.error_model.identification_jacobian`). ``c, s``: cos and sin of theta.
+
+    SDH (eq. 5): ``Omega_theta`` is a rotation about ``(0, s alpha, c alpha)`` with
+    ``v = (0, a c alpha, -a s alpha)``; ``Omega_d`` a translation along ``(0, s alpha, c alpha)``;
+    ``Omega_a`` along x; ``Omega_alpha`` a rotation about x. MDH (eq. 7, corrected): rotation
+    about z; translation along z; translation along ``(c theta, -s theta, 0)``; rotation about
+    that axis with ``v = (-d s theta, -d c theta, 0)``.
+    """
+    if convention == "sdh":
+        ca, sa = jnp.cos(alpha), jnp.sin(alpha)
+        return [([0.0, a * ca, -a * sa], [0.0, sa, ca]), ([0.0, sa, ca], [0.0, 0.0, 0.0]),
+                ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0]), ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0])]
+    return [([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]), ([0.0, 0.0, 1.0], [0.0, 0.0, 0.0]),
+            ([c, -s, 0.0], [0.0, 0.0, 0.0]), ([-d * s, -d * c, 0.0], [c, -s, 0.0])]

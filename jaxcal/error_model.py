@@ -26,9 +26,9 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .derivatives import OMEGA_TWISTS, OMEGAS
-from .kinematics import check_q, fk, fk_frames, joint_dh
-from .lie import adjoint, inv_transform, se3_exp, so3_log
+from .derivatives import OMEGAS, omega_twist_entries
+from .kinematics import _chain, add, check_q, cross, fk_frames, joint_dh, mul, rotate, split
+from .lie import inv_transform, se3_exp, so3_log
 from .robot import DH_NAMES, Robot
 
 FRAME_NAMES = ("x", "y", "z", "rx", "ry", "rz")
@@ -94,23 +94,58 @@ def twist_jacobian(robot: Robot, q: Float[Array, "*b n"], *, base: bool = False,
     return _twist_jacobian(robot, check_q(robot, q), base=base, tool=tool)
 
 
+def _column(R, p, v, w, p_end):
+    """One Jacobian column from a local twist ``[v, w]`` at a frame ``(R, p)``: the spatial
+    twist ``Ad(T) [v; w] = [R v + p x R w; R w]``, or with ``p_end`` the pose rows
+    ``[v_s + w_s x p_end; w_s] = [R v + R w x (p_end - p); R w]``."""
+    w_s = rotate(R, w)
+    lever = cross(p, w_s) if p_end is None else cross(w_s, [add(p_end[r], -p[r]) for r in range(3)])
+    return [add(x, y) for x, y in zip(rotate(R, v), lever)] + w_s
+
+
+_EYE = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+_UNIT_TWISTS = [([1.0 * (r == j) for r in range(3)], [0.0] * 3) for j in range(3)] + \
+    [([0.0] * 3, [1.0 * (r == j) for r in range(3)]) for j in range(3)]
+
+
+def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: int = 6):
+    """The analytic Jacobian, structure-of-arrays (every frame, cos/sin and entry a ``(K,)``
+    vector, the layout :func:`jaxcal.kinematics._chain` explains), stacked once at the end
+    into ``(*b, rows, m)``. The spatial twists ``Ad(T_i) vee(Omega_k)`` of each joint are formed
+    inside the loop over links; pose rows add ``w x p_end`` after it."""
+    def spatial_twists(R, t, x):
+        out = []
+        for v, w in omega_twist_entries(robot.convention, *x):
+            out += _column(R, t, v, w, None)
+        return out
+
+    S_end, Y, _ = _chain(robot, q, frames=True, per_link=spatial_twists)  # Y: (n, 12 + 24, K)
+    n, K = robot.n_joints, S_end.shape[1]
+    R_n, t_n = split(S_end)
+    tool_R = [[robot.tool[r, k] for k in range(3)] for r in range(3)]
+    R_e = [[add(*(mul(R_n[r][j], tool_R[j][k]) for j in range(3))) for k in range(3)] for r in range(3)]
+    p_e = [add(x, y) for x, y in zip(rotate(R_n, [robot.tool[r, 3] for r in range(3)]), t_n)]
+    tw = Y[:, 12:].reshape(n, 4, 6, K)
+    v, w = [tw[:, :, r] for r in range(3)], [tw[:, :, 3 + r] for r in range(3)]  # (n, 4, K) each
+    if pose_rows:
+        v = [x + y for x, y in zip(v, cross(w, p_e))]
+    J = jnp.stack((v + w)[:rows]).reshape(rows, 4 * n, K)
+    p_end = p_e if pose_rows else None
+    frame_cols = []
+    if base:  # twists in the measurement frame itself
+        frame_cols += [_column(_EYE, [0.0] * 3, v, w, p_end) for v, w in _UNIT_TWISTS]
+    if tool:  # twists in the tool frame
+        frame_cols += [_column(R_e, p_e, v, w, p_end) for v, w in _UNIT_TWISTS]
+    if frame_cols:
+        F = jnp.stack([jnp.stack([jnp.broadcast_to(col[r], (K,)) for col in frame_cols]) for r in range(rows)])
+        J = jnp.concatenate([J, F], 1)
+    J = jnp.transpose(J, (2, 0, 1))  # (K, rows, m)
+    return J.reshape(q.shape[:-1] + J.shape[1:])
+
+
 @eqx.filter_jit
 def _twist_jacobian(robot: Robot, q, *, base: bool, tool: bool):
-    frames = fk_frames(robot, q)
-    p = joint_dh(robot, q)
-    local = OMEGA_TWISTS[robot.convention](p[..., 0], p[..., 1], p[..., 2], p[..., 3])  # (..., n, 4, 6)
-    # Ad(T_i) [v; w] = [R v + p x R w; R w], written as broadcast multiply-adds (fuses on CPU)
-    R, pos = frames[..., None, :3, :3], frames[..., None, :3, 3]  # (..., n, 1, 3, 3), (..., n, 1, 3)
-    w_s = (R * local[..., None, 3:]).sum(-1)  # (..., n, 4, 3)
-    v_s = (R * local[..., None, :3]).sum(-1) + jnp.cross(pos, w_s)
-    cols = jnp.concatenate([v_s, w_s], -1)  # (..., n, 4, 6)
-    cols = jnp.moveaxis(cols.reshape(cols.shape[:-3] + (4 * robot.n_joints, 6)), -1, -2)
-    blocks = [cols]
-    if base:
-        blocks.append(jnp.broadcast_to(jnp.eye(6), cols.shape[:-1] + (6,)))
-    if tool:
-        blocks.append(adjoint(frames[..., -1, :, :] @ robot.tool))
-    return jnp.concatenate(blocks, -1)
+    return _columns(robot, q, base=base, tool=tool, pose_rows=False)
 
 
 def twist_to_pose_rows(J_twist: Float[Array, "*b 6 m"], p_end: Float[Array, "*b 3"]) -> Float[Array, "*b 6 m"]:
@@ -133,7 +168,4 @@ def identification_jacobian(robot: Robot, q: Float[Array, "*b n"], *, position_o
 
 @eqx.filter_jit
 def _identification_jacobian(robot: Robot, q, *, position_only: bool, base: bool, tool: bool):
-    J = twist_jacobian(robot, q, base=base, tool=tool)
-    p_end = fk(robot, q)[..., :3, 3]
-    J = twist_to_pose_rows(J, p_end)
-    return J[..., :3, :] if position_only else J
+    return _columns(robot, q, base=base, tool=tool, pose_rows=True, rows=3 if position_only else 6)

@@ -112,3 +112,16 @@ def test_which_omegas_depend_on_theta(rng):
     assert np.all(m_right[2:] > 0.5)
     assert_allclose(s_left[:2], 0.0, atol=1e-14)
     assert np.all(s_left[2:] > 0.5)
+
+
+@pytest.mark.parametrize("conv", CONVS)
+def test_omega_twist_closed_form_matches_vee_of_omegas(conv, rng):
+    """The entry-wise closed form used by the structure-of-arrays Jacobian."""
+    P = _points(rng, 50)
+    th, d, a, al = (jnp.asarray(x) for x in P.T)
+    want = np.asarray(D.OMEGA_TWISTS[conv](*P.T))  # (50, 4, 6)
+    got = D.omega_twist_entries(conv, jnp.cos(th), jnp.sin(th), d, a, al)
+    assert len(got) == 4
+    for k, (v, w) in enumerate(got):
+        entries = np.stack([np.broadcast_to(np.asarray(e, float), (50,)) for e in v + w], -1)
+        assert_allclose(entries, want[:, k], atol=1e-12, rtol=0)

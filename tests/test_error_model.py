@@ -25,19 +25,46 @@ def _true_error(robot, q, base, tool):
     return lambda x: E.pose_error(fk(E.perturb(robot, x, base=base, tool=tool), q), T0)
 
 
-@pytest.mark.parametrize("base,tool", [(False, False), (True, False), (False, True), (True, True)])
-def test_identification_jacobian_matches_jacfwd(rng, base, tool):
+def test_identification_jacobian_matches_jacfwd(rng):
+    """All columns (DH, base and tool) against autodiff of the exact nonlinear pose error."""
     for robot in _robots(rng):
         Q = jnp.asarray(rng.uniform(-2, 2, (8, robot.n_joints)))
-        m = E.n_params(robot, base=base, tool=tool)
-        J = E.identification_jacobian(robot, Q, base=base, tool=tool)
+        m = E.n_params(robot, base=True, tool=True)
+        J = E.identification_jacobian(robot, Q, base=True, tool=True)
         assert J.shape == (8, 6, m)
-        for q, Jq in zip(Q, J):
-            ad = jax.jacfwd(_true_error(robot, q, base, tool))(jnp.zeros(m))
-            scale = max(1.0, float(jnp.abs(ad).max()))
-            assert_allclose(np.asarray(Jq), np.asarray(ad), atol=1e-12 * scale, rtol=0)
+        ad = jax.jit(jax.vmap(lambda q: jax.jacfwd(_true_error(robot, q, True, True))(jnp.zeros(m))))(Q)
+        scale = max(1.0, float(jnp.abs(ad).max()))
+        assert_allclose(np.asarray(J), np.asarray(ad), atol=1e-12 * scale, rtol=0)
+
+
+@pytest.mark.parametrize("base,tool", [(False, False), (True, False), (False, True)])
+def test_jacobian_column_layout_without_frames(rng, base, tool):
+    """Without base/tool columns the Jacobian is the full one (checked against autodiff above)
+    with those columns dropped; position_only keeps the 3 position rows."""
+    for robot in _robots(rng)[3:]:
+        Q = jnp.asarray(rng.uniform(-2, 2, (8, robot.n_joints)))
+        n4 = 4 * robot.n_joints
+        full = np.asarray(E.identification_jacobian(robot, Q, base=True, tool=True))
+        keep = list(range(n4)) + (list(range(n4, n4 + 6)) if base else []) + (list(range(n4 + 6, n4 + 12)) if tool else [])
+        J = E.identification_jacobian(robot, Q, base=base, tool=tool)
+        assert_allclose(np.asarray(J), full[..., keep], atol=1e-12, rtol=0)
         Jp = E.identification_jacobian(robot, Q, base=base, tool=tool, position_only=True)
-        assert_allclose(np.asarray(Jp), np.asarray(J[..., :3, :]))
+        assert_allclose(np.asarray(Jp), full[..., :3, keep], atol=1e-12, rtol=0)
+
+
+def test_jacobians_keep_leading_axes_and_vmap_over_robots(rng):
+    robots = [Robot(random_dh(rng), convention="mdh", base=random_transform(rng), tool=random_transform(rng, 80.0))
+              for _ in range(3)]
+    Q = jnp.asarray(rng.uniform(-2, 2, (2, 4, 6)))
+    for fn in (E.identification_jacobian, E.twist_jacobian):
+        J = fn(robots[0], Q, base=True, tool=True)
+        assert J.shape == (2, 4, 6, 36)
+        flat = fn(robots[0], Q.reshape(-1, 6), base=True, tool=True)
+        assert_allclose(np.asarray(J).reshape(-1, 6, 36), np.asarray(flat), atol=1e-12)
+        stacked = jax.tree.map(lambda *x: jnp.stack(x), *robots)
+        batched = jax.vmap(lambda r: fn(r, Q[0], base=True, tool=True))(stacked)
+        for r, got in zip(robots, batched):
+            assert_allclose(np.asarray(got), np.asarray(fn(r, Q[0], base=True, tool=True)), atol=1e-9)
 
 
 def test_eq10_literal_sum_equals_adjoint_form(rng):

@@ -57,6 +57,22 @@ def test_fk_matches_reference_with_prismatic_base_tool(conv, rng):
         assert_allclose(g, ref_fk(conv, dh, types, base, tool, q), atol=1e-9)
 
 
+@pytest.mark.parametrize("conv", ["sdh", "mdh"])
+def test_every_frame_matches_reference(conv, rng):
+    """fk_frames: T_i = base A_1 ... A_i for every i (not only the last), leading axes kept."""
+    dh = random_dh(rng, 5)
+    types = ("R", "P", "R", "R", "P")
+    base = random_transform(rng)
+    robot = Robot(dh, convention=conv, joint_types=types, base=base)
+    Q = rng.uniform(-2, 2, (2, 3, 5))
+    got = np.asarray(fk_frames(robot, jnp.asarray(Q)))
+    assert got.shape == (2, 3, 5, 4, 4)
+    for idx in np.ndindex(2, 3):
+        for i in range(5):
+            want = ref_fk(conv, dh[:i + 1], types[:i + 1], base, np.eye(4), Q[idx][:i + 1])
+            assert_allclose(got[idx][i], want, atol=1e-9)
+
+
 def test_prismatic_joint_translates_along_z(rng):
     r = Robot(np.zeros((1, 4)), joint_types=("P",))
     assert_allclose(np.asarray(fk(r, jnp.array([12.5])))[:3, 3], [0, 0, 12.5])
