@@ -140,10 +140,11 @@ OMEGAS = {"sdh": sdh_omegas, "mdh": mdh_omegas}
 OMEGA_TWISTS = {"sdh": sdh_omega_twists, "mdh": mdh_omega_twists}
 
 
-def omega_twist_entries(convention: str, c, s, d, a, alpha) -> list[tuple[list, list]]:
-    """Closed form of :data:`OMEGA_TWISTS` as ``[(v, w)]`` for ``k = theta, d, a, alpha``, each
-    entry an array or a Python 0/1, for the structure-of-arrays Jacobian
-    (:func:`jaxcal.error_model.identification_jacobian`). ``c, s``: cos and sin of theta.
+def omega_twists_soa(convention: str, c, s, d, a, alpha):
+    """Closed form of :data:`OMEGA_TWISTS` with the pose axis last: ``(V, W)``, each
+    ``(4, 3, K)`` for ``k = theta, d, a, alpha``, from cos/sin of theta ``c, s`` and ``d``
+    ``(K,)``, scalars ``a, alpha``; for the structure-of-arrays Jacobian
+    (:func:`jaxcal.error_model.identification_jacobian`).
 
     SDH (eq. 5): ``Omega_theta`` is a rotation about ``(0, s alpha, c alpha)`` with
     ``v = (0, a c alpha, -a s alpha)``; ``Omega_d`` a translation along ``(0, s alpha, c alpha)``;
@@ -151,9 +152,12 @@ def omega_twist_entries(convention: str, c, s, d, a, alpha) -> list[tuple[list, 
     about z; translation along z; translation along ``(c theta, -s theta, 0)``; rotation about
     that axis with ``v = (-d s theta, -d c theta, 0)``.
     """
+    z, o = jnp.zeros_like(c), jnp.ones_like(c)
     if convention == "sdh":
-        ca, sa = jnp.cos(alpha), jnp.sin(alpha)
-        return [([0.0, a * ca, -a * sa], [0.0, sa, ca]), ([0.0, sa, ca], [0.0, 0.0, 0.0]),
-                ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0]), ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0])]
-    return [([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]), ([0.0, 0.0, 1.0], [0.0, 0.0, 0.0]),
-            ([c, -s, 0.0], [0.0, 0.0, 0.0]), ([-d * s, -d * c, 0.0], [c, -s, 0.0])]
+        ca, sa = jnp.cos(alpha) * o, jnp.sin(alpha) * o
+        V = [[z, a * ca, -a * sa], [z, sa, ca], [o, z, z], [z, z, z]]
+        W = [[z, sa, ca], [z, z, z], [z, z, z], [o, z, z]]
+    else:
+        V = [[z, z, z], [z, z, o], [c, -s, z], [-d * s, -d * c, z]]
+        W = [[z, z, o], [z, z, z], [z, z, z], [c, -s, z]]
+    return jnp.stack([jnp.stack(v) for v in V]), jnp.stack([jnp.stack(w) for w in W])

@@ -26,8 +26,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .derivatives import OMEGAS, omega_twist_entries
-from .kinematics import _chain, add, check_q, cross, fk_frames, joint_dh, mul, rotate, split
+from .derivatives import OMEGAS, omega_twists_soa
+from .kinematics import _chain, check_q, cross_soa, fk_frames, joint_dh, matmul_soa, rotate_soa
 from .lie import inv_transform, se3_exp, so3_log
 from .robot import DH_NAMES, Robot
 
@@ -94,52 +94,35 @@ def twist_jacobian(robot: Robot, q: Float[Array, "*b n"], *, base: bool = False,
     return _twist_jacobian(robot, check_q(robot, q), base=base, tool=tool)
 
 
-def _column(R, p, v, w, p_end):
-    """One Jacobian column from a local twist ``[v, w]`` at a frame ``(R, p)``: the spatial
-    twist ``Ad(T) [v; w] = [R v + p x R w; R w]``, or with ``p_end`` the pose rows
-    ``[v_s + w_s x p_end; w_s] = [R v + R w x (p_end - p); R w]``."""
-    w_s = rotate(R, w)
-    lever = cross(p, w_s) if p_end is None else cross(w_s, [add(p_end[r], -p[r]) for r in range(3)])
-    return [add(x, y) for x, y in zip(rotate(R, v), lever)] + w_s
-
-
-_EYE = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
-_UNIT_TWISTS = [([1.0 * (r == j) for r in range(3)], [0.0] * 3) for j in range(3)] + \
-    [([0.0] * 3, [1.0 * (r == j) for r in range(3)]) for j in range(3)]
-
-
 def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: int = 6):
-    """The analytic Jacobian, structure-of-arrays (every frame, cos/sin and entry a ``(K,)``
-    vector, the layout :func:`jaxcal.kinematics._chain` explains), stacked once at the end
-    into ``(*b, rows, m)``. The spatial twists ``Ad(T_i) vee(Omega_k)`` of each joint are formed
-    inside the loop over links; pose rows add ``w x p_end`` after it."""
+    """The analytic Jacobian, structure-of-arrays (pose axis last, the layout
+    :func:`jaxcal.kinematics._chain` explains), transposed once at the end into
+    ``(*b, rows, m)``. The spatial twists ``Ad(T_i) vee(Omega_k) = [R v + p x R w; R w]`` of
+    each joint are formed inside the loop over links; pose rows add ``w x p_end`` after it."""
     def spatial_twists(R, t, x):
-        out = []
-        for v, w in omega_twist_entries(robot.convention, *x):
-            out += _column(R, t, v, w, None)
-        return out
+        V, W = omega_twists_soa(robot.convention, *x)  # (4, 3, K)
+        w_s = rotate_soa(R, W)
+        v_s = rotate_soa(R, V) + cross_soa(jnp.broadcast_to(t, w_s.shape), w_s)
+        return jnp.concatenate([v_s, w_s], 1).reshape(24, -1)
 
-    S_end, Y, _ = _chain(robot, q, frames=True, per_link=spatial_twists)  # Y: (n, 12 + 24, K)
-    n, K = robot.n_joints, S_end.shape[1]
-    R_n, t_n = split(S_end)
-    tool_R = [[robot.tool[r, k] for k in range(3)] for r in range(3)]
-    R_e = [[add(*(mul(R_n[r][j], tool_R[j][k]) for j in range(3))) for k in range(3)] for r in range(3)]
-    p_e = [add(x, y) for x, y in zip(rotate(R_n, [robot.tool[r, 3] for r in range(3)]), t_n)]
-    tw = Y[:, 12:].reshape(n, 4, 6, K)
-    v, w = [tw[:, :, r] for r in range(3)], [tw[:, :, 3 + r] for r in range(3)]  # (n, 4, K) each
-    if pose_rows:
-        v = [x + y for x, y in zip(v, cross(w, p_e))]
-    J = jnp.stack((v + w)[:rows]).reshape(rows, 4 * n, K)
-    p_end = p_e if pose_rows else None
-    frame_cols = []
-    if base:  # twists in the measurement frame itself
-        frame_cols += [_column(_EYE, [0.0] * 3, v, w, p_end) for v, w in _UNIT_TWISTS]
-    if tool:  # twists in the tool frame
-        frame_cols += [_column(R_e, p_e, v, w, p_end) for v, w in _UNIT_TWISTS]
-    if frame_cols:
-        F = jnp.stack([jnp.stack([jnp.broadcast_to(col[r], (K,)) for col in frame_cols]) for r in range(rows)])
-        J = jnp.concatenate([J, F], 1)
-    J = jnp.transpose(J, (2, 0, 1))  # (K, rows, m)
+    R_n, t_n, Y, _ = _chain(robot, q, frames=True, per_link=spatial_twists)  # Y: (n, 12 + 24, K)
+    n, K = robot.n_joints, t_n.shape[1]
+    tw = Y[:, 12:].reshape(4 * n, 6, K)
+    R_e = matmul_soa(R_n, jnp.broadcast_to(robot.tool[:3, :3, None], R_n.shape))  # end frame with the tool
+    p_e = rotate_soa(R_n, jnp.broadcast_to(robot.tool[:3, 3, None], (3, K))) + t_n
+    cols = [tw]
+    if base:  # unit twists in the measurement frame itself
+        cols.append(jnp.broadcast_to(jnp.eye(6)[:, :, None], (6, 6, K)))
+    if tool:  # unit twists in the tool frame: Ad(T_end) e_j, from the columns of R_end
+        Rc = jnp.swapaxes(R_e, 0, 1)  # (3 columns, 3 rows, K)
+        z = jnp.zeros_like(Rc)
+        along = jnp.concatenate([Rc, z], 1)  # translations: [R e_j; 0]
+        about = jnp.concatenate([cross_soa(jnp.broadcast_to(p_e, Rc.shape), Rc), Rc], 1)  # [p x R e_j; R e_j]
+        cols += [along, about]
+    J = jnp.concatenate(cols, 0)  # (m, 6, K)
+    if pose_rows:  # dp = v + w x p_end
+        J = jnp.concatenate([J[:, :3] + cross_soa(J[:, 3:], jnp.broadcast_to(p_e, J[:, 3:].shape)), J[:, 3:]], 1)
+    J = jnp.transpose(J[:, :rows], (2, 1, 0))  # (K, rows, m)
     return J.reshape(q.shape[:-1] + J.shape[1:])
 
 

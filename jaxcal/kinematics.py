@@ -92,71 +92,54 @@ def fk_frames(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4 4"]
     return _fk_frames(robot, check_q(robot, q))
 
 
-def _is(x, value: float) -> bool:
-    return isinstance(x, float) and x == value
-
-
-def mul(x, y):
-    """``x * y`` for entries that are arrays or Python floats; exact zeros and ones fold away,
-    so the structure-of-arrays expressions below carry no ``0 * x`` work."""
-    if _is(x, 0.0) or _is(y, 0.0):
-        return 0.0
-    if _is(x, 1.0):
-        return y
-    return x if _is(y, 1.0) else x * y
-
-
-def add(*xs):
-    """Sum of entries (arrays or Python floats), Python zeros dropped."""
-    terms = [x for x in xs if not _is(x, 0.0)]
-    if not terms:
-        return 0.0
-    out = terms[0]
-    for x in terms[1:]:
-        out = out + x
-    return out
-
-
-def rotate(R, v):
-    """``R @ v`` for a nested-list 3x3 ``R`` and a 3-list ``v`` of entries."""
-    return [add(*(mul(R[r][k], v[k]) for k in range(3))) for r in range(3)]
-
-
-def cross(u, v):
-    """``u x v`` for 3-lists of entries."""
-    return [add(mul(u[1], v[2]), -mul(u[2], v[1])), add(mul(u[2], v[0]), -mul(u[0], v[2])),
-            add(mul(u[0], v[1]), -mul(u[1], v[0]))]
-
-
-def split(S):
-    """``(12, ...)`` entries (rows of R, then t) -> nested-list ``R``, list ``t``."""
-    return [[S[3 * r + k] for k in range(3)] for r in range(3)], [S[9 + r] for r in range(3)]
-
-
 def _link_entries(convention: str, c, s, d, a, alpha):
-    """Rotation and translation of one link transform as nested lists of entries, for the
-    structure-of-arrays chain below. ``c, s``: cos and sin of theta."""
+    """Rotation and translation of one link as nested lists of ``(K,)`` entries, with Python
+    zeros where the link has a structural zero (eq. 1 or the MDH link)."""
     ca, sa = jnp.cos(alpha), jnp.sin(alpha)
-    if convention == "sdh":  # eq. (1)
-        R = [[c, -s * ca, s * sa], [s, c * ca, -c * sa], [0.0, sa, ca]]
-        return R, [a * c, a * s, d]
-    R = [[c, -s, 0.0], [s * ca, c * ca, -sa], [s * sa, c * sa, ca]]
-    return R, [a, -sa * d, ca * d]
+    if convention == "sdh":
+        return [[c, -s * ca, s * sa], [s, c * ca, -c * sa], [0.0, sa, ca]], [a * c, a * s, d]
+    return [[c, -s, 0.0], [s * ca, c * ca, -sa], [s * sa, c * sa, ca]], [a, -sa * d, ca * d]
+
+
+def _dot3(row, col):
+    """``sum_j row[j] col[j]``, skipping Python-zero entries of ``col``."""
+    terms = [row[j] * col[j] for j in range(3) if not (isinstance(col[j], float) and col[j] == 0.0)]
+    return sum(terms[1:], terms[0])
+
+
+def rotate_soa(R, v):
+    """``R @ v`` with the pose axis last: ``R (..., 3, 3, K)``, ``v (..., 3, K)``. Written as
+    three broadcast multiply-adds, not a reduction (XLA CPU's reduce loops were ~5x slower)."""
+    return sum(R[..., :, j, :] * v[..., j:j + 1, :] for j in range(3))
+
+
+def matmul_soa(A, B):
+    """``A @ B`` for ``(3, 3, K)`` blocks, pose axis last, as broadcast multiply-adds."""
+    return sum(A[:, j:j + 1, :] * B[None, j, :, :] for j in range(3))
+
+
+def cross_soa(u, v):
+    """``u x v`` along axis -2 (pose axis last)."""
+    u0, u1, u2 = u[..., 0, :], u[..., 1, :], u[..., 2, :]
+    v0, v1, v2 = v[..., 0, :], v[..., 1, :], v[..., 2, :]
+    return jnp.stack([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0], -2)
 
 
 def _chain(robot: Robot, q, *, frames: bool, per_link=None):
     """The product ``base @ A_1 ... A_n`` for all poses, structure-of-arrays.
 
-    Every entry of the running 3x4 transform is a ``(K,)`` vector (K poses, leading axes of
-    ``q`` flattened), and the links are a ``lax.scan``, so each link's 12 entries are
+    The pose axis is last: each of the 12 entries of the running transform is a ``(K,)``
+    vector (K poses, leading axes of ``q`` flattened), updated entry by entry with the link's
+    structural zeros skipped, and the links are a ``lax.scan``, so each link's entries are
     materialised once. Written as one expression with the links unrolled, XLA CPU's loop
-    fusion recomputed the whole chain, sin/cos included, inside each of the 12 output entries;
-    on 1e5 poses the scan form is ~4x faster (``benchmarks/bench_roofline.py``).
+    fusion recomputed the whole chain, sin/cos included, inside each output entry; on 1e5
+    poses the scan form is ~4x faster (``benchmarks/bench_roofline.py``). Broadcasting
+    ``(3, 3, K)`` blocks instead of entries compiled faster but ran FK 2x slower.
 
-    Returns ``(S_end, S_frames, (c, s, d))``: the end frame's entries ``(12, K)`` (rows of R,
-    then t), every frame's ``(n, 12 + e, K)`` when ``frames`` (else None), and cos/sin of theta
-    and d per joint ``(n, K)``. ``per_link(R, t, (c, s, d, a, alpha))``, given frame ``T_i``'s
-    entries and link i's values, returns ``e`` more entries to store per link.
+    Returns ``(R_end (3, 3, K), t_end (3, K), ys, (c, s, d))``: per link ``ys`` ``(n, 12 + e,
+    K)`` (rows of R, t, then ``per_link``'s rows) when ``frames`` (else None), and cos/sin of
+    theta and d per joint ``(n, K)``. ``per_link(R (3, 3, K), t (3, K), (c, s, d, a, alpha))``
+    gets frame ``T_i`` and link i's values and returns an ``(e, K)`` array.
     """
     n = robot.n_joints
     qT = jnp.reshape(q, (-1, n)).T.astype(jnp.float64)  # (n, K)
@@ -169,21 +152,19 @@ def _chain(robot: Robot, q, *, frames: bool, per_link=None):
     S0 = jnp.broadcast_to(top[:, None], (12, K))
 
     def link(S, x):
-        R, t = split(S)
+        R = [[S[3 * r + k] for k in range(3)] for r in range(3)]
         A_R, A_t = _link_entries(robot.convention, *x)
-        new_t = [add(rotate(R, A_t)[r], t[r]) for r in range(3)]
-        new_R = [rotate(R, [A_R[0][k], A_R[1][k], A_R[2][k]]) for k in range(3)]  # columns
-        entries = [new_R[k][r] for r in range(3) for k in range(3)] + new_t
-        S = jnp.stack([jnp.broadcast_to(v, (K,)) for v in entries])
+        entries = [_dot3(R[r], [A_R[0][k], A_R[1][k], A_R[2][k]]) for r in range(3) for k in range(3)]
+        entries += [_dot3(R[r], A_t) + S[9 + r] for r in range(3)]
+        S = jnp.stack([jnp.broadcast_to(e, (K,)) for e in entries])
         if not frames:
             return S, None
-        if per_link is not None:
-            extra = per_link([[new_R[k][r] for k in range(3)] for r in range(3)], new_t, x)
-            return S, jnp.stack([jnp.broadcast_to(v, (K,)) for v in entries + extra])
-        return S, S
+        if per_link is None:
+            return S, S
+        return S, jnp.concatenate([S, per_link(S[:9].reshape(3, 3, K), S[9:], x)])
 
     S, ys = jax.lax.scan(link, S0, (c, s, d, robot.dh[:, 2], robot.dh[:, 3]))
-    return S, ys, (c, s, d)
+    return S[:9].reshape(3, 3, K), S[9:], ys, (c, s, d)
 
 
 def _to_matrices(S, lead):
@@ -197,7 +178,7 @@ def _to_matrices(S, lead):
 
 @eqx.filter_jit
 def _fk_frames(robot: Robot, q):
-    _, ys, _ = _chain(robot, q, frames=True)  # (n, 12, K)
+    _, _, ys, _ = _chain(robot, q, frames=True)  # (n, 12, K)
     return _to_matrices(jnp.transpose(ys, (2, 0, 1)), q.shape[:-1])
 
 
@@ -208,7 +189,9 @@ def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
 
 @eqx.filter_jit
 def _fk(robot: Robot, q):
-    return compose(_to_matrices(_chain(robot, q, frames=False)[0].T, q.shape[:-1]), robot.tool)
+    R, t, _, _ = _chain(robot, q, frames=False)
+    S = jnp.concatenate([R.reshape(9, -1), t])  # (12, K)
+    return compose(_to_matrices(S.T, q.shape[:-1]), robot.tool)
 
 
 def _rx(alpha):

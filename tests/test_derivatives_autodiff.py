@@ -116,12 +116,14 @@ def test_which_omegas_depend_on_theta(rng):
 
 @pytest.mark.parametrize("conv", CONVS)
 def test_omega_twist_closed_form_matches_vee_of_omegas(conv, rng):
-    """The entry-wise closed form used by the structure-of-arrays Jacobian."""
+    """The pose-axis-last closed form used by the structure-of-arrays Jacobian, one link
+    (scalar a, alpha) at a time as in the loop over links."""
     P = _points(rng, 50)
-    th, d, a, al = (jnp.asarray(x) for x in P.T)
-    want = np.asarray(D.OMEGA_TWISTS[conv](*P.T))  # (50, 4, 6)
-    got = D.omega_twist_entries(conv, jnp.cos(th), jnp.sin(th), d, a, al)
-    assert len(got) == 4
-    for k, (v, w) in enumerate(got):
-        entries = np.stack([np.broadcast_to(np.asarray(e, float), (50,)) for e in v + w], -1)
-        assert_allclose(entries, want[:, k], atol=1e-12, rtol=0)
+    for a, al in [(P[0, 2], P[0, 3]), (0.0, np.pi / 2), (120.0, -np.pi / 2)]:
+        Pl = P.copy()
+        Pl[:, 2], Pl[:, 3] = a, al
+        want = np.asarray(D.OMEGA_TWISTS[conv](*Pl.T))  # (50, 4, 6)
+        th, d = jnp.asarray(Pl[:, 0]), jnp.asarray(Pl[:, 1])
+        V, W = D.omega_twists_soa(conv, jnp.cos(th), jnp.sin(th), d, a, al)  # (4, 3, 50)
+        got = np.concatenate([np.asarray(V), np.asarray(W)], 1).transpose(2, 0, 1)
+        assert_allclose(got, want, atol=1e-12, rtol=0)

@@ -116,7 +116,9 @@ def test_literal_variant_is_singular_on_the_paper_arm():
     assert all(np.isfinite(steps[n].cond_scaled) for n in (6, 5, 4, 2, 1))
 
 
-@pytest.mark.parametrize("name,fixed", [("paper-6r", ("d3",)), ("puma560", ("d3",)), ("ur5", ("d3", "d4"))])
+# PUMA 560 (same fixed set as the paper arm) was dropped here for suite time; its elimination
+# runs in benchmarks/bench_elimination_vs_gn.py, not in the tests
+@pytest.mark.parametrize("name,fixed", [("paper-6r", ("d3",)), ("ur5", ("d3", "d4"))])
 def test_robust_variant_recovers_the_identifiable_set(name, fixed):
     robot = jaxcal.preset(name)
     q = design.design_poses(jax.random.PRNGKey(2), robot, n_pairs=2, n_abs=2)
