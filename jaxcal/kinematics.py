@@ -109,7 +109,8 @@ def _dot3(row, col):
 
 def rotate_soa(R, v):
     """``R @ v`` with the pose axis last: ``R (..., 3, 3, K)``, ``v (..., 3, K)``. Written as
-    three broadcast multiply-adds, not a reduction (XLA CPU's reduce loops were ~5x slower)."""
+    three broadcast multiply-adds, not a reduction: with a reduction, FK on 1e5 poses ran ~3x
+    slower."""
     return sum(R[..., :, j, :] * v[..., j:j + 1, :] for j in range(3))
 
 
