@@ -1,6 +1,15 @@
-import jax
-import numpy as np
-import pytest
+import os
+from pathlib import Path
+
+# One persistent XLA compilation cache for the whole run, shared by the xdist workers and the
+# subprocesses the tests start (CLI, notebooks, benchmarks): the same solvers are compiled
+# once instead of once per process. Set before jax is imported; an existing setting wins.
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(Path(__file__).resolve().parent.parent / ".pytest_cache" / "jax-cache"))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.2")
+
+import jax  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 import jaxcal  # noqa: F401  (enables float64)
 
