@@ -105,15 +105,15 @@ def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: 
         v_s = rotate_soa(R, V) + cross_soa(jnp.broadcast_to(t, w_s.shape), w_s)
         return jnp.concatenate([v_s, w_s], 1).reshape(24, -1)
 
-    R_n, t_n, Y, _ = _chain(robot, q, frames=True, per_link=spatial_twists)  # Y: (n, 12 + 24, K)
+    R_n, t_n, Y = _chain(robot, q, frames=True, per_link=spatial_twists)  # Y: (n, 12 + 24, K)
     n, K = robot.n_joints, t_n.shape[1]
     tw = Y[:, 12:].reshape(4 * n, 6, K)
-    R_e = matmul_soa(R_n, jnp.broadcast_to(robot.tool[:3, :3, None], R_n.shape))  # end frame with the tool
-    p_e = rotate_soa(R_n, jnp.broadcast_to(robot.tool[:3, 3, None], (3, K))) + t_n
+    p_e = rotate_soa(R_n, jnp.broadcast_to(robot.tool[:3, 3, None], (3, K))) + t_n  # end (tool) position
     cols = [tw]
     if base:  # unit twists in the measurement frame itself
         cols.append(jnp.broadcast_to(jnp.eye(6)[:, :, None], (6, 6, K)))
     if tool:  # unit twists in the tool frame: Ad(T_end) e_j, from the columns of R_end
+        R_e = matmul_soa(R_n, jnp.broadcast_to(robot.tool[:3, :3, None], R_n.shape))
         Rc = jnp.swapaxes(R_e, 0, 1)  # (3 columns, 3 rows, K)
         z = jnp.zeros_like(Rc)
         along = jnp.concatenate([Rc, z], 1)  # translations: [R e_j; 0]

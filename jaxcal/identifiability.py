@@ -243,14 +243,19 @@ def crlb(J, row_sigma, ident: Identifiability) -> np.ndarray:
     if J2.shape[1] != len(ident.names):
         raise DataError(f"J has {J2.shape[1]} columns, the analysis {len(ident.names)} parameters")
     sig = _row_sigma(J, J2.shape[0], row_sigma)
-    Jb = J2[:, list(ident.base)] / sig[:, None]
-    d = np.linalg.norm(Jb, axis=0)
+    return base_covariance(J2[:, list(ident.base)] / sig[:, None])
+
+
+def base_covariance(Jb) -> np.ndarray:
+    """``inv(Jb^T Jb)`` of row-weighted base-set columns ``Jb (..., rows, b)``, by a
+    column-scaled QR (stacks of pose sets at once: ``(R, rows, b) -> (R, b, b)``)."""
+    d = np.linalg.norm(Jb, axis=-2)  # (..., b) column scales
     if np.any(d == 0):
-        raise DataError("a base-set column is zero on this pose set")
-    R = scipy.linalg.qr(Jb / d, mode="economic")[1]
-    Rinv = scipy.linalg.solve_triangular(R, np.eye(R.shape[0]))
-    cov = (Rinv @ Rinv.T) / np.outer(d, d)
-    return (cov + cov.T) / 2
+        where = "" if d.ndim == 1 else f" of set {int(np.argwhere(d == 0)[0, 0])}"
+        raise DataError(f"a base-set column is zero on the pose set{where}")
+    Rinv = np.linalg.inv(np.linalg.qr(Jb / d[..., None, :], mode="r"))
+    cov = (Rinv @ np.swapaxes(Rinv, -1, -2)) / (d[..., :, None] * d[..., None, :])
+    return (cov + np.swapaxes(cov, -1, -2)) / 2
 
 
 def row_sigmas(n_poses: int, *, position_only: bool = False, sigma_pos_mm: float,

@@ -15,7 +15,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .errors import DataError
-from .lie import compose
+from .lie import compose, make_transform
 from .robot import Robot
 
 
@@ -137,9 +137,9 @@ def _chain(robot: Robot, q, *, frames: bool, per_link=None):
     poses the scan form is ~4x faster (``benchmarks/bench_roofline.py``). Broadcasting
     ``(3, 3, K)`` blocks instead of entries compiled faster but ran FK 2x slower.
 
-    Returns ``(R_end (3, 3, K), t_end (3, K), ys, (c, s, d))``: per link ``ys`` ``(n, 12 + e,
-    K)`` (rows of R, t, then ``per_link``'s rows) when ``frames`` (else None), and cos/sin of
-    theta and d per joint ``(n, K)``. ``per_link(R (3, 3, K), t (3, K), (c, s, d, a, alpha))``
+    Returns ``(R_end (3, 3, K), t_end (3, K), ys)``: per link ``ys`` ``(n, 12 + e, K)`` (rows of
+    R, t, then ``per_link``'s rows) when ``frames``, else None. ``per_link(R (3, 3, K),
+    t (3, K), (c, s, d, a, alpha))``
     gets frame ``T_i`` and link i's values and returns an ``(e, K)`` array.
     """
     n = robot.n_joints
@@ -165,22 +165,15 @@ def _chain(robot: Robot, q, *, frames: bool, per_link=None):
         return S, jnp.concatenate([S, per_link(S[:9].reshape(3, 3, K), S[9:], x)])
 
     S, ys = jax.lax.scan(link, S0, (c, s, d, robot.dh[:, 2], robot.dh[:, 3]))
-    return S[:9].reshape(3, 3, K), S[9:], ys, (c, s, d)
-
-
-def _to_matrices(S, lead):
-    """``(..., 12)`` entries (R rows, then t) -> ``(*lead, ..., 4, 4)``."""
-    R = S[..., :9].reshape(S.shape[:-1] + (3, 3))
-    top = jnp.concatenate([R, S[..., 9:, None]], -1)
-    bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0]), top.shape[:-2] + (1, 4))
-    T = jnp.concatenate([top, bottom], -2)
-    return T.reshape(lead + T.shape[1:])
+    return S[:9].reshape(3, 3, K), S[9:], ys
 
 
 @eqx.filter_jit
 def _fk_frames(robot: Robot, q):
-    _, _, ys, _ = _chain(robot, q, frames=True)  # (n, 12, K)
-    return _to_matrices(jnp.transpose(ys, (2, 0, 1)), q.shape[:-1])
+    _, _, ys = _chain(robot, q, frames=True)  # (n, 12, K)
+    ys = jnp.transpose(ys, (2, 0, 1))  # (K, n, 12)
+    T = make_transform(ys[..., :9].reshape(ys.shape[:-1] + (3, 3)), ys[..., 9:])
+    return T.reshape(q.shape[:-1] + T.shape[1:])
 
 
 def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
@@ -190,9 +183,9 @@ def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
 
 @eqx.filter_jit
 def _fk(robot: Robot, q):
-    R, t, _, _ = _chain(robot, q, frames=False)
-    S = jnp.concatenate([R.reshape(9, -1), t])  # (12, K)
-    return compose(_to_matrices(S.T, q.shape[:-1]), robot.tool)
+    R, t, _ = _chain(robot, q, frames=False)
+    T = make_transform(jnp.moveaxis(R, -1, 0), t.T)  # (K, 4, 4)
+    return compose(T, robot.tool).reshape(q.shape[:-1] + (4, 4))
 
 
 def _rx(alpha):

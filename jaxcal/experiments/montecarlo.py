@@ -13,8 +13,7 @@ import numpy as np
 
 from ..calibrate import calibrate_batch, identify
 from ..error_model import identification_jacobian, perturb
-from ..errors import DataError
-from ..identifiability import row_sigmas
+from ..identifiability import base_covariance, row_sigmas
 from ..kinematics import fk
 from ..robot import Robot
 from ..simulate import simulate
@@ -36,18 +35,13 @@ def _validation_rms(robot, x, q_val, true_val, *, base, tool):
 def _crlb_batch(robot, q, ident, *, position_only, base, tool, sigma_pos, sigma_rot):
     """Cramér–Rao covariance of the base parameters for each robot's pose set (at the
     nominal model), averaged over robots: :func:`jaxcal.identifiability.crlb` for all robots at
-    once (stacked column-scaled QR, no loop over robots)."""
+    once (:func:`jaxcal.identifiability.base_covariance` on the stacked Jacobians)."""
     J = np.asarray(jax.vmap(lambda q_: identification_jacobian(robot, q_, position_only=position_only,
                                                                base=base, tool=tool))(jnp.asarray(q)))
     sig = row_sigmas(q.shape[1], position_only=position_only, sigma_pos_mm=sigma_pos,
                      sigma_rot_rad=None if position_only else sigma_rot).reshape(-1)
     Jb = J.reshape(J.shape[0], -1, J.shape[-1])[..., list(ident.base)] / sig[:, None]
-    d = np.linalg.norm(Jb, axis=1)                           # (R, b) column scales
-    if np.any(d == 0):
-        raise DataError(f"a base-set column is zero on the pose set of robot {int(np.argwhere(d == 0)[0, 0])}")
-    Rinv = np.linalg.inv(np.linalg.qr(Jb / d[:, None, :], mode="r"))
-    cov = (Rinv @ np.swapaxes(Rinv, -1, -2)) / (d[:, :, None] * d[:, None, :])
-    return np.mean((cov + np.swapaxes(cov, -1, -2)) / 2, axis=0)
+    return np.mean(base_covariance(Jb), axis=0)
 
 
 def run_montecarlo(robot: Robot, *, n_robots: int = 1000, n_poses: int = 100, n_val: int = 50,
