@@ -251,8 +251,8 @@ def base_covariance(Jb) -> np.ndarray:
     column-scaled QR (stacks of pose sets at once: ``(R, rows, b) -> (R, b, b)``)."""
     d = np.linalg.norm(Jb, axis=-2)  # (..., b) column scales
     if np.any(d == 0):
-        where = "" if d.ndim == 1 else f" of set {int(np.argwhere(d == 0)[0, 0])}"
-        raise DataError(f"a base-set column is zero on the pose set{where}")
+        where = "this pose set" if d.ndim == 1 else f"pose set {int(np.argwhere(d == 0)[0, 0])}"
+        raise DataError(f"a base-set column is zero on {where}")
     Rinv = np.linalg.inv(np.linalg.qr(Jb / d[..., None, :], mode="r"))
     cov = (Rinv @ np.swapaxes(Rinv, -1, -2)) / (d[..., :, None] * d[..., None, :])
     return (cov + np.swapaxes(cov, -1, -2)) / 2

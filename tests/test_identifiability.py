@@ -300,3 +300,15 @@ def test_bad_input_and_borderline_spectrum():
     with pytest.warns(UserWarning, match="topped up"):
         B = analyze(M, ["p", "q", "r"])
     assert B.rank == len(B.base) == 2 and B.base[0] == 0
+
+
+def test_base_covariance_on_a_stack(rng):
+    """Stacked pose sets at once, against inv(Jb^T Jb) set by set; a zero column names its set."""
+    from jaxcal.identifiability import base_covariance
+    Jb = rng.normal(size=(3, 40, 5)) * np.array([1.0, 1e3, 1e-3, 10.0, 1.0])
+    got = base_covariance(Jb)
+    for k in range(3):
+        assert_allclose(got[k], np.linalg.inv(Jb[k].T @ Jb[k]), rtol=1e-9)
+    Jb[1, :, 2] = 0.0
+    with pytest.raises(DataError, match="zero on pose set 1"):
+        base_covariance(Jb)

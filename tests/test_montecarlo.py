@@ -73,7 +73,8 @@ def test_montecarlo_elimination_uses_its_pair_design():
 
 
 def test_batched_crlb_equals_per_robot_crlb():
-    """The stacked-QR CRLB of the Monte Carlo study against identifiability.crlb robot by robot."""
+    """The Monte Carlo CRLB (all robots' Jacobians stacked) against identifiability.crlb robot by
+    robot: both use base_covariance, so this checks the stacking, the row weights and the mean."""
     from jaxcal.calibrate import identify
     from jaxcal.error_model import identification_jacobian
     from jaxcal.experiments.montecarlo import _crlb_batch
