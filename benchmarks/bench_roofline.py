@@ -66,6 +66,7 @@ def xla_flops(fn, *args) -> float:
 def cpu_peak() -> dict:
     import numpy as np
     import jax.numpy as jnp
+    import jaxcal  # noqa: F401  (enables x64: without it jnp.asarray below is float32, twice the rate)
     flags = open("/proc/cpuinfo").read()
     mhz = [float(l.split(":")[1]) for l in flags.splitlines() if l.startswith("cpu MHz")]
     per_cycle = 32 if " avx512f" in flags else 16 if " fma" in flags else 4
@@ -79,6 +80,8 @@ def cpu_peak() -> dict:
         a @ a
         runs.append(time.perf_counter() - t0)
     ja = jnp.asarray(a)
+    if ja.dtype != jnp.float64:
+        raise RuntimeError(f"the GEMM peak must be measured in float64, got {ja.dtype}")
     f, jruns = time_fn(lambda x: x @ x, ja, repeats=5)
     return {"numpy_dgemm_flops": 2 * n ** 3 / min(runs), "jax_dgemm_flops": 2 * n ** 3 / min(jruns),
             "nominal_flops": nominal, "ghz": mhz[0] / 1e3 if mhz else None, "flop_per_cycle_per_core": per_cycle,

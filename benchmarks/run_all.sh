@@ -11,6 +11,6 @@ run() { local name=$1; shift; [[ -z "${ONLY:-}" || " $ONLY " == *" $name "* ]] |
 run kinematics bench_kinematics.py
 run gn_batch bench_gn_batch.py --repeats 3
 run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/python --json "$out/vs_pybotics.json"
-run roofline bench_roofline.py --json "$out/roofline.json"
+run roofline bench_roofline.py --repeats 15 --json "$out/roofline.json"
 run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"

@@ -12,6 +12,8 @@ ny = json.loads((D / "reproduce/noisy/summary.json").read_text())
 mc = json.loads((D / "montecarlo/gn_1000.json").read_text())
 fr = json.loads((D / "franka/report.json").read_text())
 fd = json.loads((D / "franka/report_depth_scale.json").read_text())
+fl = json.loads((D / "franka/report_camera_linear.json").read_text())
+fs = json.loads((D / "franka/fold_seeds.json").read_text())
 g = lambda v: f"{v:.3g}"
 key = {"linear": "linear", "gn": "gn", "elimination": "elimination", "literal": "elimination-literal"}
 vals = {"n_poses": nf["n_calibration_poses"], "n_inspect": nf["n_inspection_poses"], "jax": jax.__version__,
@@ -31,6 +33,10 @@ vals.update(fr_f_train=f"{fr['frames_only_train_rms_mm']:.2f}", fr_f_ho=f"{fr['f
             fr_c_max=f"{fr['heldout_max_mm']:.2f}", fr_c_rot=f"{fr['heldout_rot_rms_deg']:.2f}",
             fr_choice=fr["choice"], fd_train=f"{fd['train_rms_mm']:.2f}", fd_ho=f"{fd['heldout_rms_mm']:.2f}",
             fd_max=f"{fd['heldout_max_mm']:.2f}", fd_rot=f"{fd['heldout_rot_rms_deg']:.2f}", fd_choice=fd["choice"],
-            fd_med=f"{fd['heldout_median_mm']:.2f}", fr_med=f"{fr['heldout_median_mm']:.2f}",
-            fd_s=f"{fd['camera_depth_scale'] * 100:.2f}")
+            fd_s=f"{fd['camera_parameters']['camera_depth_scale']['value'] * 100:.2f}",
+            fl_train=f"{fl['train_rms_mm']:.2f}", fl_ho=f"{fl['heldout_rms_mm']:.3f}",
+            fl_max=f"{fl['heldout_max_mm']:.2f}", fl_rot=f"{fl['heldout_rot_rms_deg']:.2f}", fl_choice=fl["choice"])
+for k, cam in (("sn", "none"), ("sd", "depth"), ("sl", "linear")):
+    vals.update({f"{k}_{s}": f"{fs[cam][s + '_mm']:.3f}" for s in ("median", "min", "max")})
+    vals[f"{k}_med"] = vals.pop(f"{k}_median")
 sys.stdout.write(Path(sys.argv[1]).read_text().format(**vals))

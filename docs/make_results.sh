@@ -6,5 +6,9 @@ jaxcal reproduce --noise-mm 0.02 --noise-rad 2e-5 --out docs/reproduce/noisy
 jaxcal montecarlo paper-6r --robots 1000 --poses 100 --noise-mm 0.02 --noise-rad 2e-5 --json docs/montecarlo/gn_1000.json
 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m \
     --json docs/franka/report.json --out-robot docs/franka/panda-calibrated.toml --plots docs/franka
-jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-depth-scale \
+jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model depth \
     --json docs/franka/report_depth_scale.json
+jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model linear \
+    --json docs/franka/report_camera_linear.json --out-robot docs/franka/panda-calibrated-camera-linear.toml \
+    | tee docs/franka/calibrate_camera_linear.txt
+python docs/franka_fold_seeds.py docs/franka/fold_seeds.json

@@ -45,6 +45,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .camera import CAMERA_MODELS, apply_camera, camera_jacobian, n_params
+from .camera import param_names as camera_param_names
 from .error_model import identification_jacobian, param_names, pose_error
 from .errors import DataError
 from .identifiability import Identifiability, analyze
@@ -172,9 +174,9 @@ class Setup:
     n_needed: int = 0
     """Parameters the candidates need on a generic pose set (rank)."""
     max_steps: int = 50
-    depth_scale: bool = False
-    """Estimate the camera depth scale (:func:`jaxcal.solvers.manifold.apply_depth_scale`) in
-    every candidate (not in the frames-only stage)."""
+    camera: str = "none"
+    """Camera measurement model (:mod:`jaxcal.camera`) estimated in every candidate (held at 0
+    in the frames-only stage)."""
 
     @property
     def names(self) -> list[str]:
@@ -190,7 +192,7 @@ def _frame_cols(robot, position_only, estimate_base, estimate_tool):
 
 
 def make_setup(robot: Robot, q, measured, *, position_only: bool, candidates, estimate_base=True,
-               estimate_tool=True, method="gn", max_steps=50, depth_scale=False) -> Setup:
+               estimate_tool=True, method="gn", max_steps=50, camera="none") -> Setup:
     """Identifiability over all poses (at the all-pose initial frames) and the free layout."""
     if method not in METHODS:
         raise DataError(f"--method must be one of {', '.join(METHODS)} for calibrate, got {method!r}")
@@ -220,7 +222,7 @@ def make_setup(robot: Robot, q, measured, *, position_only: bool, candidates, es
 
     qg = sample_poses(jax.random.PRNGKey(0), robot, (max(60, len(q)),))
     Jg = np.asarray(identification_jacobian(r0, qg, position_only=position_only, base=True, tool=True))
-    n_need = analyze(Jg.reshape(-1, Jg.shape[-1])[:, order], [names[i] for i in order]).rank
+    n_need = analyze(Jg.reshape(-1, Jg.shape[-1])[:, order], [names[i] for i in order]).rank + n_params(camera)
     rpp = 3 if position_only else 6
     if len(q) * rpp < n_need:
         raise DataError(f"too few poses: {len(q)} poses x {rpp} rows = {len(q) * rpp} equations "
@@ -231,7 +233,7 @@ def make_setup(robot: Robot, q, measured, *, position_only: bool, candidates, es
     free = tuple(free_dh) + tuple(free_frames)
     return Setup(robot=robot, q=q, measured=measured, position_only=position_only, estimate_base=estimate_base,
                  estimate_tool=estimate_tool, method=method, candidates=tuple(candidates), ident=ident, free=free,
-                 n_dh_free=len(free_dh), n_needed=n_need, max_steps=max_steps, depth_scale=depth_scale)
+                 n_dh_free=len(free_dh), n_needed=n_need, max_steps=max_steps, camera=camera)
 
 
 def _prior_vector(setup: Setup, cand: Candidate | None) -> np.ndarray:
@@ -252,7 +254,7 @@ def _prior_vector(setup: Setup, cand: Candidate | None) -> np.ndarray:
 
 def _problem(setup: Setup) -> Problem:
     return Problem(template=setup.robot, free=setup.free, n_dh_free=setup.n_dh_free,
-                    rows=3 if setup.position_only else 6, depth_scale=setup.depth_scale)
+                    rows=3 if setup.position_only else 6, camera=setup.camera)
 
 
 def _sigmas(err, mask, position_only):
@@ -275,7 +277,7 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
 
     **Returns** a dict: ``frames`` (dict of the stage-A fit: ``delta, B, X, ok, steps, pred``,
     leading axis S), and the stage-B arrays with leading axes ``(S, C)``: ``delta (n, 4)``,
-    ``B``, ``X``, ``ok``, ``steps``, ``pred (K, 4, 4)``, ``depth_scale`` (0 unless estimated);
+    ``B``, ``X``, ``ok``, ``steps``, ``pred (K, 4, 4)``, ``camera (m,)`` (the camera unknowns);
     ``sigmas (S, 2)``.
     """
     train_masks = np.atleast_2d(np.asarray(train_masks, dtype=bool))
@@ -293,7 +295,8 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
     mask = train_masks.astype(np.float64)
     q, meas = jnp.asarray(setup.q), jnp.asarray(setup.measured)
     w0 = _weights(np.tile([1.0, np.radians(1.0)], (S, 1)))
-    ds = [PIN] if setup.depth_scale else []  # frames-only stage: depth scale held at 0
+    m = n_params(setup.camera)
+    ds = [PIN] * m  # frames-only stage: camera unknowns held at 0
     prior0 = np.tile(np.r_[_prior_vector(setup, None), ds], (S, 1))
     fit_a = _fitter(setup, "lm" if setup.method == "linear" else setup.method)
     (da, Ba, Xa, _), oka, sta, Ta = fit_a(jnp.zeros((S, n, 4)), jnp.asarray(B0), jnp.asarray(X0), q, meas,
@@ -301,7 +304,7 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
     ea = np.asarray(pose_error(meas[None], Ta))
     sig = np.array([_sigmas(ea[s], mask[s], setup.position_only) for s in range(S)])
     rep = lambda a: np.repeat(np.asarray(a)[:, None], C, axis=1).reshape((S * C,) + np.shape(a)[1:])
-    ds = [0.0] if setup.depth_scale else []  # candidates: depth scale free
+    ds = [0.0] * m  # candidates: camera unknowns free
     prior = np.tile(np.stack([np.r_[_prior_vector(setup, c), ds] for c in candidates]), (S, 1))
     (d, B, X, dsc), ok, st, T = _fitter(setup, setup.method)(
         jnp.asarray(rep(da)), jnp.asarray(rep(Ba)), jnp.asarray(rep(Xa)), q, meas, jnp.asarray(rep(mask)),
@@ -310,7 +313,7 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
     return {"frames": {"delta": np.asarray(da), "B": np.asarray(Ba), "X": np.asarray(Xa), "ok": np.asarray(oka),
                        "steps": np.asarray(sta), "pred": np.asarray(Ta)},
             "delta": sh(d), "B": sh(B), "X": sh(X), "ok": sh(ok), "steps": sh(st), "pred": sh(T),
-            "B_init": B0, "X_init": X0, "sigmas": sig, "depth_scale": sh(dsc)}
+            "B_init": B0, "X_init": X0, "sigmas": sig, "camera": sh(dsc)}
 
 
 # -- the whole procedure -----------------------------------------------------------------------
@@ -343,8 +346,13 @@ def _pooled(pe, re, masks):
 
 
 def _choose(scores: list[float], candidates) -> int:
-    """Lowest score; a simpler candidate (fewer free parameters, stronger prior) within 1 % wins."""
+    """Lowest score; a simpler candidate (fewer free parameters, stronger prior) within 1 % wins.
+    A non-finite score (a fit that failed) never wins; if every score is, that is an error."""
+    scores = [s if np.isfinite(s) else np.inf for s in scores]
     best = min(scores)
+    if not np.isfinite(best):
+        raise DataError(f"every candidate parameter set ({', '.join(c.name for c in candidates)}) failed to fit "
+                        f"(non-finite held-out errors); the data or the camera model may be degenerate")
     ok = [i for i, s in enumerate(scores) if s <= 1.01 * best]
     return min(ok, key=lambda i: candidates[i].complexity)
 
@@ -359,7 +367,7 @@ def _twist_log(T):
 def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, method: str = "gn",
                            params: str = "auto", ridge_mm: float | None = None, estimate_base: bool = True,
                            estimate_tool: bool = True, folds: int = 5, seed: int = 0,
-                           rows=None, depth_scale: bool = False) -> DataCalibration:
+                           rows=None, camera: str = "none") -> DataCalibration:
     """Calibrate from measured poses with K-fold (and nested) cross-validation.
 
     **Arguments**: ``q`` ``(K, n)`` rad; ``measured`` ``(K, 4, 4)`` mm; ``params`` see
@@ -369,23 +377,25 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
     ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_rot_rms_deg`` (nested CV),
     ``frames_only_*`` (same, nominal DH with base/tool fitted), ``choice``, ``cv``,
     ``parameters`` (deltas with standard errors), ``unidentifiable``, ``condition_number``,
-    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``, ``camera_depth_scale``.
+    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``, ``camera_model``,
+    ``camera_parameters``.
 
-    ``depth_scale=True`` adds the camera depth-scale measurement model
-    (:func:`jaxcal.solvers.manifold.apply_depth_scale`, one unknown in every candidate) for
-    camera-on-flange data whose target-relative pose comes from PnP: predictions (and so the
-    held-out errors) are of what the camera reports.
+    ``camera`` (``none | depth | linear``) adds a camera measurement model (:mod:`jaxcal.camera`,
+    its unknowns free in every candidate) for camera-on-flange data whose target-relative pose
+    comes from PnP: predictions (and so the held-out errors) are of what the camera reports.
     """
-    if depth_scale and position_only:
-        raise DataError("the camera depth scale needs full poses (the camera's optical axis); the data are "
-                        "position-only")
+    if camera not in CAMERA_MODELS:
+        raise DataError(f"--camera-model must be one of {', '.join(CAMERA_MODELS)}, got {camera!r}")
+    if camera != "none" and position_only:
+        raise DataError(f"the camera model {camera!r} needs full poses (the camera's axes); the data are "
+                        f"position-only")
     candidates = parse_params(params, robot, ridge_mm)
     q = np.asarray(q, dtype=np.float64)
     measured = np.asarray(measured, dtype=np.float64)
     K = len(q)
     setup = make_setup(robot, q, measured, position_only=position_only, candidates=candidates,
                        estimate_base=estimate_base, estimate_tool=estimate_tool, method=method,
-                       depth_scale=depth_scale)
+                       camera=camera)
     fid = fold_ids(K, folds, seed)
     rpp = 3 if position_only else 6
     n_train = K - int(np.bincount(fid).max())
@@ -447,7 +457,10 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
     cal = robot.replace(dh=np.asarray(robot.dh) + delta, base=B, tool=X, name=f"{robot.name}-calibrated")
     frames_only = robot.replace(base=res["frames"]["B"][S], tool=res["frames"]["X"][S])
     sig = res["sigmas"][S]
-    deltas, cond = _std_errors(setup, cal, candidates[c_final], sig, res["B_init"][S], res["X_init"][S], delta)
+    cam = res["camera"][S, c_final]
+    deltas, cond = _std_errors(setup, cal, candidates[c_final], sig, res["B_init"][S], res["X_init"][S], delta,
+                               cam)
+    cam_names = camera_param_names(camera)
     names = setup.names
     active_dh = [names[i] for i in setup.free[:setup.n_dh_free] if i in candidates[c_final].dh]
     tr_pe, tr_re = pe[S, c_final], re[S, c_final]
@@ -467,9 +480,11 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
         "frames_only_heldout_median_mm": float(np.median(f_pe)),
         "frames_only_heldout_rot_rms_deg": None if position_only else _rms(f_re),
         "cv": cv_table,
-        "camera_depth_scale": float(res["depth_scale"][S, c_final]) if depth_scale else None,
+        "camera_model": camera,
+        "camera_parameters": {k: {"value": deltas[k][0], "std_error": deltas[k][1]} for k in cam_names} or None,
         "sigma_pos_mm": float(sig[0]), "sigma_rot_deg": None if position_only else float(np.degrees(sig[1])),
-        "parameters": {k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items()},
+        "parameters": {k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items()
+                       if k not in cam_names},
         "estimated_dh": active_dh,
         "unidentifiable": list(setup.ident.fixed_names),
         "combinations": list(setup.ident.combinations),
@@ -495,8 +510,9 @@ def _frame_doc(T):
             "rpy_deg": [float(v) for v in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)]}
 
 
-def _std_errors(setup: Setup, cal: Robot, cand: Candidate, sig, B_init, X_init, delta):
-    """Sandwich standard errors of the active parameters at the final fit:
+def _std_errors(setup: Setup, cal: Robot, cand: Candidate, sig, B_init, X_init, delta, cam):
+    """Sandwich standard errors of the active parameters (and the camera unknowns ``cam``) at the
+    final fit:
     ``cov = s^2 (A^T A)^-1 (J^T J) (A^T A)^-1`` with ``A = [W J; P]`` (data and ridge rows),
     ``s^2`` the weighted residual variance; and the condition number of the scaled ``W J``."""
     names = setup.names
@@ -505,8 +521,13 @@ def _std_errors(setup: Setup, cal: Robot, cand: Candidate, sig, B_init, X_init, 
     active = [i for i in setup.free[:fd] if i in cand.dh] + list(setup.free[fd:])
     rows = 3 if setup.position_only else 6
     w = np.r_[np.full(3, 1 / sig[0]), np.full(3, 1 / sig[1])][:rows]
-    J = np.asarray(identification_jacobian(cal, jnp.asarray(setup.q), base=True, tool=True))[:, :rows][..., active]
-    e = np.asarray(pose_error(jnp.asarray(setup.measured), fk(cal, jnp.asarray(setup.q))))[:, :rows]
+    m = len(cam)
+    active += list(range(n4 + 12, n4 + 12 + m))
+    T = fk(cal, jnp.asarray(setup.q))
+    J = camera_jacobian(identification_jacobian(cal, jnp.asarray(setup.q), base=True, tool=True), T, cam,
+                        setup.camera)
+    J = np.asarray(J)[:, :rows][..., active]
+    e = np.asarray(pose_error(jnp.asarray(setup.measured), apply_camera(T, cam, setup.camera)))[:, :rows]
     Jw = (J * w[:, None]).reshape(-1, len(active))
     r = (e * w).reshape(-1)
     p = np.zeros(len(active))
@@ -522,11 +543,12 @@ def _std_errors(setup: Setup, cal: Robot, cand: Candidate, sig, B_init, X_init, 
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     xb = _twist_log(np.asarray(cal.base) @ np.linalg.inv(B_init))
     xt = _twist_log(np.linalg.inv(X_init) @ np.asarray(cal.tool))
-    value = np.r_[np.asarray(delta).reshape(-1), xb, xt]
+    value = np.r_[np.asarray(delta).reshape(-1), xb, xt, cam]
+    names = list(names) + camera_param_names(setup.camera)
     units = ["rad", "mm", "mm", "rad"]
     out = {}
     for j, i in enumerate(active):
-        u = units[i % 4] if i < n4 else ("mm" if (i - n4) % 6 < 3 else "rad")
+        u = units[i % 4] if i < n4 else ("mm" if (i - n4) % 6 < 3 else "rad") if i < n4 + 12 else "1"
         out[names[i]] = (float(value[i]), float(se[j]), u)
     sc = np.linalg.svd(Jw / np.linalg.norm(Jw, axis=0), compute_uv=False)
     return out, float(sc[0] / sc[-1])

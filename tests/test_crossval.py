@@ -98,42 +98,39 @@ def test_cv_prefers_simple_model_when_dh_is_exact(rng):
     assert res.report["heldout_rms_mm"] < 1.1 * res.report["frames_only_heldout_rms_mm"]
 
 
-def test_depth_scale_jacobian_matches_autodiff(rng):
-    """The depth-scale rows and column (manifold._depth_scale_jacobian) against jax.jacfwd of the
-    measurement model applied to the perturbed pose."""
-    import jax
-    import jax.numpy as jnp
-    from jaxcal.error_model import identification_jacobian, perturb, pose_error
-    from jaxcal.solvers.manifold import _depth_scale_jacobian, apply_depth_scale
-    r = preset("panda").replace(base=random_transform(rng, 500.0), tool=random_transform(rng, 150.0))
-    q = jnp.asarray(rng.uniform(-1.5, 1.5, (5, 7)))
-    s0 = 0.03
-    m = 4 * r.n_joints + 12
-
-    def model(xs):
-        T = fk(perturb(r, xs[:m], base=True, tool=True), q)
-        return pose_error(apply_depth_scale(T, s0 + xs[m]), apply_depth_scale(fk(r, q), s0))
-
-    auto = jax.jacfwd(model)(jnp.zeros(m + 1))  # (5, 6, m + 1)
-    J = identification_jacobian(r, q, base=True, tool=True)
-    ana = _depth_scale_jacobian(J, fk(r, q), s0)
-    assert_allclose(np.asarray(ana), np.asarray(auto), atol=1e-8 * float(np.abs(auto).max()))
-
-
-def test_depth_scale_recovered_from_simulated_camera(rng):
-    """A camera reporting its distance 1 % too long along its optical axis: the depth-scale model
-    recovers s = 0.01 and predicts held-out poses better than the plain model."""
-    from jaxcal.solvers.manifold import apply_depth_scale
+def test_camera_models_recovered_from_simulated_camera(rng):
+    """A camera reporting the target through a linear distortion (I + A) t in its axes (depth 1 %
+    long, a principal-point shear, a lateral scale): the linear model recovers A and predicts
+    held-out poses far better than the plain model; the depth model recovers a pure depth scale."""
+    from jaxcal.camera import apply_camera
     r = preset("panda")
     x_dh = np.asarray(simulate(r, seed=5).x_true[0])[: 4 * r.n_joints] * 2
     B, X = random_transform(rng, 500.0), random_transform(rng, 100.0)
     sim = _sim(r, x_dh, B, X, n=60, sp=0.05, sr=2e-4, seed=3)
-    meas = np.asarray(apply_depth_scale(np.asarray(sim.measured[0]), 0.01))
+    c = np.array([0.01, 0.004, -0.003, 0.002, 0.002, -0.003, 0.001, 0.002])   # depth, anisotropy, off-diagonal
+    meas = np.asarray(apply_camera(np.asarray(sim.measured[0]), c, "linear"))
     kw = dict(position_only=False, params="all", folds=3)
-    with_s = calibrate_measurements(r, sim.q[0], meas, depth_scale=True, **kw).report
+    lin = calibrate_measurements(r, sim.q[0], meas, camera="linear", **kw).report
     without = calibrate_measurements(r, sim.q[0], meas, **kw).report
-    assert abs(with_s["camera_depth_scale"] - 0.01) < 1e-3
-    assert with_s["heldout_rms_mm"] < 0.5 * without["heldout_rms_mm"]
-    assert without["camera_depth_scale"] is None
-    with pytest.raises(DataError, match="depth scale needs full poses"):
-        calibrate_measurements(r, sim.q[0], meas, position_only=True, depth_scale=True)
+    got = np.array([v["value"] for v in lin["camera_parameters"].values()])
+    assert_allclose(got, c, atol=5e-4)
+    se = np.array([v["std_error"] for v in lin["camera_parameters"].values()])
+    assert np.all(se > 0) and np.all(np.abs(got - c) < 5 * se + 1e-5)
+    assert lin["heldout_rms_mm"] < 0.2 * without["heldout_rms_mm"]
+    assert without["camera_model"] == "none" and without["camera_parameters"] is None
+    meas_d = np.asarray(apply_camera(np.asarray(sim.measured[0]), np.array([0.01]), "depth"))
+    dep = calibrate_measurements(r, sim.q[0], meas_d, camera="depth", **kw).report
+    assert abs(dep["camera_parameters"]["camera_depth_scale"]["value"] - 0.01) < 1e-3
+    with pytest.raises(DataError, match="camera model 'depth' needs full poses"):
+        calibrate_measurements(r, sim.q[0], meas, position_only=True, camera="depth")
+    with pytest.raises(DataError, match="--camera-model must be one of none, depth, linear"):
+        calibrate_measurements(r, sim.q[0], meas, position_only=False, camera="fisheye")
+
+
+def test_choice_ignores_failed_fits_and_refuses_when_all_failed():
+    from jaxcal.crossval import Candidate, _choose
+    c = [Candidate("frames", ()), Candidate("offsets", (0,)), Candidate("all", (0, 1, 2))]
+    assert _choose([np.nan, 2.0, 1.0], c) == 2          # nan first: min() would otherwise return nan
+    assert _choose([1.005, np.nan, 1.0], c) == 0        # simpler within 1 %
+    with pytest.raises(DataError, match="every candidate parameter set .* failed to fit"):
+        _choose([np.nan, np.inf, np.nan], c)

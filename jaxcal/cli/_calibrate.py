@@ -33,9 +33,9 @@ def calibrate(
     out_robot: Path = typer.Option(None, help="write the calibrated robot TOML here"),
     plots: Path = typer.Option(None, help="write plots into this folder"),
     seed: int = typer.Option(0, help="seed of the fold assignment"),
-    camera_depth_scale: bool = typer.Option(False, "--camera-depth-scale/--no-camera-depth-scale",
-                                            help="also estimate a depth scale of the measuring camera "
-                                                 "(pose of a camera on the flange w.r.t. a fixed target)"),
+    camera_model: str = typer.Option("none", help="none | depth | linear: also estimate a measurement model of "
+                                                  "a camera on the flange that reports its pose w.r.t. a fixed "
+                                                  "target (depth scale, or a 3x3 linear map of the position)"),
 ):
     """Calibrate from measured data with K-fold held-out validation (base and tool estimated)."""
     from ..crossval import calibrate_measurements
@@ -50,7 +50,7 @@ def calibrate(
     res = calibrate_measurements(nominal, meas.q, meas.poses, position_only=meas.position_only, method=method,
                                  params=params, ridge_mm=ridge, estimate_base=estimate_base,
                                  estimate_tool=estimate_tool, folds=folds, seed=seed, rows=meas.rows,
-                                 depth_scale=camera_depth_scale)
+                                 camera=camera_model)
     rep = dict(res.report, data=str(data))
     rot = not meas.position_only
 
@@ -70,7 +70,7 @@ def calibrate(
     summary.add_row("frames only (nominal DH)", _fmt(rep["frames_only_train_rms_mm"]),
                     _fmt(rep["frames_only_heldout_rms_mm"]), _fmt(rep["frames_only_heldout_max_mm"]),
                     _fmt(rep["frames_only_heldout_rot_rms_deg"]))
-    depth = " + camera depth scale" if rep.get("camera_depth_scale") is not None else ""
+    depth = f" + camera model {rep['camera_model']}" if rep["camera_model"] != "none" else ""
     summary.add_row(f"calibrated ({rep['choice']}){depth}", _fmt(rep["train_rms_mm"]), _fmt(rep["heldout_rms_mm"]),
                     _fmt(rep["heldout_max_mm"]), _fmt(rep["heldout_rot_rms_deg"]))
     console.print(summary)
@@ -91,9 +91,11 @@ def calibrate(
                   f"({rep['cv_fits_converged']}/{rep['cv_fits']} cross-validation fits converged)")
     console.print("base: xyz {} mm, rpy {} deg; tool: xyz {} mm, rpy {} deg".format(
         *(", ".join(f"{v:.2f}" for v in rep[k][u]) for k in ("base", "tool") for u in ("xyz_mm", "rpy_deg"))))
-    if rep.get("camera_depth_scale") is not None:
-        console.print(f"camera depth scale s = {rep['camera_depth_scale']:+.5f} (the camera reports p + s (z.p) z; "
-                      "a sensor property, not written to the robot file)")
+    if rep["camera_parameters"]:
+        vals = ", ".join(f"{k.removeprefix('camera_')} {v['value']:+.5f} ± {v['std_error']:.1g}"
+                         for k, v in rep["camera_parameters"].items())
+        console.print(f"camera model {rep['camera_model']}: {vals} (the camera reports t' = (I + A) t for the target "
+                      "origin t in its axes; a sensor property, not written to the robot file)")
     if out_robot is not None:
         save_robot(res.robot, out_robot)
         console.print(f"calibrated robot written to {out_robot}")

@@ -14,6 +14,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from ..camera import apply_camera, camera_jacobian, n_params
 from ..error_model import identification_jacobian, pose_error
 from ..kinematics import fk
 from ..lie import se3_exp
@@ -28,36 +29,9 @@ class Problem(eqx.Module):
     free: tuple[int, ...] = eqx.field(static=True)
     n_dh_free: int = eqx.field(static=True)
     rows: int = eqx.field(static=True)
-    depth_scale: bool = eqx.field(static=True, default=False)
-    """Estimate the camera depth scale ``s`` (:func:`apply_depth_scale`) as one more unknown; its
-    prior weight is the last entry of ``prior``."""
-
-
-def apply_depth_scale(T, s):
-    """Camera depth-scale measurement model: a camera whose depth (distance along its optical
-    axis ``z``, e.g. from a slightly wrong focal length or target size) is scaled by ``1 + s``
-    reports its position as ``p' = p + s (z . p) z`` (``p``, ``z``: the camera origin and
-    optical axis in the measurement frame, whose origin is the target); orientation unchanged.
-    ``T`` is the modelled camera pose, the result what the camera is predicted to report."""
-    T = jnp.asarray(T)
-    z, p = T[..., :3, 2], T[..., :3, 3]
-    return T.at[..., :3, 3].add(s * jnp.sum(z * p, -1)[..., None] * z)
-
-
-def _depth_scale_jacobian(J, T, s):
-    """Rows of the identification Jacobian ``J (..., 6, m)`` (derivatives of the modelled pose
-    ``T``) turned into derivatives of :func:`apply_depth_scale` ``(T, s)``, plus the column
-    ``d p'/d s = (z . p) z`` (rotation rows 0)."""
-    z, p = T[..., :3, 2], T[..., :3, 3]
-    dp, w = J[..., :3, :], J[..., 3:, :]
-    dz = jnp.cross(w, z[..., :, None], axisa=-2, axisb=-2, axisc=-2)          # d z = w x z
-    zp = jnp.sum(z * p, -1)[..., None, None]
-    z_ = z[..., :, None]
-    # d p' = d p + s [(d z . p + z . d p) z + (z . p) d z]
-    dp2 = dp + s * (z_ * (jnp.sum(dz * p[..., :, None], -2, keepdims=True) + jnp.sum(z_ * dp, -2, keepdims=True))
-                    + zp * dz)
-    col = jnp.concatenate([zp[..., 0] * z, jnp.zeros_like(z)], -1)[..., None]
-    return jnp.concatenate([jnp.concatenate([dp2, w], -2), col], -1)
+    camera: str = eqx.field(static=True, default="none")
+    """Camera measurement model (:mod:`jaxcal.camera`) whose unknowns are estimated with the
+    robot; their prior weights are the last ``n_params(camera)`` entries of ``prior``."""
 
 
 def member_robot(prob: Problem, delta, B, X) -> Robot:
@@ -65,7 +39,7 @@ def member_robot(prob: Problem, delta, B, X) -> Robot:
     return eqx.tree_at(lambda r: (r.dh, r.base, r.tool), r, (r.dh + delta, B, X))
 
 
-def fit_one(prob: Problem, delta0, B0, X0, q, meas, mask, w, prior, s0=0.0, *, method: str, max_steps: int):
+def fit_one(prob: Problem, delta0, B0, X0, q, meas, mask, w, prior, c0, *, method: str, max_steps: int):
     """On-manifold Gauss–Newton / Levenberg–Marquardt for one member.
 
     State: DH errors ``delta`` (additive), base ``B`` and tool ``X`` (updated as
@@ -73,34 +47,31 @@ def fit_one(prob: Problem, delta0, B0, X0, q, meas, mask, w, prior, s0=0.0, *, m
     current robot is the exact derivative of the model (no autodiff through the kinematics,
     which keeps compilation short). Each step solves the column-scaled normal equations of
     the stacked rows ``[W J; P]`` (data and prior); ``lm`` adds ``mu I`` with the usual
-    accept/reject schedule, ``gn`` always accepts, ``linear`` takes one step. With
-    ``prob.depth_scale`` the state also holds the camera depth scale ``s`` (start ``s0``, prior
-    weight ``prior[-1]``), the model pose goes through :func:`apply_depth_scale` and the
-    Jacobian gets its exact derivative and column (:func:`_depth_scale_jacobian`).
+    accept/reject schedule, ``gn`` always accepts, ``linear`` takes one step. The state also
+    holds the camera model's unknowns ``c`` (start ``c0 (m,)``, prior weights ``prior[-m:]``; none
+    for ``prob.camera == "none"``): the model pose goes through :func:`jaxcal.camera.apply_camera`
+    and the Jacobian gets its exact derivative and columns (:func:`jaxcal.camera.camera_jacobian`).
     """
     free = jnp.asarray(prob.free, jnp.int32)
     fd, n4, rows = prob.n_dh_free, 4 * prob.template.n_joints, prob.rows
     sw = jnp.sqrt(mask)[:, None] * w[:rows]
     frame_sel = [i - n4 for i in prob.free[fd:]]
-    ds = prob.depth_scale
-    # prior rows: DH errors, (frames: none), depth scale
-    prior_dh = prior[:fd]
-    prior_all = jnp.concatenate([prior_dh, jnp.zeros(len(frame_sel))] + ([prior[fd:fd + 1]] if ds else []))
-    cols = jnp.concatenate([free, jnp.asarray([n4 + 12], jnp.int32)]) if ds else free
+    cam, m = prob.camera, n_params(prob.camera)
+    # prior rows: DH errors, (frames: none), camera unknowns
+    prior_all = jnp.concatenate([prior[:fd], jnp.zeros(len(frame_sel)), prior[fd:fd + m]])
+    cols = jnp.concatenate([free, n4 + 12 + jnp.arange(m, dtype=jnp.int32)])
 
     def cost_and_system(state, need_system=True):
         delta, B, X, sc = state
         rob = member_robot(prob, delta, B, X)
         T = fk(rob, q)
-        e = pose_error(meas, apply_depth_scale(T, sc) if ds else T)[..., :rows] * sw   # (K, rows)
-        pr = prior_all * jnp.concatenate([delta.reshape(-1)[free[:fd]], jnp.zeros(len(frame_sel))]
-                                         + ([sc[None]] if ds else []))
+        e = pose_error(meas, apply_camera(T, sc, cam))[..., :rows] * sw   # (K, rows)
+        pr = prior_all * jnp.concatenate([delta.reshape(-1)[free[:fd]], jnp.zeros(len(frame_sel)), sc])
         cost = jnp.sum(e ** 2) + jnp.sum(pr ** 2)
         if not need_system:
             return cost
         J = identification_jacobian(rob, q, base=True, tool=True)
-        if ds:
-            J = _depth_scale_jacobian(J, T, sc)
+        J = camera_jacobian(J, T, sc, cam)
         J = J[..., :rows, :][..., cols] * sw[..., None]
         J = J.reshape(-1, len(cols))
         N = J.T @ J + jnp.diag(prior_all ** 2)
@@ -109,9 +80,9 @@ def fit_one(prob: Problem, delta0, B0, X0, q, meas, mask, w, prior, s0=0.0, *, m
 
     def apply(state, s):
         delta, B, X, sc = state
-        x = jnp.zeros(n4 + 13).at[cols].set(s)
+        x = jnp.zeros(n4 + 12 + m).at[cols].set(s)
         return (delta + x[:n4].reshape(delta.shape), se3_exp(x[n4:n4 + 6]) @ B, X @ se3_exp(x[n4 + 6:n4 + 12]),
-                sc + x[n4 + 12])
+                sc + x[n4 + 12:])
 
     def step(state, mu):
         cost, N, g = cost_and_system(state)
@@ -119,7 +90,7 @@ def fit_one(prob: Problem, delta0, B0, X0, q, meas, mask, w, prior, s0=0.0, *, m
         z = jnp.linalg.solve(d[:, None] * N * d[None, :] + mu * jnp.eye(len(d)), d * g)
         return cost, d * z, jnp.max(jnp.abs(z))
 
-    state0 = (delta0, B0, X0, jnp.asarray(s0, delta0.dtype))
+    state0 = (delta0, B0, X0, jnp.asarray(c0, delta0.dtype).reshape(m))
     if method == "linear":
         _, s, _ = step(state0, 0.0)
         state = apply(state0, s)
@@ -149,22 +120,22 @@ def fit_one(prob: Problem, delta0, B0, X0, q, meas, mask, w, prior, s0=0.0, *, m
 
     init = (state0, jnp.asarray(1e-3 if lm else 0.0), jnp.asarray(0), jnp.asarray(False), jnp.asarray(False))
     state, _, steps, _, conv = jax.lax.while_loop(cond, body, init)
-    ok = conv & jnp.all(jnp.isfinite(state[0]))
+    ok = conv & jnp.all(jnp.isfinite(state[0])) & jnp.all(jnp.isfinite(state[3]))
     return state, ok, steps
 
 
-def fit_batch(prob, delta0, B0, X0, q, meas, mask, w, prior, s0=None, *, method, max_steps):
+def fit_batch(prob, delta0, B0, X0, q, meas, mask, w, prior, c0=None, *, method, max_steps):
     """vmapped over members: ``delta0 (M, n, 4)``, ``B0, X0 (M, 4, 4)``, ``mask (M, K)``,
-    ``w (M, 6)``, ``prior (M, f_dh [+ 1 with depth_scale])``, ``s0 (M,)`` (depth scale start,
-    default 0). Returns ``((delta, B, X, s), ok, steps, poses (M, K, 4, 4))``; ``poses`` are the
-    predicted measurements (with the depth scale applied when estimated)."""
-    if s0 is None:
-        s0 = jnp.zeros(delta0.shape[0], delta0.dtype)
+    ``w (M, 6)``, ``prior (M, f_dh + m)`` (``m`` camera unknowns), ``c0 (M, m)`` (camera start,
+    default 0). Returns ``((delta, B, X, c), ok, steps, poses (M, K, 4, 4))``; ``poses`` are the
+    predicted measurements (through the camera model)."""
+    if c0 is None:
+        c0 = jnp.zeros((delta0.shape[0], n_params(prob.camera)), delta0.dtype)
 
-    def one(delta0, B0, X0, mask, w, prior, s0):
-        state, ok, steps = fit_one(prob, delta0, B0, X0, q, meas, mask, w, prior, s0, method=method,
+    def one(delta0, B0, X0, mask, w, prior, c0):
+        state, ok, steps = fit_one(prob, delta0, B0, X0, q, meas, mask, w, prior, c0, method=method,
                                     max_steps=max_steps)
         T = fk(member_robot(prob, *state[:3]), q)
-        return state, ok, steps, apply_depth_scale(T, state[3]) if prob.depth_scale else T
+        return state, ok, steps, apply_camera(T, state[3], prob.camera)
 
-    return jax.vmap(one)(delta0, B0, X0, mask, w, prior, s0)
+    return jax.vmap(one)(delta0, B0, X0, mask, w, prior, c0)

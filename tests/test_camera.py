@@ -1,0 +1,89 @@
+"""Camera measurement models (jaxcal.camera): the models against their written-out formulas,
+their Jacobian against autodiff."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from jaxcal import fk, preset
+from jaxcal.camera import CAMERA_MODELS, apply_camera, camera_jacobian, n_params, param_names
+from jaxcal.error_model import identification_jacobian, perturb, pose_error
+
+from conftest import random_transform
+
+
+def _poses(rng, k=6):
+    return np.stack([random_transform(rng, 600.0) for _ in range(k)])
+
+
+def test_depth_model_is_the_depth_scale_formula(rng):
+    """p' = p + s (z . p) z, z the optical axis, orientation unchanged."""
+    T = _poses(rng)
+    got = np.asarray(apply_camera(T, jnp.array([0.02]), "depth"))
+    z, p = T[:, :3, 2], T[:, :3, 3]
+    assert_allclose(got[:, :3, 3], p + 0.02 * np.sum(z * p, 1)[:, None] * z, rtol=1e-13, atol=1e-10)
+    assert_allclose(got[:, :3, :3], T[:, :3, :3], rtol=0, atol=0)
+
+
+def test_linear_model_maps_the_target_origin_in_camera_axes(rng):
+    """The target origin in the camera's axes t = -R^T p is reported as (I + A) t."""
+    T = _poses(rng)
+    c = rng.normal(0, 0.01, 8)
+    A = np.array([[c[1], c[2], c[3]], [c[4], -c[1], c[5]], [c[6], c[7], c[0]]])   # the documented layout
+    got = np.asarray(apply_camera(T, jnp.asarray(c), "linear"))
+    t = -np.einsum("kji,kj->ki", T[:, :3, :3], T[:, :3, 3])
+    t_reported = -np.einsum("kji,kj->ki", got[:, :3, :3], got[:, :3, 3])
+    assert_allclose(t_reported, t @ (np.eye(3) + A).T, rtol=1e-12, atol=1e-9)
+    assert_allclose(got[:, :3, :3], T[:, :3, :3], rtol=0, atol=0)
+    assert param_names("linear") == ["camera_depth_scale", "camera_anisotropy", "camera_A_xy", "camera_A_xz",
+                                     "camera_A_yx", "camera_A_yz", "camera_A_zx", "camera_A_zy"]
+
+
+def test_none_model_is_the_identity(rng):
+    T = _poses(rng)
+    assert_allclose(np.asarray(apply_camera(T, jnp.zeros(0), "none")), T, rtol=0, atol=0)
+    with pytest.raises(ValueError, match="camera model must be one of"):
+        n_params("pinhole")
+
+
+@pytest.mark.parametrize("model", ["depth", "linear"])
+def test_camera_jacobian_matches_autodiff(rng, model):
+    """Rows (derivatives through the pose) and the camera columns against jax.jacfwd of the
+    measurement model applied to the perturbed robot."""
+    r = preset("panda").replace(base=random_transform(rng, 500.0), tool=random_transform(rng, 150.0))
+    q = jnp.asarray(rng.uniform(-1.5, 1.5, (5, 7)))
+    m, mc = 4 * r.n_joints + 12, n_params(model)
+    c0 = jnp.asarray(rng.normal(0, 0.03, mc))
+
+    def measured(xs):
+        T = fk(perturb(r, xs[:m], base=True, tool=True), q)
+        return pose_error(apply_camera(T, c0 + xs[m:], model), apply_camera(fk(r, q), c0, model))
+
+    auto = jax.jacfwd(measured)(jnp.zeros(m + mc))                   # (5, 6, m + mc)
+    ana = camera_jacobian(identification_jacobian(r, q, base=True, tool=True), fk(r, q), c0, model)
+    assert ana.shape == auto.shape
+    assert_allclose(np.asarray(ana), np.asarray(auto), atol=1e-8 * float(np.abs(auto).max()))
+
+
+def test_models_listed():
+    assert CAMERA_MODELS == ("none", "depth", "linear")
+    assert [n_params(m) for m in CAMERA_MODELS] == [0, 1, 8]
+    assert [len(param_names(m)) for m in CAMERA_MODELS] == [0, 1, 8]
+
+
+def test_linear_model_leaves_out_exactly_the_robot_scale(rng):
+    """With every length of the robot and its frames free, the camera's 8 unknowns add 8 to the
+    rank (all identifiable), while a uniform scale A = a I would add nothing: it is a uniform
+    scale of the robot."""
+    r = preset("panda").replace(base=random_transform(rng, 500.0), tool=random_transform(rng, 100.0))
+    q = jnp.asarray(rng.uniform(-1.5, 1.5, (60, 7)))
+    T = fk(r, q)
+    J = np.asarray(camera_jacobian(identification_jacobian(r, q, base=True, tool=True), T, jnp.zeros(8), "linear"))
+    J = J.reshape(-1, J.shape[-1])
+    rank = lambda M: np.linalg.matrix_rank(M / np.linalg.norm(M, axis=0).clip(1e-300), tol=1e-9)
+    u = np.einsum("kji,kj->ki", np.asarray(T)[:, :3, :3], np.asarray(T)[:, :3, 3])
+    iso = np.concatenate([np.einsum("kij,kj->ki", np.asarray(T)[:, :3, :3], u), np.zeros((60, 3))], 1).reshape(-1, 1)
+    assert rank(J) == rank(J[:, :-8]) + 8
+    assert rank(np.c_[J, iso]) == rank(J)
