@@ -45,74 +45,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .camera import CAMERA_MODELS, apply_camera, camera_jacobian, n_params
+from .camera import CAMERA_MODELS, n_params
 from .camera import param_names as camera_param_names
 from .error_model import identification_jacobian, param_names, pose_error
 from .errors import DataError
 from .identifiability import Identifiability, analyze
 from .initial_guess import initial_frames
-from .kinematics import fk
+from .param_sets import Candidate, parse_params
 from .solvers.manifold import Problem, fit_batch
-from .robot import DH_NAMES, Robot
+from .uncertainty import frame_doc, standard_errors
+from .robot import Robot
 
 PIN = 1e8
 METHODS = ("gn", "lm", "linear")
-PARAM_SETS = ("auto", "frames", "offsets", "angles", "all")
-RIDGE_GRID_MM = (0.1, 0.3, 1.0, 3.0)
-_KIND = {k: i for i, k in enumerate(DH_NAMES)}
-
-
-# -- candidates --------------------------------------------------------------------------------
-
-@dataclasses.dataclass(frozen=True)
-class Candidate:
-    """A DH parameter set (indices into the 4n DH errors) and an optional ridge prior."""
-
-    name: str
-    dh: tuple[int, ...]
-    """DH errors allowed to move (those not identifiable are dropped later)."""
-    ridge_mm: float | None = None
-    """Prior standard deviation ``s`` (mm for lengths, mrad for angles); None = no prior."""
-
-    @property
-    def complexity(self) -> tuple[int, float]:
-        return (len(self.dh), -(self.ridge_mm or np.inf))
-
-
-def _kinds(n: int, kinds) -> tuple[int, ...]:
-    return tuple(4 * j + _KIND[k] for j in range(n) for k in kinds)
-
-
-def parse_params(spec: str, robot: Robot, ridge_mm: float | None = None) -> list[Candidate]:
-    """Candidates for ``--params``: ``auto`` (frames, offsets, angles, all with a ridge grid
-    and all), one of ``frames|offsets|angles|all``, or a comma-separated list of DH kinds
-    (``theta,d,a,alpha``) and/or parameter names (``theta2, a4``). ``ridge_mm`` adds a prior
-    to an explicit set."""
-    n = robot.n_joints
-    names = robot.param_names()
-    named = {"frames": (), "offsets": _kinds(n, ["theta"]), "angles": _kinds(n, ["theta", "alpha"]),
-             "all": tuple(range(4 * n))}
-    spec = spec.strip()
-    if spec == "auto":
-        cands = [Candidate(k, v) for k, v in named.items() if k != "all"]
-        cands += [Candidate(f"all, ridge {s:g}", named["all"], s) for s in RIDGE_GRID_MM]
-        return cands + [Candidate("all", named["all"])]
-    if spec in named:
-        dh = named[spec]
-    else:
-        idx: set[int] = set()
-        for tok in (t.strip() for t in spec.split(",")):
-            if tok in _KIND:
-                idx.update(_kinds(n, [tok]))
-            elif tok in names:
-                idx.add(names.index(tok))
-            else:
-                raise DataError(f"--params: unknown parameter or set {tok!r}; use auto, frames, offsets, angles, "
-                                f"all, or a comma list of theta, d, a, alpha and names like theta2, a4 "
-                                f"(joints 1..{n})")
-        dh = tuple(sorted(idx))
-    name = spec if ridge_mm is None else f"{spec}, ridge {ridge_mm:g}"
-    return [Candidate(name, dh, ridge_mm)]
 
 
 # -- the batched solver (jaxcal.solvers.manifold) ---------------------------------------------
@@ -357,13 +302,6 @@ def _choose(scores: list[float], candidates) -> int:
     return min(ok, key=lambda i: candidates[i].complexity)
 
 
-def _twist_log(T):
-    from scipy.spatial.transform import Rotation
-
-    T = np.asarray(T)
-    return np.r_[T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_rotvec()]
-
-
 def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, method: str = "gn",
                            params: str = "auto", ridge_mm: float | None = None, estimate_base: bool = True,
                            estimate_tool: bool = True, folds: int = 5, seed: int = 0,
@@ -458,7 +396,7 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
     frames_only = robot.replace(base=res["frames"]["B"][S], tool=res["frames"]["X"][S])
     sig = res["sigmas"][S]
     cam = res["camera"][S, c_final]
-    deltas, cond = _std_errors(setup, cal, candidates[c_final], sig, res["B_init"][S], res["X_init"][S], delta,
+    deltas, cond = standard_errors(setup, cal, candidates[c_final], sig, res["B_init"][S], res["X_init"][S], delta,
                                cam)
     cam_names = camera_param_names(camera)
     names = setup.names
@@ -492,7 +430,7 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
         "converged": bool(res["ok"][S, c_final]), "steps": int(res["steps"][S, c_final]),
         "cv_fits_converged": int(res["ok"].sum() + res["frames"]["ok"].sum()),
         "cv_fits": int(res["ok"].size + res["frames"]["ok"].size),
-        "base": _frame_doc(B), "tool": _frame_doc(X),
+        "base": frame_doc(B), "tool": frame_doc(X),
     }
     rows = np.arange(1, K + 1) if rows is None else np.asarray(rows)
     per_pose = {"rows": rows, "frames_only_heldout": f_pe, "heldout": nested_pe, "frames_only_train": fpe[S],
@@ -500,55 +438,3 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
                 "frames_only": frames_only}
     return DataCalibration(robot=cal, nominal=robot, choice=candidates[c_final], report=rep, cv_table=cv_table,
                            per_pose=per_pose, deltas=deltas)
-
-
-def _frame_doc(T):
-    from scipy.spatial.transform import Rotation
-
-    T = np.asarray(T)
-    return {"xyz_mm": [float(v) for v in T[:3, 3]],
-            "rpy_deg": [float(v) for v in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)]}
-
-
-def _std_errors(setup: Setup, cal: Robot, cand: Candidate, sig, B_init, X_init, delta, cam):
-    """Sandwich standard errors of the active parameters (and the camera unknowns ``cam``) at the
-    final fit:
-    ``cov = s^2 (A^T A)^-1 (J^T J) (A^T A)^-1`` with ``A = [W J; P]`` (data and ridge rows),
-    ``s^2`` the weighted residual variance; and the condition number of the scaled ``W J``."""
-    names = setup.names
-    n4 = 4 * setup.robot.n_joints
-    fd = setup.n_dh_free
-    active = [i for i in setup.free[:fd] if i in cand.dh] + list(setup.free[fd:])
-    rows = 3 if setup.position_only else 6
-    w = np.r_[np.full(3, 1 / sig[0]), np.full(3, 1 / sig[1])][:rows]
-    m = len(cam)
-    active += list(range(n4 + 12, n4 + 12 + m))
-    T = fk(cal, jnp.asarray(setup.q))
-    J = camera_jacobian(identification_jacobian(cal, jnp.asarray(setup.q), base=True, tool=True), T, cam,
-                        setup.camera)
-    J = np.asarray(J)[:, :rows][..., active]
-    e = np.asarray(pose_error(jnp.asarray(setup.measured), apply_camera(T, cam, setup.camera)))[:, :rows]
-    Jw = (J * w[:, None]).reshape(-1, len(active))
-    r = (e * w).reshape(-1)
-    p = np.zeros(len(active))
-    if cand.ridge_mm is not None:
-        for j, i in enumerate(active):
-            if i < n4:
-                p[j] = 1 / (cand.ridge_mm if i % 4 in (1, 2) else cand.ridge_mm * 1e-3)
-    N = Jw.T @ Jw + np.diag(p ** 2)
-    dof = max(len(r) - len(active), 1)
-    s2 = float(r @ r) / dof
-    Ni = np.linalg.pinv(N)
-    cov = s2 * Ni @ (Jw.T @ Jw) @ Ni
-    se = np.sqrt(np.clip(np.diag(cov), 0, None))
-    xb = _twist_log(np.asarray(cal.base) @ np.linalg.inv(B_init))
-    xt = _twist_log(np.linalg.inv(X_init) @ np.asarray(cal.tool))
-    value = np.r_[np.asarray(delta).reshape(-1), xb, xt, cam]
-    names = list(names) + camera_param_names(setup.camera)
-    units = ["rad", "mm", "mm", "rad"]
-    out = {}
-    for j, i in enumerate(active):
-        u = units[i % 4] if i < n4 else ("mm" if (i - n4) % 6 < 3 else "rad") if i < n4 + 12 else "1"
-        out[names[i]] = (float(value[i]), float(se[j]), u)
-    sc = np.linalg.svd(Jw / np.linalg.norm(Jw, axis=0), compute_uv=False)
-    return out, float(sc[0] / sc[-1])

@@ -6,7 +6,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from jaxcal import DataError, fk, preset
-from jaxcal.crossval import calibrate_measurements, fold_ids, parse_params
+from jaxcal.crossval import calibrate_measurements, fold_ids
 from jaxcal.initial_guess import initial_frames
 from jaxcal.simulate import simulate
 
@@ -21,20 +21,6 @@ def test_folds_deterministic_balanced_and_cover_every_pose():
     for bad in (1, 24):
         with pytest.raises(DataError, match="--folds must be between 2 and the number of poses"):
             fold_ids(23, bad, seed=0)
-
-
-def test_parse_params():
-    r = preset("panda")
-    names = [c.name for c in parse_params("auto", r)]
-    assert names[0] == "frames" and names[-1] == "all" and "offsets" in names
-    (c,) = parse_params("theta,a4", r)
-    assert c.dh == tuple(sorted([4 * j for j in range(7)] + [4 * 3 + 2]))
-    (c,) = parse_params("offsets", r, ridge_mm=2.0)
-    assert c.ridge_mm == 2.0 and c.dh == tuple(4 * j for j in range(7))
-    with pytest.raises(DataError, match="unknown parameter or set 'beta'"):
-        parse_params("theta,beta", r)
-    with pytest.raises(DataError, match="unknown parameter or set 'theta9'"):
-        parse_params("theta9", r)
 
 
 @pytest.mark.parametrize("position_only", [False, True])

@@ -1,0 +1,20 @@
+"""Candidate parameter sets for `jaxcal calibrate --params` (jaxcal.param_sets)."""
+
+import pytest
+
+from jaxcal import DataError, preset
+from jaxcal.param_sets import parse_params
+
+
+def test_parse_params():
+    r = preset("panda")
+    names = [c.name for c in parse_params("auto", r)]
+    assert names[0] == "frames" and names[-1] == "all" and "offsets" in names
+    (c,) = parse_params("theta,a4", r)
+    assert c.dh == tuple(sorted([4 * j for j in range(7)] + [4 * 3 + 2]))
+    (c,) = parse_params("offsets", r, ridge_mm=2.0)
+    assert c.ridge_mm == 2.0 and c.dh == tuple(4 * j for j in range(7))
+    with pytest.raises(DataError, match="unknown parameter or set 'beta'"):
+        parse_params("theta,beta", r)
+    with pytest.raises(DataError, match="unknown parameter or set 'theta9'"):
+        parse_params("theta9", r)
