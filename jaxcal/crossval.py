@@ -5,7 +5,10 @@ choice of parameter sets and ridge priors by K-fold cross-validation, and the fi
 ``T(x, q) = exp(xi_b) B0 · A_1(dh + dx_1) ... A_n(dh + dx_n) · X0 exp(xi_t)`` with
 ``x = [dx (4n), xi_b (6), xi_t (6)]`` (the layout of :func:`jaxcal.error_model.param_names`
 with base and tool), ``B0, X0`` from :func:`jaxcal.initial_guess.initial_frames`. Fitted by
-:mod:`jaxcal.solvers.manifold` with the analytic identification Jacobian.
+:mod:`jaxcal.solvers.manifold` with the analytic identification Jacobian. With a camera
+measurement model (``camera``, :mod:`jaxcal.camera`) the modelled pose goes through
+``apply_camera(T, c)`` and its unknowns ``c`` are estimated in every candidate (held at 0 in the
+frames-only stage); they are not part of the calibrated robot.
 
 ## Objective
 $\\min_y \\sum_{k \\in train} |W e_k(y)|^2 + \\sum_j (p_j y_j)^2$, ``e_k`` the pose error
