@@ -140,11 +140,12 @@ OMEGAS = {"sdh": sdh_omegas, "mdh": mdh_omegas}
 OMEGA_TWISTS = {"sdh": sdh_omega_twists, "mdh": mdh_omega_twists}
 
 
-def omega_twists_soa(convention: str, c, s, d, a, alpha):
-    """Closed form of :data:`OMEGA_TWISTS` with the pose axis last: ``(V, W)``, each
-    ``(4, 3, K)`` for ``k = theta, d, a, alpha``, from cos/sin of theta ``c, s`` and ``d``
-    ``(K,)``, scalars ``a, alpha``; for the structure-of-arrays Jacobian
-    (:func:`jaxcal.error_model.identification_jacobian`).
+def omega_twist_entries(convention: str, c, s, d, a, alpha) -> list:
+    """Closed form of :data:`OMEGA_TWISTS` entry by entry, for the structure-of-arrays
+    Jacobian (:func:`jaxcal.error_model.identification_jacobian`): for ``k = theta, d, a,
+    alpha`` a pair ``(v, w)`` of 3-lists whose entries are arrays (broadcast from cos/sin of
+    theta ``c, s``, ``d`` and ``a, alpha``), the Python float ``1.0``, or ``None`` for a
+    structural zero, so callers skip the arithmetic they do not need.
 
     SDH (eq. 5): ``Omega_theta`` is a rotation about ``(0, s alpha, c alpha)`` with
     ``v = (0, a c alpha, -a s alpha)``; ``Omega_d`` a translation along ``(0, s alpha, c alpha)``;
@@ -152,12 +153,10 @@ def omega_twists_soa(convention: str, c, s, d, a, alpha):
     about z; translation along z; translation along ``(c theta, -s theta, 0)``; rotation about
     that axis with ``v = (-d s theta, -d c theta, 0)``.
     """
-    z, o = jnp.zeros_like(c), jnp.ones_like(c)
+    zero = [None, None, None]
     if convention == "sdh":
-        ca, sa = jnp.cos(alpha) * o, jnp.sin(alpha) * o
-        V = [[z, a * ca, -a * sa], [z, sa, ca], [o, z, z], [z, z, z]]
-        W = [[z, sa, ca], [z, z, z], [z, z, z], [o, z, z]]
-    else:
-        V = [[z, z, z], [z, z, o], [c, -s, z], [-d * s, -d * c, z]]
-        W = [[z, z, o], [z, z, z], [z, z, z], [c, -s, z]]
-    return jnp.stack([jnp.stack(v) for v in V]), jnp.stack([jnp.stack(w) for w in W])
+        ca, sa = jnp.cos(alpha), jnp.sin(alpha)
+        return [([None, a * ca, -a * sa], [None, sa, ca]), ([None, sa, ca], zero),
+                ([1.0, None, None], zero), (zero, [1.0, None, None])]
+    return [(zero, [None, None, 1.0]), ([None, None, 1.0], zero),
+            ([c, -s, None], zero), ([-d * s, -d * c, None], [c, -s, None])]

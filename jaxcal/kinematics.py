@@ -126,7 +126,17 @@ def cross_soa(u, v):
     return jnp.stack([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0], -2)
 
 
-def _chain(robot: Robot, q, *, frames: bool, per_link=None):
+def link_inputs(robot: Robot, q):
+    """cos and sin of every joint's theta and its d, pose axis last: three ``(n, K)`` arrays
+    (K poses, leading axes of ``q`` flattened)."""
+    n = robot.n_joints
+    qT = jnp.reshape(q, (-1, n)).T.astype(jnp.float64)  # (n, K)
+    rev = robot.revolute_mask[:, None]
+    theta = robot.dh[:, 0:1] + qT * rev
+    return jnp.cos(theta), jnp.sin(theta), robot.dh[:, 1:2] + qT * (1.0 - rev)
+
+
+def _chain(robot: Robot, q, *, frames: bool):
     """The product ``base @ A_1 ... A_n`` for all poses, structure-of-arrays.
 
     The pose axis is last: each of the 12 entries of the running transform is a ``(K,)``
@@ -137,18 +147,11 @@ def _chain(robot: Robot, q, *, frames: bool, per_link=None):
     poses the scan form is ~4x faster (``benchmarks/bench_roofline.py``). Broadcasting
     ``(3, 3, K)`` blocks instead of entries compiled faster but ran FK 2x slower.
 
-    Returns ``(R_end (3, 3, K), t_end (3, K), ys)``: per link ``ys`` ``(n, 12 + e, K)`` (rows of
-    R, t, then ``per_link``'s rows) when ``frames``, else None. ``per_link(R (3, 3, K),
-    t (3, K), (c, s, d, a, alpha))``
-    gets frame ``T_i`` and link i's values and returns an ``(e, K)`` array.
+    Returns ``(R_end (3, 3, K), t_end (3, K), frames (n, 12, K))`` (rows of each ``T_i``'s
+    rotation, then its translation), the last None unless ``frames``.
     """
-    n = robot.n_joints
-    qT = jnp.reshape(q, (-1, n)).T.astype(jnp.float64)  # (n, K)
-    rev = robot.revolute_mask[:, None]
-    theta = robot.dh[:, 0:1] + qT * rev
-    d = robot.dh[:, 1:2] + qT * (1.0 - rev)
-    c, s = jnp.cos(theta), jnp.sin(theta)  # materialised once, as loop inputs
-    K = qT.shape[1]
+    c, s, d = link_inputs(robot, q)  # materialised once, as loop inputs
+    K = c.shape[1]
     top = jnp.concatenate([robot.base[:3, :3].reshape(9), robot.base[:3, 3]])
     S0 = jnp.broadcast_to(top[:, None], (12, K))
 
@@ -158,11 +161,7 @@ def _chain(robot: Robot, q, *, frames: bool, per_link=None):
         entries = [_dot3(R[r], [A_R[0][k], A_R[1][k], A_R[2][k]]) for r in range(3) for k in range(3)]
         entries += [_dot3(R[r], A_t) + S[9 + r] for r in range(3)]
         S = jnp.stack([jnp.broadcast_to(e, (K,)) for e in entries])
-        if not frames:
-            return S, None
-        if per_link is None:
-            return S, S
-        return S, jnp.concatenate([S, per_link(S[:9].reshape(3, 3, K), S[9:], x)])
+        return S, (S if frames else None)
 
     S, ys = jax.lax.scan(link, S0, (c, s, d, robot.dh[:, 2], robot.dh[:, 3]))
     return S[:9].reshape(3, 3, K), S[9:], ys

@@ -114,6 +114,14 @@ def test_which_omegas_depend_on_theta(rng):
     assert np.all(s_left[2:] > 0.5)
 
 
+def _dense_twists(conv, c, s, d, a, al):
+    """omega_twist_entries as dense (4, 3, K) arrays V, W (None -> 0, 1.0 -> ones)."""
+    o = np.ones(np.shape(c))
+    dense = lambda e: 0.0 * o if e is None else o * np.asarray(e)
+    ent = D.omega_twist_entries(conv, c, s, d, a, al)
+    return tuple(np.stack([np.stack([dense(e) for e in vw[j]]) for vw in ent]) for j in (0, 1))
+
+
 @pytest.mark.parametrize("conv", CONVS)
 def test_omega_twist_closed_form_matches_vee_of_omegas(conv, rng):
     """The pose-axis-last closed form used by the structure-of-arrays Jacobian, one link
@@ -124,6 +132,6 @@ def test_omega_twist_closed_form_matches_vee_of_omegas(conv, rng):
         Pl[:, 2], Pl[:, 3] = a, al
         want = np.asarray(D.OMEGA_TWISTS[conv](*Pl.T))  # (50, 4, 6)
         th, d = jnp.asarray(Pl[:, 0]), jnp.asarray(Pl[:, 1])
-        V, W = D.omega_twists_soa(conv, jnp.cos(th), jnp.sin(th), d, a, al)  # (4, 3, 50)
+        V, W = _dense_twists(conv, jnp.cos(th), jnp.sin(th), d, a, al)  # (4, 3, 50)
         got = np.concatenate([np.asarray(V), np.asarray(W)], 1).transpose(2, 0, 1)
         assert_allclose(got, want, atol=1e-12, rtol=0)

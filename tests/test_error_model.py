@@ -69,6 +69,18 @@ def test_jacobians_keep_leading_axes_and_vmap_over_robots(rng):
             assert_allclose(np.asarray(got), np.asarray(fn(r, Q[0], base=True, tool=True)), atol=1e-9)
 
 
+def test_twist_jacobian_frames_map_to_the_autodiff_checked_pose_rows(rng):
+    """Twist columns (base and tool included) through dp = v + w x p_end are the identification
+    Jacobian's pose rows (checked against jax.jacfwd elsewhere)."""
+    for robot in _robots(rng):
+        robot = robot.replace(base=random_transform(rng), tool=random_transform(rng, 80.0))
+        Q = jnp.asarray(rng.uniform(-2, 2, (7, robot.n_joints)))
+        tw = E.twist_jacobian(robot, Q, base=True, tool=True)
+        want = E.identification_jacobian(robot, Q, base=True, tool=True)
+        got = E.twist_to_pose_rows(tw, fk(robot, Q)[:, :3, 3])
+        assert_allclose(np.asarray(got), np.asarray(want), atol=1e-9 * float(np.abs(want).max()))
+
+
 def test_eq10_literal_sum_equals_adjoint_form(rng):
     for robot in _robots(rng):
         Q = jnp.asarray(rng.uniform(-2, 2, (10, robot.n_joints)))
