@@ -10,6 +10,8 @@ pipes x 8 doubles x 2 = 32; AVX2: 16).
 Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform poses):
 * jaxcal as shipped: structure of arrays (every entry of the running transform a ``(K,)``
   vector) with a ``lax.scan`` over the links, so each link's entries are materialised once;
+  the Jacobian then forms every column at once from the materialised frames;
+* the previous Jacobian (commit d42a99f): the spatial twists formed inside the scan;
 * jaxcal before (commit 1bd4056): 4x4 matrices, links unrolled in Python, fused elementwise
   rigid products; its Jacobian from those frames by broadcasting;
 * ``lax.scan`` over the links with 4x4 matrices;
@@ -124,6 +126,36 @@ def variants(robot):
         cols = jnp.moveaxis(cols.reshape(cols.shape[:-3] + (4 * robot.n_joints, 6)), -1, -2)
         return twist_to_pose_rows(cols, compose(frames[..., -1, :, :], robot.tool)[..., :3, 3])
 
+    def jac_scan_twists(q):
+        """The previous shipped Jacobian (commit d42a99f): spatial twists formed inside the
+        lax.scan over links as broadcast (4, 3, K) blocks, then pose rows and one transpose."""
+        from jaxcal.derivatives import omega_twist_entries
+        from jaxcal.kinematics import _dot3, _link_entries, cross_soa, link_inputs, rotate_soa
+        c, s, d = link_inputs(robot, q)
+        K = c.shape[1]
+        top = jnp.concatenate([robot.base[:3, :3].reshape(9), robot.base[:3, 3]])
+
+        def link(S, x):
+            R = [[S[3 * r + k] for k in range(3)] for r in range(3)]
+            A_R, A_t = _link_entries(robot.convention, *x)
+            e = [_dot3(R[r], [A_R[0][k], A_R[1][k], A_R[2][k]]) for r in range(3) for k in range(3)]
+            e += [_dot3(R[r], A_t) + S[9 + r] for r in range(3)]
+            S = jnp.stack([jnp.broadcast_to(v, (K,)) for v in e])
+            o = jnp.ones((K,))
+            ent = omega_twist_entries(robot.convention, *x)
+            V, W = (jnp.stack([jnp.stack([0.0 * o if v is None else o * v for v in vw[j]]) for vw in ent])
+                    for j in (0, 1))
+            Rb, tb = S[:9].reshape(3, 3, K), S[9:]
+            w_s = rotate_soa(Rb, W)
+            v_s = rotate_soa(Rb, V) + cross_soa(jnp.broadcast_to(tb, w_s.shape), w_s)
+            return S, jnp.concatenate([v_s, w_s], 1).reshape(24, K)
+
+        S, tw = jax.lax.scan(link, jnp.broadcast_to(top[:, None], (12, K)), (c, s, d, robot.dh[:, 2], robot.dh[:, 3]))
+        tw = tw.reshape(4 * robot.n_joints, 6, K)
+        p_e = rotate_soa(S[:9].reshape(3, 3, K), jnp.broadcast_to(robot.tool[:3, 3, None], (3, K))) + S[9:]
+        J = jnp.concatenate([tw[:, :3] + cross_soa(tw[:, 3:], jnp.broadcast_to(p_e, tw[:, 3:].shape)), tw[:, 3:]], 1)
+        return jnp.transpose(J, (2, 1, 0))
+
     def fk_scan(q):
         A = LINKS[robot.convention](*jnp.moveaxis(joint_dh(robot, q), -1, 0))  # (K, n, 4, 4)
         T0 = jnp.broadcast_to(robot.base, A.shape[:-3] + (4, 4))
@@ -175,7 +207,8 @@ def variants(robot):
         "FK": {"jaxcal (SoA, lax.scan)": fk, "before: 4x4 unrolled, fused": fk_before,
                "4x4, lax.scan over links": fk_scan, "SoA, links unrolled": fk_soa,
                "chunked 1024 (lax.map)": chunked(fk, 1024), "chunked 8192 (lax.map)": chunked(fk, 8192)},
-        "Jacobian": {"jaxcal (closed form, SoA)": jac, "before: closed form, 4x4": jac_before,
+        "Jacobian": {"jaxcal (frames, then columns)": jac, "twists in the scan (d42a99f)": jac_scan_twists,
+                     "before: closed form, 4x4": jac_before,
                      "jacfwd through FK": jac_jacfwd,
                      "chunked 1024 (lax.map)": chunked(jac, 1024), "chunked 8192 (lax.map)": chunked(jac, 8192)},
     }
