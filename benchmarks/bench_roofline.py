@@ -130,7 +130,13 @@ def variants(robot):
         """The previous shipped Jacobian (commit d42a99f): spatial twists formed inside the
         lax.scan over links as broadcast (4, 3, K) blocks, then pose rows and one transpose."""
         from jaxcal.derivatives import omega_twist_entries
-        from jaxcal.kinematics import _dot3, _link_entries, cross_soa, link_inputs, rotate_soa
+        from jaxcal.kinematics import _dot3, _link_entries, link_inputs, rotate_soa
+
+        def cross_soa(u, v):  # u x v along axis -2, pose axis last
+            u0, u1, u2 = u[..., 0, :], u[..., 1, :], u[..., 2, :]
+            v0, v1, v2 = v[..., 0, :], v[..., 1, :], v[..., 2, :]
+            return jnp.stack([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0], -2)
+
         c, s, d = link_inputs(robot, q)
         K = c.shape[1]
         top = jnp.concatenate([robot.base[:3, :3].reshape(9), robot.base[:3, 3]])
@@ -143,7 +149,7 @@ def variants(robot):
             S = jnp.stack([jnp.broadcast_to(v, (K,)) for v in e])
             o = jnp.ones((K,))
             ent = omega_twist_entries(robot.convention, *x)
-            V, W = (jnp.stack([jnp.stack([0.0 * o if v is None else o * v for v in vw[j]]) for vw in ent])
+            V, W = (jnp.stack([jnp.stack([o * v for v in vw[j]]) for vw in ent])
                     for j in (0, 1))
             Rb, tb = S[:9].reshape(3, 3, K), S[9:]
             w_s = rotate_soa(Rb, W)

@@ -144,8 +144,9 @@ def omega_twist_entries(convention: str, c, s, d, a, alpha) -> list:
     """Closed form of :data:`OMEGA_TWISTS` entry by entry, for the structure-of-arrays
     Jacobian (:func:`jaxcal.error_model.identification_jacobian`): for ``k = theta, d, a,
     alpha`` a pair ``(v, w)`` of 3-lists whose entries are arrays (broadcast from cos/sin of
-    theta ``c, s``, ``d`` and ``a, alpha``), the Python float ``1.0``, or ``None`` for a
-    structural zero, so callers skip the arithmetic they do not need.
+    theta ``c, s``, ``d`` and ``a, alpha``), the Python float ``1.0``, or ``0.0`` for a
+    structural zero (:func:`jaxcal.kinematics.is_zero`), so callers skip the arithmetic they
+    do not need.
 
     SDH (eq. 5): ``Omega_theta`` is a rotation about ``(0, s alpha, c alpha)`` with
     ``v = (0, a c alpha, -a s alpha)``; ``Omega_d`` a translation along ``(0, s alpha, c alpha)``;
@@ -153,10 +154,10 @@ def omega_twist_entries(convention: str, c, s, d, a, alpha) -> list:
     about z; translation along z; translation along ``(c theta, -s theta, 0)``; rotation about
     that axis with ``v = (-d s theta, -d c theta, 0)``.
     """
-    zero = [None, None, None]
+    zero = [0.0, 0.0, 0.0]
     if convention == "sdh":
         ca, sa = jnp.cos(alpha), jnp.sin(alpha)
-        return [([None, a * ca, -a * sa], [None, sa, ca]), ([None, sa, ca], zero),
-                ([1.0, None, None], zero), (zero, [1.0, None, None])]
-    return [(zero, [None, None, 1.0]), ([None, None, 1.0], zero),
-            ([c, -s, None], zero), ([-d * s, -d * c, None], [c, -s, None])]
+        return [([0.0, a * ca, -a * sa], [0.0, sa, ca]), ([0.0, sa, ca], zero),
+                ([1.0, 0.0, 0.0], zero), (zero, [1.0, 0.0, 0.0])]
+    return [(zero, [0.0, 0.0, 1.0]), ([0.0, 0.0, 1.0], zero),
+            ([c, -s, 0.0], zero), ([-d * s, -d * c, 0.0], [c, -s, 0.0])]

@@ -27,7 +27,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .derivatives import OMEGAS, omega_twist_entries
-from .kinematics import _chain, check_q, fk_frames, joint_dh, link_inputs, matmul_soa, rotate_soa
+from .kinematics import _chain, _dot3, check_q, fk_frames, is_zero, joint_dh, link_inputs, matmul_soa, rotate_soa
 from .lie import inv_transform, se3_exp, so3_log
 from .robot import DH_NAMES, Robot
 
@@ -94,40 +94,26 @@ def twist_jacobian(robot: Robot, q: Float[Array, "*b n"], *, base: bool = False,
     return _twist_jacobian(robot, check_q(robot, q), base=base, tool=tool)
 
 
-def _sparse_rotate(R, v):
-    """``R v`` for entry lists: ``R`` 3x3 nested list of arrays, ``v`` a 3-list of arrays,
-    ``1.0`` or ``None`` (zero); returns a 3-list (``None`` where the result is structurally 0)."""
-    out = []
-    for r in range(3):
-        terms = [R[r][j] if isinstance(v[j], float) and v[j] == 1.0 else R[r][j] * v[j]
-                 for j in range(3) if v[j] is not None]
-        out.append(sum(terms[1:], terms[0]) if terms else None)
-    return out
-
-
 def _sparse_cross(u, v):
-    """``u x v`` for 3-lists whose entries may be ``None`` (zero)."""
+    """``u x v`` for 3-lists whose entries may be structural zeros (:func:`is_zero`)."""
     def mul(x, y):
-        return None if x is None or y is None else x * y
+        return 0.0 if is_zero(x) or is_zero(y) else x * y
 
     def sub(x, y):
-        return x if y is None else -y if x is None else x - y
+        return x if is_zero(y) else -y if is_zero(x) else x - y
 
-    ij = ((1, 2), (2, 0), (0, 1))
-    return [sub(mul(u[i], v[j]), mul(u[j], v[i])) if (mul(u[i], v[j]) is not None or mul(u[j], v[i]) is not None)
-            else None for i, j in ij]
+    return [sub(mul(u[i], v[j]), mul(u[j], v[i])) for i, j in ((1, 2), (2, 0), (0, 1))]
 
 
 def _frame_columns(R_e, p_e, *, base: bool, tool: bool, pose_rows: bool):
-    """Base and tool columns ``(K, 6, 6 base + 6 tool)`` from the end rotation ``R_e (K, 3, 3)``
+    """Base and tool column blocks, each ``(K, 6, 6)``, from the end rotation ``R_e (K, 3, 3)``
     (tool included) and end position ``p_e (K, 3)``: base twists are unit twists in the
     measurement frame, tool twists unit twists in the tool frame, ``Ad(T_end) e_j``."""
     K = p_e.shape[0]
     eye, z3 = jnp.broadcast_to(jnp.eye(3), (K, 3, 3)), jnp.zeros((K, 3, 3))
-    skew_p = jnp.cross(p_e[:, :, None], eye, axisa=1, axisb=1, axisc=1)   # columns e_j -> p x e_j
     cols = []
-    if base:  # twist rows [e_j; 0] and [0; e_j]; pose rows add w x p_end
-        rot_dp = -skew_p if pose_rows else z3                              # e_j x p = -(p x e_j)
+    if base:  # twist rows [e_j; 0] and [0; e_j]; pose rows add w x p_end = e_j x p = -(p x e_j)
+        rot_dp = -jnp.cross(p_e[:, :, None], eye, axisa=1, axisb=1, axisc=1) if pose_rows else z3
         cols.append(jnp.concatenate([jnp.concatenate([eye, rot_dp], 2), jnp.concatenate([z3, eye], 2)], 1))
     if tool:  # twists [R e_j; 0] and [p x R e_j; R e_j]; pose rows: [R e_j; 0] and [0; R e_j]
         about_v = z3 if pose_rows else jnp.cross(p_e[:, :, None], R_e, axisa=1, axisb=1, axisc=1)
@@ -148,21 +134,20 @@ def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: 
     (``benchmarks/bench_roofline.py``).
     """
     n = robot.n_joints
-    R_n, t_n, F = _chain(robot, q, frames=True)  # F: (n, 12, K)
+    c, s, d = link_inputs(robot, q)
+    R_n, t_n, F = _chain(robot, (c, s, d), frames=True)  # F: (n, 12, K)
     K = t_n.shape[1]
     F = jnp.swapaxes(F, 0, 1)  # (12, n, K)
     R = [[F[3 * r + j] for j in range(3)] for r in range(3)]
     t = [F[9 + r] for r in range(3)]
-    c, s, d = link_inputs(robot, q)
     p_e = rotate_soa(R_n, jnp.broadcast_to(robot.tool[:3, 3, None], (3, K))) + t_n  # end (tool) position
     lever = [p_e[r][None] - t[r] for r in range(3)]
     blocks = []
     for v, w in omega_twist_entries(robot.convention, c, s, d, robot.dh[:, 2:3], robot.dh[:, 3:4]):
-        w_s, v_s = _sparse_rotate(R, w), _sparse_rotate(R, v)
+        w_s, v_s = [_dot3(R[r], w) for r in range(3)], [_dot3(R[r], v) for r in range(3)]
         extra = _sparse_cross(w_s, lever) if pose_rows else _sparse_cross(t, w_s)
-        rows_k = [x if y is None else y if x is None else x + y for x, y in zip(v_s, extra)] + w_s
-        blocks.append(jnp.stack([jnp.zeros_like(c) if e is None else jnp.broadcast_to(e, c.shape)
-                                 for e in rows_k[:rows]]))
+        rows_k = [x if is_zero(y) else y if is_zero(x) else x + y for x, y in zip(v_s, extra)] + w_s
+        blocks.append(jnp.stack([jnp.broadcast_to(e, c.shape) for e in rows_k[:rows]]))
     J = jnp.transpose(jnp.stack(blocks), (3, 1, 2, 0)).reshape(K, rows, 4 * n)  # (K, rows, n, 4)
     if base or tool:
         R_e = jnp.moveaxis(matmul_soa(R_n, jnp.broadcast_to(robot.tool[:3, :3, None], R_n.shape)), -1, 0)

@@ -101,10 +101,16 @@ def _link_entries(convention: str, c, s, d, a, alpha):
     return [[c, -s, 0.0], [s * ca, c * ca, -sa], [s * sa, c * sa, ca]], [a, -sa * d, ca * d]
 
 
+def is_zero(x) -> bool:
+    """A structural zero: the Python float 0.0 in an entry list (never an array)."""
+    return isinstance(x, float) and x == 0.0
+
+
 def _dot3(row, col):
-    """``sum_j row[j] col[j]``, skipping Python-zero entries of ``col``."""
-    terms = [row[j] * col[j] for j in range(3) if not (isinstance(col[j], float) and col[j] == 0.0)]
-    return sum(terms[1:], terms[0])
+    """``sum_j row[j] col[j]``, skipping structural zeros (:func:`is_zero`) of ``col``; 0.0 if
+    every term is one."""
+    terms = [row[j] * col[j] for j in range(3) if not is_zero(col[j])]
+    return sum(terms[1:], terms[0]) if terms else 0.0
 
 
 def rotate_soa(R, v):
@@ -119,13 +125,6 @@ def matmul_soa(A, B):
     return sum(A[:, j:j + 1, :] * B[None, j, :, :] for j in range(3))
 
 
-def cross_soa(u, v):
-    """``u x v`` along axis -2 (pose axis last)."""
-    u0, u1, u2 = u[..., 0, :], u[..., 1, :], u[..., 2, :]
-    v0, v1, v2 = v[..., 0, :], v[..., 1, :], v[..., 2, :]
-    return jnp.stack([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0], -2)
-
-
 def link_inputs(robot: Robot, q):
     """cos and sin of every joint's theta and its d, pose axis last: three ``(n, K)`` arrays
     (K poses, leading axes of ``q`` flattened)."""
@@ -136,7 +135,7 @@ def link_inputs(robot: Robot, q):
     return jnp.cos(theta), jnp.sin(theta), robot.dh[:, 1:2] + qT * (1.0 - rev)
 
 
-def _chain(robot: Robot, q, *, frames: bool):
+def _chain(robot: Robot, inputs, *, frames: bool):
     """The product ``base @ A_1 ... A_n`` for all poses, structure-of-arrays.
 
     The pose axis is last: each of the 12 entries of the running transform is a ``(K,)``
@@ -147,10 +146,11 @@ def _chain(robot: Robot, q, *, frames: bool):
     poses the scan form is ~4x faster (``benchmarks/bench_roofline.py``). Broadcasting
     ``(3, 3, K)`` blocks instead of entries compiled faster but ran FK 2x slower.
 
+    ``inputs``: :func:`link_inputs` ``(c, s, d)``, materialised once as the loop's inputs.
     Returns ``(R_end (3, 3, K), t_end (3, K), frames (n, 12, K))`` (rows of each ``T_i``'s
     rotation, then its translation), the last None unless ``frames``.
     """
-    c, s, d = link_inputs(robot, q)  # materialised once, as loop inputs
+    c, s, d = inputs
     K = c.shape[1]
     top = jnp.concatenate([robot.base[:3, :3].reshape(9), robot.base[:3, 3]])
     S0 = jnp.broadcast_to(top[:, None], (12, K))
@@ -169,7 +169,7 @@ def _chain(robot: Robot, q, *, frames: bool):
 
 @eqx.filter_jit
 def _fk_frames(robot: Robot, q):
-    _, _, ys = _chain(robot, q, frames=True)  # (n, 12, K)
+    _, _, ys = _chain(robot, link_inputs(robot, q), frames=True)  # (n, 12, K)
     ys = jnp.transpose(ys, (2, 0, 1))  # (K, n, 12)
     T = make_transform(ys[..., :9].reshape(ys.shape[:-1] + (3, 3)), ys[..., 9:])
     return T.reshape(q.shape[:-1] + T.shape[1:])
@@ -182,7 +182,7 @@ def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
 
 @eqx.filter_jit
 def _fk(robot: Robot, q):
-    R, t, _ = _chain(robot, q, frames=False)
+    R, t, _ = _chain(robot, link_inputs(robot, q), frames=False)
     T = make_transform(jnp.moveaxis(R, -1, 0), t.T)  # (K, 4, 4)
     return compose(T, robot.tool).reshape(q.shape[:-1] + (4, 4))
 

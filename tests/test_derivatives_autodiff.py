@@ -115,9 +115,9 @@ def test_which_omegas_depend_on_theta(rng):
 
 
 def _dense_twists(conv, c, s, d, a, al):
-    """omega_twist_entries as dense (4, 3, K) arrays V, W (None -> 0, 1.0 -> ones)."""
+    """omega_twist_entries as dense (4, 3, K) arrays V, W (structural 0.0 / 1.0 broadcast)."""
     o = np.ones(np.shape(c))
-    dense = lambda e: 0.0 * o if e is None else o * np.asarray(e)
+    dense = lambda e: o * np.asarray(e)
     ent = D.omega_twist_entries(conv, c, s, d, a, al)
     return tuple(np.stack([np.stack([dense(e) for e in vw[j]]) for vw in ent]) for j in (0, 1))
 
