@@ -13,6 +13,8 @@ mc = json.loads((D / "montecarlo/gn_1000.json").read_text())
 fr = json.loads((D / "franka/report.json").read_text())
 fd = json.loads((D / "franka/report_depth_scale.json").read_text())
 fl = json.loads((D / "franka/report_camera_linear.json").read_text())
+fq = json.loads((D / "franka/report_camera_quadratic.json").read_text())
+fa = json.loads((D / "franka/report_camera_auto.json").read_text())
 fs = json.loads((D / "franka/fold_seeds.json").read_text())
 g = lambda v: f"{v:.3g}"
 key = {"linear": "linear", "gn": "gn", "elimination": "elimination", "literal": "elimination-literal"}
@@ -36,7 +38,12 @@ vals.update(fr_f_train=f"{fr['frames_only_train_rms_mm']:.2f}", fr_f_ho=f"{fr['f
             fd_s=f"{fd['camera_parameters']['camera_depth_scale']['value'] * 100:.2f}",
             fl_train=f"{fl['train_rms_mm']:.2f}", fl_ho=f"{fl['heldout_rms_mm']:.3f}",
             fl_max=f"{fl['heldout_max_mm']:.2f}", fl_rot=f"{fl['heldout_rot_rms_deg']:.2f}", fl_choice=fl["choice"])
-for k, cam in (("sn", "none"), ("sd", "depth"), ("sl", "linear")):
+for k, rep in (("fq", fq), ("fa", fa)):
+    vals.update({f"{k}_train": f"{rep['train_rms_mm']:.2f}", f"{k}_ho": f"{rep['heldout_rms_mm']:.3f}",
+                 f"{k}_max": f"{rep['heldout_max_mm']:.2f}", f"{k}_rot": f"{rep['heldout_rot_rms_deg']:.2f}",
+                 f"{k}_choice": rep["choice"]})
+vals["fa_nested"] = ", ".join(c.split("camera ")[-1] for c in fa["nested_choices"])
+for k, cam in (("sn", "none"), ("sd", "depth"), ("sl", "linear"), ("sq", "quadratic"), ("sa", "auto")):
     vals.update({f"{k}_{s}": f"{fs[cam][s + '_mm']:.3f}" for s in ("median", "min", "max")})
     vals[f"{k}_med"] = vals.pop(f"{k}_median")
 sys.stdout.write(Path(sys.argv[1]).read_text().format(**vals))

@@ -12,11 +12,12 @@ from jaxcal.presets import preset
 robot = preset("panda")
 meas = read_measurements(franka_csv_path(), robot, length_unit="m")
 out = {}
-for camera in ("none", "depth", "linear"):
+for camera in ("none", "depth", "linear", "quadratic", "auto"):
     rows = []
     for seed in range(5):
         rep = calibrate_measurements(robot, meas.q, meas.poses, position_only=False, camera=camera, seed=seed).report
         rows.append({"seed": seed, "heldout_rms_mm": rep["heldout_rms_mm"], "heldout_rot_rms_deg": rep["heldout_rot_rms_deg"],
+                     "nested_choices": rep["nested_choices"],
                      "choice": rep["choice"]})
         print(camera, rows[-1], flush=True)
     v = [r["heldout_rms_mm"] for r in rows]

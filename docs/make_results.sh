@@ -8,7 +8,11 @@ jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length
     --json docs/franka/report.json --out-robot docs/franka/panda-calibrated.toml --plots docs/franka
 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model depth \
     --json docs/franka/report_depth_scale.json
-COLUMNS=120 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model linear \
-    --json docs/franka/report_camera_linear.json --out-robot docs/franka/panda-calibrated-camera-linear.toml \
-    | tee docs/franka/calibrate_camera_linear.txt
+jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model linear \
+    --json docs/franka/report_camera_linear.json
+COLUMNS=120 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m \
+    --camera-model quadratic --json docs/franka/report_camera_quadratic.json \
+    --out-robot docs/franka/panda-calibrated-camera-quadratic.toml | tee docs/franka/calibrate_camera_quadratic.txt
+jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model auto \
+    --json docs/franka/report_camera_auto.json
 python docs/franka_fold_seeds.py docs/franka/fold_seeds.json

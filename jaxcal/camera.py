@@ -10,8 +10,9 @@ model misses by ~1.2 mm RMS, so the leftover error is systematic, and part of it
 kind (``docs/franka/``).
 
 A model maps the pose the robot model predicts to what the camera is predicted to report. In
-the camera's own axes the target origin is at ``t = -R^T p``; the camera reports ``t' = (I +
-A) t`` (orientation unchanged), i.e. in the target frame
+the camera's own axes the target origin is at ``t = -R^T p``; the camera reports ``t' = t +
+G(t)`` (orientation unchanged), i.e. in the target frame ``p' = p - R G(t)``. For the linear
+models ``G(t) = A t``:
 
     ``p' = p + R A R^T p``,   ``A = sum_k c_k E_k``
 
@@ -25,7 +26,14 @@ with ``c`` the model's unknowns and ``E_k`` fixed 3x3 basis matrices (camera axe
   the optical axis relative to the orientation estimate). The ninth direction, a uniform scale
   ``A = a I``, is left out because it is exactly a uniform scale of every length of the robot and
   its frames (the calibrated robot carries it); a lateral scale ``a (e_x e_x^T + e_y e_y^T)`` is
-  that uniform scale plus a depth scale ``-a``.
+  that uniform scale plus a depth scale ``-a``;
+* ``quadratic``: ``linear`` plus a second-order field term in the normalised image
+  coordinates ``(u, v) = (x/z, y/z)`` of the target origin: ``t' = (I + A) t + z Q h(u, v)``
+  with ``h = (u^2, v^2, uv)`` and ``Q`` a free 3x3 matrix (nine more unknowns, 17 in all;
+  ``camera_Q_<axis>_<uu|vv|uv>``). It is the first term left over by a lens-distortion model
+  that is not quite right (decentring and thin-prism terms are quadratic in ``(u, v)``); the
+  term is homogeneous of degree 1 in ``t``, so it does not trade with the robot's scale. It
+  needs the target in front of the camera (``z > 0``).
 
 These are measurement parameters: they are estimated with the robot and enter every prediction
 (so held-out errors are of what the camera reports), but they are not part of the calibrated
@@ -38,9 +46,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-CAMERA_MODELS = ("none", "depth", "linear")
+from .errors import DataError
+
+CAMERA_MODELS = ("none", "depth", "linear", "quadratic")
 _AXES = "xyz"
 _OFF = [(a, b) for a in _AXES for b in _AXES if a != b]
+_FEATURES = ("uu", "vv", "uv")
+_N_LINEAR = 8
 
 
 def _check(model: str) -> None:
@@ -51,60 +63,113 @@ def _check(model: str) -> None:
 def n_params(model: str) -> int:
     """Number of unknowns of a camera model."""
     _check(model)
-    return {"none": 0, "depth": 1, "linear": 8}[model]
+    return {"none": 0, "depth": 1, "linear": 8, "quadratic": 17}[model]
 
 
 def param_names(model: str) -> list[str]:
     """Names of the unknowns, in order: ``camera_depth_scale`` (``A_zz``), then for ``linear``
-    ``camera_anisotropy`` (``A_xx = -A_yy``) and ``camera_A_xy, A_xz, A_yx, A_yz, A_zx, A_zy``."""
+    ``camera_anisotropy`` (``A_xx = -A_yy``) and ``camera_A_xy, A_xz, A_yx, A_yz, A_zx, A_zy``,
+    then for ``quadratic`` ``camera_Q_x_uu, Q_x_vv, Q_x_uv, Q_y_uu, ..., Q_z_uv`` (row = axis of
+    the reported position, column = image feature)."""
     _check(model)
     names = ["camera_depth_scale", "camera_anisotropy"] + [f"camera_A_{a}{b}" for a, b in _OFF]
+    names += [f"camera_Q_{a}_{f}" for a in _AXES for f in _FEATURES]
     return names[:n_params(model)]
 
 
 def basis(model: str) -> np.ndarray:
-    """The basis matrices ``E_k`` ``(m, 3, 3)`` in camera axes."""
-    E = np.zeros((8, 3, 3))
+    """The basis matrices ``E_k`` ``(m_lin, 3, 3)`` of the linear part ``A``, in camera axes
+    (``quadratic`` has the eight of ``linear``; its ``Q`` is not a linear map of ``t``)."""
+    E = np.zeros((_N_LINEAR, 3, 3))
     E[0, 2, 2] = 1.0
     E[1, 0, 0], E[1, 1, 1] = 1.0, -1.0
     for k, (a, b) in enumerate(_OFF):
         E[2 + k, _AXES.index(a), _AXES.index(b)] = 1.0
-    return E[:n_params(model)]
+    return E[:min(n_params(model), _N_LINEAR)]
+
+
+def check_target_in_front(measured: Float[np.ndarray, "k 4 4"], what: str = "quadratic", rows=None) -> None:
+    """Raise :class:`jaxcal.DataError` naming the first measured pose (and its data row, when
+    ``rows`` gives them) whose target origin is not in front of the camera (``z <= 0`` in the
+    camera's axes), where the image coordinates ``x/z, y/z`` of ``quadratic`` are undefined."""
+    measured = np.asarray(measured)
+    z = -np.einsum("ki,ki->k", measured[:, :3, 2], measured[:, :3, 3])
+    bad = np.flatnonzero(~(z > 1e-6 * np.abs(measured[:, :3, 3]).max(initial=1.0)))
+    if bad.size:
+        raise DataError(f"the camera model {what} needs the target in front of the camera (z > 0 in the camera's "
+                        f"axes); pose {bad[0]}{'' if rows is None else f' (data row {rows[bad[0]]})'} has z = "
+                        f"{z[bad[0]]:.3g} mm ({bad.size} such poses)")
+
+
+def _features(t):
+    """``z h(u, v) = (x^2/z, y^2/z, xy/z)`` ``(..., 3)`` and its derivative ``(..., 3, 3)``
+    (feature, coordinate) for target origins ``t`` ``(..., 3)`` in camera axes."""
+    x, y, z = t[..., 0], t[..., 1], t[..., 2]
+    u, v = x / z, y / z
+    h = jnp.stack([x * u, y * v, x * v], -1)
+    zero = jnp.zeros_like(u)
+    dh = jnp.stack([jnp.stack([2 * u, zero, -u * u], -1),
+                    jnp.stack([zero, 2 * v, -v * v], -1),
+                    jnp.stack([v, u, -u * v], -1)], -2)
+    return h, dh
+
+
+def _parts(model: str, c):
+    """``A`` (3, 3) and ``Q`` (3, 3) (zero unless ``quadratic``) from the unknowns ``c``."""
+    c = jnp.asarray(c)
+    A = jnp.einsum("m,mij->ij", c[:_N_LINEAR], jnp.asarray(basis(model)))
+    Q = c[_N_LINEAR:].reshape(3, 3) if model == "quadratic" else None
+    return A, Q
+
+
+def _target_in_camera(T):
+    R, p = T[..., :3, :3], T[..., :3, 3]
+    return R, p, -jnp.einsum("...ji,...j->...i", R, p)               # t = -R^T p
 
 
 def apply_camera(T: Float[Array, "*b 4 4"], c: Float[Array, " m"], model: str) -> Float[Array, "*b 4 4"]:
-    """What the camera reports when its true pose is ``T`` (position ``p' = p + R A R^T p``,
-    rotation unchanged)."""
+    """What the camera reports when its true pose is ``T`` (position ``p' = p - R G(t)``,
+    ``t = -R^T p``, rotation unchanged; ``G(t) = A t`` for the linear models)."""
     T = jnp.asarray(T)
+    _check(model)
     if model == "none":
-        _check(model)
         return T
-    A = jnp.einsum("m,mij->ij", jnp.asarray(c), jnp.asarray(basis(model)))
-    R, p = T[..., :3, :3], T[..., :3, 3]
-    u = jnp.einsum("...ji,...j->...i", R, p)                 # R^T p = -t
-    return T.at[..., :3, 3].add(jnp.einsum("...ij,jk,...k->...i", R, A, u))
+    A, Q = _parts(model, c)
+    R, p, t = _target_in_camera(T)
+    G = jnp.einsum("ij,...j->...i", A, t)
+    if Q is not None:
+        G = G + jnp.einsum("ij,...j->...i", Q, _features(t)[0])
+    return T.at[..., :3, 3].add(-jnp.einsum("...ij,...j->...i", R, G))
 
 
 def camera_jacobian(J: Float[Array, "*b 6 p"], T: Float[Array, "*b 4 4"], c: Float[Array, " m"],
                     model: str) -> Float[Array, "*b 6 p+m"]:
     """Rows of the identification Jacobian ``J`` (derivatives of the modelled pose ``T``: position
     ``dp`` and spatial rotation ``w``, ``dR = [w] R``) turned into derivatives of
-    :func:`apply_camera` ``(T, c)``, plus one column per unknown ``d p'/d c_k = R E_k R^T p``.
+    :func:`apply_camera` ``(T, c)``, plus one column per unknown ``d p'/d c_k = -R dG/dc_k``.
 
-    ``d p' = dp + w x (R A u) + R A R^T (dp - w x p)``, ``u = R^T p``; rotation rows unchanged.
+    With ``dt = -R^T (dp - w x p)``: ``d p' = dp - w x (R G) + R DG R^T (dp - w x p)``, ``DG =
+    A + Q Dh`` the derivative of ``G`` at ``t``; rotation rows unchanged.
     """
+    _check(model)
     if model == "none":
-        _check(model)
         return J
     E = jnp.asarray(basis(model))
-    A = jnp.einsum("m,mij->ij", jnp.asarray(c), E)
-    R, p = T[..., :3, :3], T[..., :3, 3]
-    u = jnp.einsum("...ji,...j->...i", R, p)
+    A, Q = _parts(model, c)
+    R, p, t = _target_in_camera(T)
+    G = jnp.einsum("ij,...j->...i", A, t)
+    DG = jnp.broadcast_to(A, t.shape + (3,))
+    cols = -jnp.einsum("...ij,mjk,...k->...im", R, E, t)                  # (..., 3, m_lin)
+    if Q is not None:
+        h, dh = _features(t)
+        G = G + jnp.einsum("ij,...j->...i", Q, h)
+        DG = DG + jnp.einsum("ij,...jk->...ik", Q, dh)
+        qcols = -R[..., :, :, None] * h[..., None, None, :]               # (..., 3, axis, feature)
+        cols = jnp.concatenate([cols, qcols.reshape(qcols.shape[:-2] + (9,))], -1)
     dp, w = J[..., :3, :], J[..., 3:, :]
-    v = jnp.einsum("...ij,jk,...k->...i", R, A, u)                        # R A u
+    v = -jnp.einsum("...ij,...j->...i", R, G)                             # -R G
     cross = lambda a, b: jnp.cross(a, b, axisa=-2, axisb=-2, axisc=-2)    # column-wise
-    M = jnp.einsum("...ij,jk,...lk->...il", R, A, R)                       # R A R^T
+    M = jnp.einsum("...ij,...jk,...lk->...il", R, DG, R)                  # R DG R^T
     dp2 = dp + cross(w, v[..., :, None]) + M @ (dp - cross(w, p[..., :, None]))
-    cols = jnp.einsum("...ij,mjk,...k->...im", R, E, u)                   # (..., 3, m)
     cols = jnp.concatenate([cols, jnp.zeros_like(cols)], -2)
     return jnp.concatenate([jnp.concatenate([dp2, w], -2), cols], -1)

@@ -8,7 +8,8 @@ with base and tool), ``B0, X0`` from :func:`jaxcal.initial_guess.initial_frames`
 :mod:`jaxcal.solvers.manifold` with the analytic identification Jacobian. With a camera
 measurement model (``camera``, :mod:`jaxcal.camera`) the modelled pose goes through
 ``apply_camera(T, c)`` and its unknowns ``c`` are estimated in every candidate (held at 0 in the
-frames-only stage); they are not part of the calibrated robot.
+frames-only stage); they are not part of the calibrated robot. With ``camera="auto"`` each
+parameter set is a candidate once per camera model, so the model is chosen like the set.
 
 ## Objective
 $\\min_y \\sum_{k \\in train} |W e_k(y)|^2 + \\sum_j (p_j y_j)^2$, ``e_k`` the pose error
@@ -48,7 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .camera import CAMERA_MODELS, n_params
+from .camera import CAMERA_MODELS, check_target_in_front, n_params
 from .camera import param_names as camera_param_names
 from .error_model import identification_jacobian, param_names, pose_error
 from .errors import DataError
@@ -100,6 +101,10 @@ def fold_ids(n_poses: int, k: int, seed: int) -> np.ndarray:
     return out
 
 
+CAMERA_CHOICES = CAMERA_MODELS + ("auto",)
+"""Values of ``--camera-model``: a model, or ``auto`` (chosen by cross-validation)."""
+
+
 # -- the engine --------------------------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)
@@ -123,8 +128,9 @@ class Setup:
     """Parameters the candidates need on a generic pose set (rank)."""
     max_steps: int = 50
     camera: str = "none"
-    """Camera measurement model (:mod:`jaxcal.camera`) estimated in every candidate (held at 0
-    in the frames-only stage)."""
+    """The largest camera measurement model (:mod:`jaxcal.camera`) of the candidates: its
+    unknowns are carried by every fit, each candidate frees its own model's prefix of them
+    (all held at 0 in the frames-only stage)."""
 
     @property
     def names(self) -> list[str]:
@@ -252,8 +258,10 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
     ea = np.asarray(pose_error(meas[None], Ta))
     sig = np.array([_sigmas(ea[s], mask[s], setup.position_only) for s in range(S)])
     rep = lambda a: np.repeat(np.asarray(a)[:, None], C, axis=1).reshape((S * C,) + np.shape(a)[1:])
-    ds = [0.0] * m  # candidates: camera unknowns free
-    prior = np.tile(np.stack([np.r_[_prior_vector(setup, c), ds] for c in candidates]), (S, 1))
+    # candidates: their camera model's unknowns free, the rest of the setup's (a nested model's
+    # unknowns are a prefix of the larger one's, jaxcal.camera) held at 0
+    ds = lambda c: [0.0] * n_params(c.camera) + [PIN] * (m - n_params(c.camera))
+    prior = np.tile(np.stack([np.r_[_prior_vector(setup, c), ds(c)] for c in candidates]), (S, 1))
     (d, B, X, dsc), ok, st, T = _fitter(setup, setup.method)(
         jnp.asarray(rep(da)), jnp.asarray(rep(Ba)), jnp.asarray(rep(Xa)), q, meas, jnp.asarray(rep(mask)),
         jnp.asarray(rep(_weights(sig))), jnp.asarray(prior))
@@ -318,25 +326,34 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
     ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_rot_rms_deg`` (nested CV),
     ``frames_only_*`` (same, nominal DH with base/tool fitted), ``choice``, ``cv``,
     ``parameters`` (deltas with standard errors), ``unidentifiable``, ``condition_number``,
-    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``, ``camera_model``,
+    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``, ``camera_model`` (the model of
+    the final fit), ``camera_model_option`` (what was asked for, e.g. ``auto``),
     ``camera_parameters``.
 
-    ``camera`` (``none | depth | linear``) adds a camera measurement model (:mod:`jaxcal.camera`,
-    its unknowns free in every candidate) for camera-on-flange data whose target-relative pose
-    comes from PnP: predictions (and so the held-out errors) are of what the camera reports.
+    ``camera`` (``none | depth | linear | quadratic``) adds a camera measurement model
+    (:mod:`jaxcal.camera`, its unknowns free in every candidate) for camera-on-flange data whose
+    target-relative pose comes from PnP: predictions (and so the held-out errors) are of what the
+    camera reports. ``camera="auto"`` makes the camera model part of the cross-validated choice:
+    every parameter set is tried with each of the four models, so the nested held-out figures
+    include that choice.
     """
-    if camera not in CAMERA_MODELS:
-        raise DataError(f"--camera-model must be one of {', '.join(CAMERA_MODELS)}, got {camera!r}")
+    if camera not in CAMERA_CHOICES:
+        raise DataError(f"--camera-model must be one of {', '.join(CAMERA_CHOICES)}, got {camera!r}")
     if camera != "none" and position_only:
         raise DataError(f"the camera model {camera!r} needs full poses (the camera's axes); the data are "
                         f"position-only")
-    candidates = parse_params(params, robot, ridge_mm)
+    models = CAMERA_MODELS if camera == "auto" else (camera,)
+    candidates = [dataclasses.replace(c, camera=mdl, name=f"{c.name}, camera {mdl}" if camera == "auto" else c.name)
+                  for mdl in models for c in parse_params(params, robot, ridge_mm)]
     q = np.asarray(q, dtype=np.float64)
     measured = np.asarray(measured, dtype=np.float64)
+    if "quadratic" in models:
+        check_target_in_front(measured, "quadratic" + (" (tried by --camera-model auto)" if camera == "auto" else ""),
+                              rows)
     K = len(q)
     setup = make_setup(robot, q, measured, position_only=position_only, candidates=candidates,
                        estimate_base=estimate_base, estimate_tool=estimate_tool, method=method,
-                       camera=camera)
+                       camera=models[-1])
     fid = fold_ids(K, folds, seed)
     rpp = 3 if position_only else 6
     n_train = K - int(np.bincount(fid).max())
@@ -398,10 +415,11 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
     cal = robot.replace(dh=np.asarray(robot.dh) + delta, base=B, tool=X, name=f"{robot.name}-calibrated")
     frames_only = robot.replace(base=res["frames"]["B"][S], tool=res["frames"]["X"][S])
     sig = res["sigmas"][S]
-    cam = res["camera"][S, c_final]
+    chosen_camera = candidates[c_final].camera
+    cam = res["camera"][S, c_final][:n_params(chosen_camera)]
     deltas, cond = standard_errors(setup, cal, candidates[c_final], sig, res["B_init"][S], res["X_init"][S], delta,
-                               cam)
-    cam_names = camera_param_names(camera)
+                                   cam, chosen_camera)
+    cam_names = camera_param_names(chosen_camera)
     names = setup.names
     active_dh = [names[i] for i in setup.free[:setup.n_dh_free] if i in candidates[c_final].dh]
     tr_pe, tr_re = pe[S, c_final], re[S, c_final]
@@ -421,7 +439,7 @@ def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, me
         "frames_only_heldout_median_mm": float(np.median(f_pe)),
         "frames_only_heldout_rot_rms_deg": None if position_only else _rms(f_re),
         "cv": cv_table,
-        "camera_model": camera,
+        "camera_model": chosen_camera, "camera_model_option": camera,
         "camera_parameters": {k: {"value": deltas[k][0], "std_error": deltas[k][1]} for k in cam_names} or None,
         "sigma_pos_mm": float(sig[0]), "sigma_rot_deg": None if position_only else float(np.degrees(sig[1])),
         "parameters": {k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items()

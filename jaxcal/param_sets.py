@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 
+from .camera import n_params
 from .errors import DataError
 from .robot import DH_NAMES, Robot
 
@@ -18,17 +19,20 @@ _KIND = {k: i for i, k in enumerate(DH_NAMES)}
 
 @dataclasses.dataclass(frozen=True)
 class Candidate:
-    """A DH parameter set (indices into the 4n DH errors) and an optional ridge prior."""
+    """A DH parameter set (indices into the 4n DH errors), an optional ridge prior and the camera
+    measurement model estimated with it."""
 
     name: str
     dh: tuple[int, ...]
     """DH errors allowed to move (those not identifiable are dropped later)."""
     ridge_mm: float | None = None
     """Prior standard deviation ``s`` (mm for lengths, mrad for angles); None = no prior."""
+    camera: str = "none"
+    """Camera measurement model (:mod:`jaxcal.camera`) whose unknowns are free in this candidate."""
 
     @property
     def complexity(self) -> tuple[int, float]:
-        return (len(self.dh), -(self.ridge_mm or np.inf))
+        return (len(self.dh) + n_params(self.camera), -(self.ridge_mm or np.inf))
 
 
 def _kinds(n: int, kinds) -> tuple[int, ...]:

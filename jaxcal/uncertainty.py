@@ -29,9 +29,9 @@ def frame_doc(T):
             "rpy_deg": [float(v) for v in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)]}
 
 
-def standard_errors(setup, cal: Robot, cand, sig, B_init, X_init, delta, cam):
-    """Sandwich standard errors of the active parameters (and the camera unknowns ``cam``) at the
-    final fit:
+def standard_errors(setup, cal: Robot, cand, sig, B_init, X_init, delta, cam, camera: str | None = None):
+    """Sandwich standard errors of the active parameters (and the unknowns ``cam`` of the camera
+    model ``camera``, default the setup's) at the final fit:
     ``cov = s^2 (A^T A)^-1 (J^T J) (A^T A)^-1`` with ``A = [W J; P]`` (data and ridge rows),
     ``s^2`` the weighted residual variance; and the condition number of the scaled ``W J``."""
     names = setup.names
@@ -40,13 +40,13 @@ def standard_errors(setup, cal: Robot, cand, sig, B_init, X_init, delta, cam):
     active = [i for i in setup.free[:fd] if i in cand.dh] + list(setup.free[fd:])
     rows = 3 if setup.position_only else 6
     w = np.r_[np.full(3, 1 / sig[0]), np.full(3, 1 / sig[1])][:rows]
+    camera = setup.camera if camera is None else camera
     m = len(cam)
     active += list(range(n4 + 12, n4 + 12 + m))
     T = fk(cal, jnp.asarray(setup.q))
-    J = camera_jacobian(identification_jacobian(cal, jnp.asarray(setup.q), base=True, tool=True), T, cam,
-                        setup.camera)
+    J = camera_jacobian(identification_jacobian(cal, jnp.asarray(setup.q), base=True, tool=True), T, cam, camera)
     J = np.asarray(J)[:, :rows][..., active]
-    e = np.asarray(pose_error(jnp.asarray(setup.measured), apply_camera(T, cam, setup.camera)))[:, :rows]
+    e = np.asarray(pose_error(jnp.asarray(setup.measured), apply_camera(T, cam, camera)))[:, :rows]
     Jw = (J * w[:, None]).reshape(-1, len(active))
     r = (e * w).reshape(-1)
     p = np.zeros(len(active))
@@ -63,7 +63,7 @@ def standard_errors(setup, cal: Robot, cand, sig, B_init, X_init, delta, cam):
     xb = _twist_log(np.asarray(cal.base) @ np.linalg.inv(B_init))
     xt = _twist_log(np.linalg.inv(X_init) @ np.asarray(cal.tool))
     value = np.r_[np.asarray(delta).reshape(-1), xb, xt, cam]
-    names = list(names) + camera_param_names(setup.camera)
+    names = list(names) + camera_param_names(camera)
     units = ["rad", "mm", "mm", "rad"]
     out = {}
     for j, i in enumerate(active):

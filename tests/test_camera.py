@@ -41,6 +41,23 @@ def test_linear_model_maps_the_target_origin_in_camera_axes(rng):
                                      "camera_A_yx", "camera_A_yz", "camera_A_zx", "camera_A_zy"]
 
 
+def test_quadratic_model_adds_the_image_field_term(rng):
+    """t' = (I + A) t + z Q (u^2, v^2, uv), (u, v) = (x/z, y/z), written out per pose."""
+    T = _poses(rng)
+    c = rng.normal(0, 0.01, 17)
+    A = np.array([[c[1], c[2], c[3]], [c[4], -c[1], c[5]], [c[6], c[7], c[0]]])
+    Q = c[8:].reshape(3, 3)
+    got = np.asarray(apply_camera(T, jnp.asarray(c), "quadratic"))
+    for k in range(len(T)):
+        t = -T[k, :3, :3].T @ T[k, :3, 3]
+        u, v = t[0] / t[2], t[1] / t[2]
+        want = t + A @ t + t[2] * Q @ np.array([u * u, v * v, u * v])
+        assert_allclose(-got[k, :3, :3].T @ got[k, :3, 3], want, rtol=1e-12, atol=1e-9)
+    assert_allclose(got[:, :3, :3], T[:, :3, :3], rtol=0, atol=0)
+    assert param_names("quadratic")[8:11] == ["camera_Q_x_uu", "camera_Q_x_vv", "camera_Q_x_uv"]
+    assert param_names("quadratic")[-1] == "camera_Q_z_uv"
+
+
 def test_none_model_is_the_identity(rng):
     T = _poses(rng)
     assert_allclose(np.asarray(apply_camera(T, jnp.zeros(0), "none")), T, rtol=0, atol=0)
@@ -48,7 +65,7 @@ def test_none_model_is_the_identity(rng):
         n_params("pinhole")
 
 
-@pytest.mark.parametrize("model", ["depth", "linear"])
+@pytest.mark.parametrize("model", ["depth", "linear", "quadratic"])
 def test_camera_jacobian_matches_autodiff(rng, model):
     """Rows (derivatives through the pose) and the camera columns against jax.jacfwd of the
     measurement model applied to the perturbed robot."""
@@ -68,9 +85,9 @@ def test_camera_jacobian_matches_autodiff(rng, model):
 
 
 def test_models_listed():
-    assert CAMERA_MODELS == ("none", "depth", "linear")
-    assert [n_params(m) for m in CAMERA_MODELS] == [0, 1, 8]
-    assert [len(param_names(m)) for m in CAMERA_MODELS] == [0, 1, 8]
+    assert CAMERA_MODELS == ("none", "depth", "linear", "quadratic")
+    assert [n_params(m) for m in CAMERA_MODELS] == [0, 1, 8, 17]
+    assert [len(param_names(m)) for m in CAMERA_MODELS] == [0, 1, 8, 17]
 
 
 def test_linear_model_leaves_out_exactly_the_robot_scale(rng):
@@ -87,3 +104,14 @@ def test_linear_model_leaves_out_exactly_the_robot_scale(rng):
     iso = np.concatenate([np.einsum("kij,kj->ki", np.asarray(T)[:, :3, :3], u), np.zeros((60, 3))], 1).reshape(-1, 1)
     assert rank(J) == rank(J[:, :-8]) + 8
     assert rank(np.c_[J, iso]) == rank(J)
+
+
+def test_quadratic_model_terms_are_identifiable(rng):
+    """The nine field terms add nine to the rank on top of the robot, its frames and ``linear``."""
+    r = preset("panda").replace(base=random_transform(rng, 500.0), tool=random_transform(rng, 100.0))
+    q = jnp.asarray(rng.uniform(-1.5, 1.5, (60, 7)))
+    T = fk(r, q)
+    J = np.asarray(camera_jacobian(identification_jacobian(r, q, base=True, tool=True), T, jnp.zeros(17), "quadratic"))
+    J = J.reshape(-1, J.shape[-1])
+    rank = lambda M: np.linalg.matrix_rank(M / np.linalg.norm(M, axis=0).clip(1e-300), tol=1e-9)
+    assert rank(J) == rank(J[:, :-17]) + 17

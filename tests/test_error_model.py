@@ -54,6 +54,18 @@ def test_jacobian_column_layout_without_frames(rng, base, tool):
         assert_allclose(np.asarray(Jp), full[..., :3, keep], atol=1e-12, rtol=0)
 
 
+@pytest.mark.parametrize("base,tool,position_only", [(True, True, False), (False, False, True), (False, True, False)])
+def test_jacobian_and_fk_is_the_two_calls_from_one_chain(rng, base, tool, position_only):
+    """The fused call the solvers use returns the autodiff-checked Jacobian and the FK end pose."""
+    for robot in _robots(rng)[3:]:
+        Q = jnp.asarray(rng.uniform(-2, 2, (2, 4, robot.n_joints)))
+        J, T = E.jacobian_and_fk(robot, Q, base=base, tool=tool, position_only=position_only)
+        want = E.identification_jacobian(robot, Q, base=base, tool=tool, position_only=position_only)
+        assert J.shape == want.shape and T.shape == (2, 4, 4, 4)
+        assert_allclose(np.asarray(J), np.asarray(want), atol=1e-12, rtol=0)
+        assert_allclose(np.asarray(T), np.asarray(fk(robot, Q)), atol=1e-9, rtol=0)
+
+
 def test_jacobians_keep_leading_axes_and_vmap_over_robots(rng):
     robots = [Robot(random_dh(rng), convention="mdh", base=random_transform(rng), tool=random_transform(rng, 80.0))
               for _ in range(3)]

@@ -33,9 +33,11 @@ def calibrate(
     out_robot: Path = typer.Option(None, help="write the calibrated robot TOML here"),
     plots: Path = typer.Option(None, help="write plots into this folder"),
     seed: int = typer.Option(0, help="seed of the fold assignment"),
-    camera_model: str = typer.Option("none", help="none | depth | linear: also estimate a measurement model of "
-                                                  "a camera on the flange that reports its pose w.r.t. a fixed "
-                                                  "target (depth scale, or a 3x3 linear map of the position)"),
+    camera_model: str = typer.Option("none", help="none | depth | linear | quadratic | auto: also estimate a "
+                                                  "measurement model of a camera on the flange that reports its pose "
+                                                  "w.r.t. a fixed target (depth scale, a 3x3 linear map of the "
+                                                  "position, or that plus a field term quadratic in the image "
+                                                  "coordinates); auto chooses among them by cross-validation"),
 ):
     """Calibrate from measured data with K-fold held-out validation (base and tool estimated)."""
     from ..crossval import calibrate_measurements
@@ -70,8 +72,9 @@ def calibrate(
     summary.add_row("frames only (nominal DH)", _fmt(rep["frames_only_train_rms_mm"]),
                     _fmt(rep["frames_only_heldout_rms_mm"]), _fmt(rep["frames_only_heldout_max_mm"]),
                     _fmt(rep["frames_only_heldout_rot_rms_deg"]))
-    depth = f" + camera model {rep['camera_model']}" if rep["camera_model"] != "none" else ""
-    summary.add_row(f"calibrated ({rep['choice']}){depth}", _fmt(rep["train_rms_mm"]), _fmt(rep["heldout_rms_mm"]),
+    cam = rep["camera_model"] != "none" and rep["camera_model_option"] != "auto"   # auto: in the choice's name
+    summary.add_row(f"calibrated ({rep['choice']})" + (f" + camera model {rep['camera_model']}" if cam else ""),
+                    _fmt(rep["train_rms_mm"]), _fmt(rep["heldout_rms_mm"]),
                     _fmt(rep["heldout_max_mm"]), _fmt(rep["heldout_rot_rms_deg"]))
     console.print(summary)
 
@@ -94,8 +97,9 @@ def calibrate(
     if rep["camera_parameters"]:
         vals = ", ".join(f"{k.removeprefix('camera_')} {v['value']:+.5f} ± {v['std_error']:.1g}"
                          for k, v in rep["camera_parameters"].items())
-        console.print(f"camera model {rep['camera_model']}: {vals} (the camera reports t' = (I + A) t for the target "
-                      "origin t in its axes; a sensor property, not written to the robot file)")
+        console.print(f"camera model {rep['camera_model']}: {vals} (the camera reports t' = (I + A) t"
+                      + (" + z Q (u², v², uv)" if rep["camera_model"] == "quadratic" else "")
+                      + " for the target origin t in its axes; a sensor property, not written to the robot file)")
     if out_robot is not None:
         save_robot(res.robot, out_robot)
         console.print(f"calibrated robot written to {out_robot}")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from ..error_model import identification_jacobian, perturb, pose_error
+from ..error_model import jacobian_and_fk, perturb, pose_error
 from ..kinematics import fk
 from ..lie import so3_right_jacobian_inv
 from ..robot import Robot
@@ -32,10 +32,8 @@ def make_residual(robot: Robot, *, base: bool, tool: bool, position_only: bool, 
     local twists at the current frames, i.e. the exact Jacobian times an invertible matrix
     acting on those columns: Gauss–Newton steps differ, the fixed point does not.
     """
-    def parts(x, q, measured):
-        cal = perturb(robot, x, base=base, tool=tool)
-        e = pose_error(measured, fk(cal, q))
-        return cal, e
+    def error(x, q, measured):
+        return pose_error(measured, fk(perturb(robot, x, base=base, tool=tool), q))
 
     def finish(e):
         if position_only:
@@ -44,14 +42,15 @@ def make_residual(robot: Robot, *, base: bool, tool: bool, position_only: bool, 
 
     @jax.custom_jvp
     def residual(x, q, measured):
-        return finish(parts(x, q, measured)[1])
+        return finish(error(x, q, measured))
 
     @residual.defjvp
     def residual_jvp(primals, tangents):
         x, q, measured = primals
         dx = tangents[0]  # not differentiable with respect to q or the measurements (data)
-        cal, e = parts(x, q, measured)
-        J = identification_jacobian(cal, q, base=base, tool=tool)
+        cal = perturb(robot, x, base=base, tool=tool)
+        J, T = jacobian_and_fk(cal, q, base=base, tool=tool)  # one pass over the chain
+        e = pose_error(measured, T)
         dpos = -(J[..., :3, :] @ dx)
         if position_only:
             de = dpos

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 
 from ..camera import apply_camera, camera_jacobian, n_params
-from ..error_model import identification_jacobian, pose_error
+from ..error_model import jacobian_and_fk, pose_error
 from ..kinematics import fk
 from ..lie import se3_exp
 from ..robot import Robot
@@ -64,13 +64,15 @@ def fit_one(prob: Problem, delta0, B0, X0, q, meas, mask, w, prior, c0, *, metho
     def cost_and_system(state, need_system=True):
         delta, B, X, sc = state
         rob = member_robot(prob, delta, B, X)
-        T = fk(rob, q)
+        if need_system:  # the Jacobian and the pose from one pass over the chain
+            J, T = jacobian_and_fk(rob, q, base=True, tool=True)
+        else:
+            T = fk(rob, q)
         e = pose_error(meas, apply_camera(T, sc, cam))[..., :rows] * sw   # (K, rows)
         pr = prior_all * jnp.concatenate([delta.reshape(-1)[free[:fd]], jnp.zeros(len(frame_sel)), sc])
         cost = jnp.sum(e ** 2) + jnp.sum(pr ** 2)
         if not need_system:
             return cost
-        J = identification_jacobian(rob, q, base=True, tool=True)
         J = camera_jacobian(J, T, sc, cam)
         J = J[..., :rows, :][..., cols] * sw[..., None]
         J = J.reshape(-1, len(cols))
