@@ -280,6 +280,14 @@ def main():
     sc = res.pop("sincos_only")
     print(f"sin + cos of all {args.poses} x 6 joint angles alone: median {sc['median_s'] * 1e3:.2f} ms "
           f"(min {sc['min_s'] * 1e3:.2f}, max {sc['max_s'] * 1e3:.2f})")
+    # the ceiling the transcendentals set: every other operation free, the hand-counted FLOPs in
+    # the time of sin + cos alone (both FK and the Jacobian need exactly these 12 values per pose)
+    sc["ceiling"] = {}
+    for op in ("FK", "Jacobian"):
+        gf = hand[op] * args.poses / sc["median_s"]
+        sc["ceiling"][op] = {"gflops": gf / 1e9, "frac_dgemm": gf / ref_peak}
+        print(f"  ceiling for {op} if everything but sin/cos were free: {gf / 1e9:.1f} GFLOP/s = "
+              f"{gf / ref_peak:.1%} of the measured peak")
     for op, vs in res.items():
         base = vs[next(iter(vs))]["median_s"]
         for name, r in vs.items():

@@ -90,28 +90,33 @@ def test_models_listed():
     assert [len(param_names(m)) for m in CAMERA_MODELS] == [0, 1, 8, 17]
 
 
+def _rank(M):
+    return np.linalg.matrix_rank(M / np.linalg.norm(M, axis=0).clip(1e-300), tol=1e-9)
+
+
+def _stacked_jacobian(rng, model):
+    """Poses of a Panda with random base and tool, and the stacked Jacobian of the robot, its
+    frames and the camera model's unknowns (last ``n_params(model)`` columns)."""
+    r = preset("panda").replace(base=random_transform(rng, 500.0), tool=random_transform(rng, 100.0))
+    q = jnp.asarray(rng.uniform(-1.5, 1.5, (60, 7)))
+    T = fk(r, q)
+    J = camera_jacobian(identification_jacobian(r, q, base=True, tool=True), T, jnp.zeros(n_params(model)), model)
+    return np.asarray(T), np.asarray(J).reshape(-1, J.shape[-1])
+
+
 def test_linear_model_leaves_out_exactly_the_robot_scale(rng):
     """With every length of the robot and its frames free, the camera's 8 unknowns add 8 to the
     rank (all identifiable), while a uniform scale A = a I would add nothing: it is a uniform
     scale of the robot."""
-    r = preset("panda").replace(base=random_transform(rng, 500.0), tool=random_transform(rng, 100.0))
-    q = jnp.asarray(rng.uniform(-1.5, 1.5, (60, 7)))
-    T = fk(r, q)
-    J = np.asarray(camera_jacobian(identification_jacobian(r, q, base=True, tool=True), T, jnp.zeros(8), "linear"))
-    J = J.reshape(-1, J.shape[-1])
-    rank = lambda M: np.linalg.matrix_rank(M / np.linalg.norm(M, axis=0).clip(1e-300), tol=1e-9)
-    u = np.einsum("kji,kj->ki", np.asarray(T)[:, :3, :3], np.asarray(T)[:, :3, 3])
-    iso = np.concatenate([np.einsum("kij,kj->ki", np.asarray(T)[:, :3, :3], u), np.zeros((60, 3))], 1).reshape(-1, 1)
-    assert rank(J) == rank(J[:, :-8]) + 8
-    assert rank(np.c_[J, iso]) == rank(J)
+    T, J = _stacked_jacobian(rng, "linear")
+    u = np.einsum("kji,kj->ki", T[:, :3, :3], T[:, :3, 3])
+    iso = np.concatenate([np.einsum("kij,kj->ki", T[:, :3, :3], u), np.zeros((60, 3))], 1).reshape(-1, 1)
+    assert _rank(J) == _rank(J[:, :-8]) + 8
+    assert _rank(np.c_[J, iso]) == _rank(J)
 
 
 def test_quadratic_model_terms_are_identifiable(rng):
-    """The nine field terms add nine to the rank on top of the robot, its frames and ``linear``."""
-    r = preset("panda").replace(base=random_transform(rng, 500.0), tool=random_transform(rng, 100.0))
-    q = jnp.asarray(rng.uniform(-1.5, 1.5, (60, 7)))
-    T = fk(r, q)
-    J = np.asarray(camera_jacobian(identification_jacobian(r, q, base=True, tool=True), T, jnp.zeros(17), "quadratic"))
-    J = J.reshape(-1, J.shape[-1])
-    rank = lambda M: np.linalg.matrix_rank(M / np.linalg.norm(M, axis=0).clip(1e-300), tol=1e-9)
-    assert rank(J) == rank(J[:, :-17]) + 17
+    """All 17 unknowns (linear's 8 and the nine field terms) add to the rank on top of the robot
+    and its frames."""
+    _, J = _stacked_jacobian(rng, "quadratic")
+    assert _rank(J) == _rank(J[:, :-17]) + 17
