@@ -7,6 +7,11 @@ by XLA's cost analysis of the compiled function. Peak: (a) measured float64 GEMM
 nominal ``cores x GHz x FLOP/cycle`` with FLOP/cycle from the CPU flags (AVX-512: 2 FMA
 pipes x 8 doubles x 2 = 32; AVX2: 16).
 
+Two ceilings below that peak, measured in the same run: the memory roofline (compulsory bytes
+per pose, :func:`compulsory_bytes`, times the STREAM-style bandwidth of
+:func:`stream_bandwidth`) and the time of sin + cos of every joint angle alone (the hand-counted
+FLOPs in that time, as if everything else were free).
+
 Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform poses):
 * jaxcal as shipped: structure of arrays (every entry of the running transform a ``(K,)``
   vector) with a ``lax.scan`` over the links, so each link's entries are materialised once;
@@ -88,6 +93,36 @@ def cpu_peak() -> dict:
     return {"numpy_dgemm_flops": 2 * n ** 3 / min(runs), "jax_dgemm_flops": 2 * n ** 3 / min(jruns),
             "nominal_flops": nominal, "ghz": mhz[0] / 1e3 if mhz else None, "flop_per_cycle_per_core": per_cycle,
             "cores": cores}
+
+
+def stream_bandwidth(n: int = 1 << 25) -> dict:
+    """Memory bandwidth, the roofline's other roof: a STREAM-style "scale" ``y = a x`` over ``n``
+    doubles (256 MiB in, 256 MiB out: far beyond the caches), 16 bytes counted per element.
+    ``bytes_per_s``: NumPy into a preallocated output (the machine's roof; a fresh output pays
+    page faults on first touch). ``jax_bytes_per_s``: the same as a jitted function returning a
+    new array, what XLA-generated code reaches on outputs that size."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+    x = np.random.default_rng(1).standard_normal(n)
+    y = np.empty_like(x)
+    runs = []
+    for _ in range(8):
+        t0 = time.perf_counter()
+        np.multiply(x, 1.000001, out=y)
+        runs.append(time.perf_counter() - t0)
+    xj = jnp.asarray(x)
+    if xj.dtype != jnp.float64:
+        raise RuntimeError(f"the bandwidth must be measured on float64, got {xj.dtype}")
+    _, jruns = time_fn(jax.jit(lambda v: 1.000001 * v), xj, repeats=7)
+    return {"bytes_per_s": 16 * n / statistics.median(runs[1:]), "best_bytes_per_s": 16 * n / min(runs[1:]),
+            "jax_bytes_per_s": 16 * n / statistics.median(jruns), "n": n}
+
+
+def compulsory_bytes(n: int) -> dict:
+    """Bytes per pose that any implementation must move to or from memory: the joint angles in
+    (n doubles) and the result out (FK: the 4x4 pose, 16 doubles; Jacobian: 6 x 4n doubles)."""
+    return {"FK": 8 * (n + 16), "Jacobian": 8 * (n + 6 * 4 * n)}
 
 
 # -- the variants ------------------------------------------------------------------------------
@@ -277,6 +312,19 @@ def main():
     res = measure(args.poses, args.repeats)
     ref_peak = max(peak["numpy_dgemm_flops"], peak["jax_dgemm_flops"])
     print(f"\n{args.poses} poses; fraction = hand FLOPs x poses/s / peak (measured dgemm | nominal)")
+    bw = stream_bandwidth()
+    nbytes = compulsory_bytes(6)
+    print(f"memory bandwidth (STREAM scale, 2 x 256 MiB): NumPy into a preallocated output median "
+          f"{bw['bytes_per_s'] / 1e9:.1f} GB/s (best {bw['best_bytes_per_s'] / 1e9:.1f}); a jitted jax function "
+          f"returning a new array {bw['jax_bytes_per_s'] / 1e9:.1f} GB/s")
+    roof = {}
+    for op in ("FK", "Jacobian"):
+        ai = hand[op] / nbytes[op]
+        ceil = min(ref_peak, ai * bw["best_bytes_per_s"])
+        roof[op] = {"bytes_per_pose": nbytes[op], "flop_per_byte": ai, "ceiling_flops": ceil,
+                    "ceiling_frac_peak": ceil / ref_peak}
+        print(f"  roofline for {op}: {nbytes[op]} compulsory bytes/pose, {ai:.2f} FLOP/byte -> memory-bound "
+              f"ceiling {ceil / 1e9:.1f} GFLOP/s = {ceil / ref_peak:.1%} of the measured peak")
     sc = res.pop("sincos_only")
     print(f"sin + cos of all {args.poses} x 6 joint angles alone: median {sc['median_s'] * 1e3:.2f} ms "
           f"(min {sc['min_s'] * 1e3:.2f}, max {sc['max_s'] * 1e3:.2f})")
@@ -294,11 +342,12 @@ def main():
             gf = hand[op] * r["poses_per_s"]
             xf = "   n/a" if r["xla_flops_per_pose"] is None else f"{r['xla_flops_per_pose']:6.0f}"
             r.update(gflops_hand=gf / 1e9, frac_dgemm=gf / ref_peak, frac_nominal=gf / peak["nominal_flops"],
-                     speedup_vs_shipped=base / r["median_s"])
+                     speedup_vs_shipped=base / r["median_s"], frac_roofline=gf / roof[op]["ceiling_flops"])
             print(f"{op:9s} {name:30s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
                   f"{r['max_s'] * 1e3:.2f}) {r['poses_per_s']:>11,.0f} poses/s  x{r['speedup_vs_shipped']:.2f}  "
                   f"XLA {xf} FLOP/pose  {r['gflops_hand']:6.2f} GFLOP/s = "
-                  f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%}  compile {r['compile_s']:.2f} s  "
+                  f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%} ({r['frac_roofline']:5.1%} of its roofline)  "
+                  f"compile {r['compile_s']:.2f} s  "
                   f"{r['fusions']} loop fusions")
     flag_rows = {}
     for flags in args.flags:
@@ -322,7 +371,8 @@ def main():
         os.makedirs(os.path.dirname(args.json) or ".", exist_ok=True)
         with open(args.json, "w") as f:
             json.dump({"machine": machine(), "poses": args.poses, "peak": peak, "hand_flops_per_pose": hand,
-                       "hand_note": HAND_NOTE, "variants": res, "sincos_only": sc, "xla_flags": flag_rows}, f, indent=1)
+                       "hand_note": HAND_NOTE, "variants": res, "sincos_only": sc, "bandwidth": bw,
+                       "roofline": roof, "xla_flags": flag_rows}, f, indent=1)
 
 
 if __name__ == "__main__":
