@@ -114,12 +114,24 @@ def _features(t):
     return h, dh
 
 
-def _parts(model: str, c):
-    """``A`` (3, 3) and ``Q`` (3, 3) (zero unless ``quadratic``) from the unknowns ``c``."""
+def _correction(model: str, c, t):
+    """``G(t)`` ``(..., 3)``, its derivative ``DG`` ``(..., 3, 3)`` and ``dG/dc`` ``(..., 3, m)``
+    for target origins ``t`` ``(..., 3)`` in camera axes: ``G = A t`` (+ ``Q z h(u, v)`` for
+    ``quadratic``). Under jit, what a caller does not use is not computed."""
     c = jnp.asarray(c)
-    A = jnp.einsum("m,mij->ij", c[:_N_LINEAR], jnp.asarray(basis(model)))
-    Q = c[_N_LINEAR:].reshape(3, 3) if model == "quadratic" else None
-    return A, Q
+    E = jnp.asarray(basis(model))
+    A = jnp.einsum("m,mij->ij", c[:_N_LINEAR], E)
+    G = jnp.einsum("ij,...j->...i", A, t)
+    DG = jnp.broadcast_to(A, t.shape + (3,))
+    dc = jnp.einsum("mjk,...k->...jm", E, t)                             # (..., 3, m_lin)
+    if model == "quadratic":
+        Q = c[_N_LINEAR:].reshape(3, 3)
+        h, dh = _features(t)
+        G = G + jnp.einsum("ij,...j->...i", Q, h)
+        DG = DG + jnp.einsum("ij,...jk->...ik", Q, dh)
+        dq = jnp.eye(3)[:, :, None] * h[..., None, None, :]               # (..., 3, axis, feature)
+        dc = jnp.concatenate([dc, dq.reshape(dq.shape[:-2] + (9,))], -1)
+    return G, DG, dc
 
 
 def _target_in_camera(T):
@@ -134,11 +146,8 @@ def apply_camera(T: Float[Array, "*b 4 4"], c: Float[Array, " m"], model: str) -
     _check(model)
     if model == "none":
         return T
-    A, Q = _parts(model, c)
-    R, p, t = _target_in_camera(T)
-    G = jnp.einsum("ij,...j->...i", A, t)
-    if Q is not None:
-        G = G + jnp.einsum("ij,...j->...i", Q, _features(t)[0])
+    R, _, t = _target_in_camera(T)
+    G = _correction(model, c, t)[0]
     return T.at[..., :3, 3].add(-jnp.einsum("...ij,...j->...i", R, G))
 
 
@@ -154,18 +163,9 @@ def camera_jacobian(J: Float[Array, "*b 6 p"], T: Float[Array, "*b 4 4"], c: Flo
     _check(model)
     if model == "none":
         return J
-    E = jnp.asarray(basis(model))
-    A, Q = _parts(model, c)
     R, p, t = _target_in_camera(T)
-    G = jnp.einsum("ij,...j->...i", A, t)
-    DG = jnp.broadcast_to(A, t.shape + (3,))
-    cols = -jnp.einsum("...ij,mjk,...k->...im", R, E, t)                  # (..., 3, m_lin)
-    if Q is not None:
-        h, dh = _features(t)
-        G = G + jnp.einsum("ij,...j->...i", Q, h)
-        DG = DG + jnp.einsum("ij,...jk->...ik", Q, dh)
-        qcols = -R[..., :, :, None] * h[..., None, None, :]               # (..., 3, axis, feature)
-        cols = jnp.concatenate([cols, qcols.reshape(qcols.shape[:-2] + (9,))], -1)
+    G, DG, dc = _correction(model, c, t)
+    cols = -R @ dc                                                        # (..., 3, m)
     dp, w = J[..., :3, :], J[..., 3:, :]
     v = -jnp.einsum("...ij,...j->...i", R, G)                             # -R G
     cross = lambda a, b: jnp.cross(a, b, axisa=-2, axisb=-2, axisc=-2)    # column-wise

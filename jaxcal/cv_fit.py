@@ -152,12 +152,7 @@ def _prior_vector(setup: Setup, cand: Candidate | None) -> np.ndarray:
         return out
     for j, i in enumerate(setup.free[:setup.n_dh_free]):
         if i in cand.dh:
-            if cand.ridge_mm is None:
-                out[j] = 0.0
-            else:
-                kind = i % 4
-                s = cand.ridge_mm if kind in (1, 2) else cand.ridge_mm * 1e-3
-                out[j] = 1.0 / s
+            out[j] = cand.prior_weight(i)
     return out
 
 
@@ -205,18 +200,21 @@ def fit_many(setup: Setup, train_masks: np.ndarray, candidates) -> dict:
     q, meas = jnp.asarray(setup.q), jnp.asarray(setup.measured)
     w0 = _weights(np.tile([1.0, np.radians(1.0)], (S, 1)))
     m = n_params(setup.camera)
-    ds = [PIN] * m  # frames-only stage: camera unknowns held at 0
-    prior0 = np.tile(np.r_[_prior_vector(setup, None), ds], (S, 1))
+
+    def camera_prior(cand):
+        """Free: the candidate's camera model's unknowns, a prefix of the setup's (nested models,
+        jaxcal.camera); held at 0: the rest, and all of them in the frames-only stage (None)."""
+        k = 0 if cand is None else n_params(cand.camera)
+        return [0.0] * k + [PIN] * (m - k)
+
+    prior0 = np.tile(np.r_[_prior_vector(setup, None), camera_prior(None)], (S, 1))
     fit_a = _fitter(setup, "lm" if setup.method == "linear" else setup.method)
     (da, Ba, Xa, _), oka, sta, Ta = fit_a(jnp.zeros((S, n, 4)), jnp.asarray(B0), jnp.asarray(X0), q, meas,
                                        jnp.asarray(mask), jnp.asarray(w0), jnp.asarray(prior0))
     ea = np.asarray(pose_error(meas[None], Ta))
     sig = np.array([_sigmas(ea[s], mask[s], setup.position_only) for s in range(S)])
     rep = lambda a: np.repeat(np.asarray(a)[:, None], C, axis=1).reshape((S * C,) + np.shape(a)[1:])
-    # candidates: their camera model's unknowns free, the rest of the setup's (a nested model's
-    # unknowns are a prefix of the larger one's, jaxcal.camera) held at 0
-    ds = lambda c: [0.0] * n_params(c.camera) + [PIN] * (m - n_params(c.camera))
-    prior = np.tile(np.stack([np.r_[_prior_vector(setup, c), ds(c)] for c in candidates]), (S, 1))
+    prior = np.tile(np.stack([np.r_[_prior_vector(setup, c), camera_prior(c)] for c in candidates]), (S, 1))
     (d, B, X, dsc), ok, st, T = _fitter(setup, setup.method)(
         jnp.asarray(rep(da)), jnp.asarray(rep(Ba)), jnp.asarray(rep(Xa)), q, meas, jnp.asarray(rep(mask)),
         jnp.asarray(rep(_weights(sig))), jnp.asarray(prior))

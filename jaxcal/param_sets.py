@@ -34,6 +34,13 @@ class Candidate:
     def complexity(self) -> tuple[int, float]:
         return (len(self.dh) + n_params(self.camera), -(self.ridge_mm or np.inf))
 
+    def prior_weight(self, i: int) -> float:
+        """Ridge weight ``1 / s`` of DH error ``i`` (index into the 4n; lengths ``s`` mm, angles
+        ``s`` mrad), 0 without a ridge; only meaningful for ``i`` in :attr:`dh`."""
+        if self.ridge_mm is None:
+            return 0.0
+        return 1.0 / (self.ridge_mm if i % 4 in (1, 2) else self.ridge_mm * 1e-3)
+
 
 def _kinds(n: int, kinds) -> tuple[int, ...]:
     return tuple(4 * j + _KIND[k] for j in range(n) for k in kinds)

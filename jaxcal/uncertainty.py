@@ -9,8 +9,7 @@ import numpy as np
 
 from .camera import apply_camera, camera_jacobian
 from .camera import param_names as camera_param_names
-from .error_model import identification_jacobian, pose_error
-from .kinematics import fk
+from .error_model import jacobian_and_fk, pose_error
 from .robot import Robot
 
 
@@ -29,9 +28,9 @@ def frame_doc(T):
             "rpy_deg": [float(v) for v in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)]}
 
 
-def standard_errors(setup, cal: Robot, cand, sig, B_init, X_init, delta, cam, camera: str | None = None):
+def standard_errors(setup, cal: Robot, cand, sig, B_init, X_init, delta, cam, camera: str):
     """Sandwich standard errors of the active parameters (and the unknowns ``cam`` of the camera
-    model ``camera``, default the setup's) at the final fit:
+    model ``camera``) at the final fit:
     ``cov = s^2 (A^T A)^-1 (J^T J) (A^T A)^-1`` with ``A = [W J; P]`` (data and ridge rows),
     ``s^2`` the weighted residual variance; and the condition number of the scaled ``W J``."""
     names = setup.names
@@ -40,20 +39,15 @@ def standard_errors(setup, cal: Robot, cand, sig, B_init, X_init, delta, cam, ca
     active = [i for i in setup.free[:fd] if i in cand.dh] + list(setup.free[fd:])
     rows = 3 if setup.position_only else 6
     w = np.r_[np.full(3, 1 / sig[0]), np.full(3, 1 / sig[1])][:rows]
-    camera = setup.camera if camera is None else camera
     m = len(cam)
     active += list(range(n4 + 12, n4 + 12 + m))
-    T = fk(cal, jnp.asarray(setup.q))
-    J = camera_jacobian(identification_jacobian(cal, jnp.asarray(setup.q), base=True, tool=True), T, cam, camera)
+    J, T = jacobian_and_fk(cal, jnp.asarray(setup.q), base=True, tool=True)
+    J = camera_jacobian(J, T, cam, camera)
     J = np.asarray(J)[:, :rows][..., active]
     e = np.asarray(pose_error(jnp.asarray(setup.measured), apply_camera(T, cam, camera)))[:, :rows]
     Jw = (J * w[:, None]).reshape(-1, len(active))
     r = (e * w).reshape(-1)
-    p = np.zeros(len(active))
-    if cand.ridge_mm is not None:
-        for j, i in enumerate(active):
-            if i < n4:
-                p[j] = 1 / (cand.ridge_mm if i % 4 in (1, 2) else cand.ridge_mm * 1e-3)
+    p = np.array([cand.prior_weight(i) if i < n4 else 0.0 for i in active])
     N = Jw.T @ Jw + np.diag(p ** 2)
     dof = max(len(r) - len(active), 1)
     s2 = float(r @ r) / dof
