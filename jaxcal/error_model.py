@@ -22,10 +22,14 @@ Two error representations are provided:
 
 from __future__ import annotations
 
+from functools import partial
+
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from . import _native
 from .derivatives import OMEGAS, omega_twist_entries
 from .kinematics import _chain, _dot3, check_q, fk_frames, is_zero, joint_dh, link_inputs, matmul_soa, rotate_soa
 from .lie import inv_transform, make_transform, se3_exp, so3_log
@@ -122,6 +126,33 @@ def _frame_columns(R_e, p_e, *, base: bool, tool: bool, pose_rows: bool):
 
 
 def _columns(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: int = 6, with_pose: bool = False):
+    """The analytic Jacobian (and, ``with_pose``, the end pose): :func:`_columns_xla`, or for
+    pose rows the native kernel (:mod:`jaxcal._native`) when it is in use, with the base and
+    tool columns added here from its end poses."""
+    if not (pose_rows and _native.usable(robot)):
+        return _columns_xla(robot, q, base=base, tool=tool, pose_rows=pose_rows, rows=rows, with_pose=with_pose)
+    J, T = _jac_native(robot, jnp.reshape(q, (-1, robot.n_joints)).astype(jnp.float64), rows)
+    if base or tool:
+        fc = _frame_columns(T[:, :3, :3], T[:, :3, 3], base=base, tool=tool, pose_rows=True)
+        J = jnp.concatenate([J] + [f[:, :rows] for f in fc], -1)
+    J = J.reshape(q.shape[:-1] + J.shape[1:])
+    if with_pose:
+        return J, T.reshape(q.shape[:-1] + (4, 4))
+    return J
+
+
+@partial(jax.custom_jvp, nondiff_argnums=(2,))
+def _jac_native(robot: Robot, q2, rows: int):
+    return _native.jac_call(robot, q2, rows)
+
+
+@_jac_native.defjvp
+def _jac_native_jvp(rows, primals, tangents):  # derivatives (and their primal) from the pure-JAX form
+    return jax.jvp(lambda r, q: _columns_xla(r, q, base=False, tool=False, pose_rows=True, rows=rows, with_pose=True),
+                   primals, tangents)
+
+
+def _columns_xla(robot: Robot, q, *, base: bool, tool: bool, pose_rows: bool, rows: int = 6, with_pose: bool = False):
     """The analytic Jacobian ``(*b, rows, m)`` (and, ``with_pose``, the end pose ``(*b, 4, 4)``
     from the same chain, so a solver needing both does not run the chain twice).
 

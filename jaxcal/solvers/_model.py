@@ -51,12 +51,15 @@ def make_residual(robot: Robot, *, base: bool, tool: bool, position_only: bool, 
         cal = perturb(robot, x, base=base, tool=tool)
         J, T = jacobian_and_fk(cal, q, base=base, tool=tool)  # one pass over the chain
         e = pose_error(measured, T)
-        dpos = -(J[..., :3, :] @ dx)
-        if position_only:
-            de = dpos
-        else:
-            drot = -(so3_right_jacobian_inv(e[..., 3:]) @ (J[..., 3:, :] @ dx)[..., None])[..., 0]
-            de = jnp.concatenate([dpos, drot], -1)
-        return finish(e), (de * weights).reshape(-1)
+        # the residual's Jacobian, formed in the primal (elementwise; a batch of 3x3 @ 3xm
+        # matmuls per pose was the slow part), so the tangent is one matrix-vector product:
+        # optimistix materialises it by pushing every basis vector through.
+        rows = J[..., :3, :]
+        if not position_only:
+            A = so3_right_jacobian_inv(e[..., 3:])
+            rot = sum(A[..., :, j, None] * J[..., None, 3 + j, :] for j in range(3))
+            rows = jnp.concatenate([rows, rot], -2)
+        Jr = (-rows * weights[:, None]).reshape(-1, rows.shape[-1])
+        return finish(e), Jr @ dx
 
     return residual

@@ -1,0 +1,129 @@
+"""Fused CPU kernels for forward kinematics and the identification Jacobian (``chain.cc``),
+called from JAX through the XLA FFI (``jax.ffi.ffi_call``).
+
+On first use the kernel is compiled with the system C++ compiler (``$CXX`` or ``c++``,
+``-O3 -march=native``, OpenMP when available) against the FFI headers shipped in jaxlib, and
+cached in ``$XDG_CACHE_HOME/jaxcal`` (default ``~/.cache/jaxcal``), keyed by the source, the
+flags, the jax version and the CPU. That takes about 2 s once per machine. When it cannot be
+built (no compiler, no headers), when the default JAX backend is not the CPU, or with
+``JAXCAL_NATIVE=0`` in the environment, jaxcal uses its pure-JAX implementation
+(:func:`jaxcal.kinematics._fk_xla`, :func:`jaxcal.error_model._columns_xla`), which is also
+the reference the tests hold the kernels to. :func:`status` says which is in use and why.
+
+Both kernels are wrapped in a ``jax.custom_jvp`` whose tangent comes from the pure-JAX
+implementation, so ``jax.jvp``/``jacfwd``/``grad`` work as before; ``vmap`` batches the call
+(``vmap_method="broadcast_all"``: the kernel loops over robots and poses itself).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+SOURCE = Path(__file__).with_name("chain.cc")
+MAX_JOINTS = 16
+"""Longest chain the kernel takes (``MAXN`` in ``chain.cc``); longer ones use pure JAX."""
+_FLAGS = ["-O3", "-march=native", "-std=c++17", "-shared", "-fPIC", "-fno-math-errno", "-w"]
+_state: dict = {}
+
+
+def _cpu_id() -> str:
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+        return "".join(l for l in lines if l.startswith(("model name", "flags")))[:4000]
+    except OSError:
+        return platform.processor() or platform.machine()
+
+
+def _cache_dir() -> Path:
+    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "jaxcal"
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        return root
+    except OSError:
+        return Path(tempfile.gettempdir())
+
+
+def _build() -> Path:
+    cxx = os.environ.get("CXX") or shutil.which("c++") or shutil.which("g++") or shutil.which("clang++")
+    if not cxx:
+        raise RuntimeError("no C++ compiler found (set CXX)")
+    include = jax.ffi.include_dir()
+    key = hashlib.sha256(SOURCE.read_bytes() + repr((_FLAGS, cxx, jax.__version__, _cpu_id())).encode()).hexdigest()
+    lib = _cache_dir() / f"jaxcal-chain-{key[:20]}.so"
+    if lib.exists():
+        return lib
+    errors = []
+    for extra in (["-fopenmp"], []):  # OpenMP when the compiler has it (macOS clang does not)
+        tmp = lib.with_suffix(f".{os.getpid()}.tmp")
+        cmd = [cxx, *_FLAGS, *extra, f"-I{include}", str(SOURCE), "-o", str(tmp)]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode == 0:
+            os.replace(tmp, lib)  # atomic: concurrent builds (pytest -n) do not see half a file
+            return lib
+        last = (proc.stderr.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
+        errors.append(f"{' '.join(extra) or 'without OpenMP'}: {last[:300]}")
+    raise RuntimeError(f"compiling the native kernel with {cxx} failed ({'; '.join(errors)})")
+
+
+def _load() -> None:
+    if os.environ.get("JAXCAL_NATIVE", "1") == "0":
+        _state.update(ok=False, reason="disabled by JAXCAL_NATIVE=0")
+        return
+    try:
+        path = _build()
+        lib = ctypes.cdll.LoadLibrary(str(path))
+        jax.ffi.register_ffi_target("jaxcal_fk", jax.ffi.pycapsule(lib.JaxcalFk), platform="cpu")
+        jax.ffi.register_ffi_target("jaxcal_jac", jax.ffi.pycapsule(lib.JaxcalJac), platform="cpu")
+        _state.update(ok=True, reason=f"compiled kernel {path}")
+    except Exception as e:  # any failure: fall back to pure JAX, say why in status()
+        _state.update(ok=False, reason=f"native kernel unavailable: {e}")
+
+
+def status() -> tuple[bool, str]:
+    """``(in_use, reason)``: whether FK and the Jacobian run the native kernel, and why (not)."""
+    if not _state:
+        _load()
+    if _state["ok"] and jax.default_backend() != "cpu":
+        return False, f"default JAX backend is {jax.default_backend()!r}, the kernel is CPU-only"
+    return _state["ok"], _state["reason"]
+
+
+def available() -> bool:
+    """Whether the native kernel is built, loaded and the default backend is the CPU (checked
+    when a function is traced; jit-compiled functions keep the path they were traced with)."""
+    return status()[0]
+
+
+def usable(robot) -> bool:
+    """:func:`available` and the robot's chain is short enough for the kernel."""
+    return robot.n_joints <= MAX_JOINTS and available()
+
+
+def _robot_buffers(robot):
+    return (robot.dh, robot.revolute_mask, robot.base, robot.tool)
+
+
+def fk_call(robot, q2):
+    """End poses ``(K, 4, 4)`` for ``q2 (K, n)`` (no JVP rule; see :func:`jaxcal.kinematics._fk`)."""
+    call = jax.ffi.ffi_call("jaxcal_fk", jax.ShapeDtypeStruct((q2.shape[0], 4, 4), jnp.float64),
+                            vmap_method="broadcast_all")
+    return call(q2, *_robot_buffers(robot), mdh=int(robot.convention == "mdh"))
+
+
+def jac_call(robot, q2, rows: int):
+    """``(J (K, rows, 4n), T (K, 4, 4))``: the DH columns of the identification Jacobian (pose
+    rows) and the end poses for ``q2 (K, n)``."""
+    K, n = q2.shape
+    out = (jax.ShapeDtypeStruct((K, rows, 4 * n), jnp.float64), jax.ShapeDtypeStruct((K, 4, 4), jnp.float64))
+    call = jax.ffi.ffi_call("jaxcal_jac", out, vmap_method="broadcast_all")
+    return call(q2, *_robot_buffers(robot), mdh=int(robot.convention == "mdh"), rows=rows)

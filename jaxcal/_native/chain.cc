@@ -1,0 +1,315 @@
+// Fused CPU kernels for forward kinematics and the identification Jacobian, called from JAX
+// through the XLA FFI (jaxcal/_native/__init__.py compiles and registers them; the pure-JAX
+// code in kinematics.py / error_model.py is the reference and the fallback, and the tests
+// compare the two).
+//
+// Why: XLA CPU materialises every link's 12 entries for all poses between links and computed
+// float64 sin/cos one value at a time; here a block of BLK poses runs through all links with
+// its running transform in L1, structure of arrays, so the compiler vectorises over poses
+// (benchmarks/bench_roofline.py measures both).
+//
+// Layout: q (B, K, n) joint values, B robots (leading batch axes flattened) of K poses each;
+// dh (B, n, 4) rows (theta, d, a, alpha); rev (n) 1.0 revolute / 0.0 prismatic (or (B, n));
+// base, tool (B, 4, 4). A robot-side buffer with a single robot's worth of entries is shared by
+// all B. Outputs: T (B, K, 4, 4); J (B, K, rows, 4n), columns link-major (theta, d, a, alpha),
+// rows dp (3) then dphi (3) as in error_model._columns (pose rows).
+// Standard DH link (paper eq. 1): R = [[c, -s ca, s sa], [s, c ca, -c sa], [0, sa, ca]],
+//   t = (a c, a s, d). Modified DH: R = [[c, -s, 0], [s ca, c ca, -sa], [s sa, c sa, ca]],
+//   t = (a, -sa d, ca d).
+// sin/cos of theta: the polynomial of jaxcal/trig.py (Cody-Waite by pi/2, Taylor to r^17/r^18).
+#include <cmath>
+#include <cstdint>
+
+#include "xla/ffi/api/ffi.h"
+
+namespace ffi = xla::ffi;
+
+namespace {
+
+constexpr int BLK = 64;
+constexpr int MAXN = 16;  // joints; longer chains use the pure-JAX path
+
+inline void sincos_poly(double x, double *s_out, double *c_out) {
+  const double p1 = 1.5707963267341256, p2 = 6.077100506303966e-11, p3 = 2.0222662487959506e-21;
+  double n = std::nearbyint(x * 0.6366197723675814);
+  double r = ((x - n * p1) - n * p2) - n * p3;
+  double r2 = r * r;
+  double s = r * (1.0 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880
+             + r2 * (-1.0 / 39916800 + r2 * (1.0 / 6227020800.0 + r2 * (-1.0 / 1307674368000.0
+             + r2 * (1.0 / 355687428096000.0)))))))));
+  double c = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320
+             + r2 * (-1.0 / 3628800 + r2 * (1.0 / 479001600.0 + r2 * (-1.0 / 87178291200.0
+             + r2 * (1.0 / 20922789888000.0 + r2 * (-1.0 / 6402373705728000.0)))))))));
+  int64_t k = static_cast<int64_t>(n) & 3;
+  double ss = (k & 1) ? c : s, cc = (k & 1) ? s : c;
+  *s_out = (k & 2) ? -ss : ss;
+  *c_out = ((k + 1) & 2) ? -cc : cc;
+}
+
+struct Problem {
+  int64_t B, K, n;
+  const double *q, *dh, *rev, *base, *tool;
+  int64_t dh_stride, rev_stride, base_stride, tool_stride;  // 0 when shared by all robots
+  bool mdh;
+};
+
+// A block: m <= BLK consecutive poses k0 .. k0+m-1 of one robot r (blocks never straddle
+// robots, so every link constant is a scalar per block). Lanes m.. repeat pose k0 (written
+// nowhere).
+struct Block {
+  int64_t r, k0;
+  int m;
+  double qT[MAXN][BLK];
+};
+
+inline void block_init(const Problem &P, int64_t ib, Block &blk, double R[9][BLK], double t[3][BLK]) {
+  const int64_t per = (P.K + BLK - 1) / BLK;
+  blk.r = ib / per;
+  blk.k0 = (ib % per) * BLK;
+  blk.m = static_cast<int>(P.K - blk.k0 < BLK ? P.K - blk.k0 : BLK);
+  const double *q = P.q + (blk.r * P.K + blk.k0) * P.n;
+  for (int b = 0; b < BLK; ++b) {
+    const double *qb = q + (b < blk.m ? b : 0) * P.n;
+    for (int64_t j = 0; j < P.n; ++j) blk.qT[j][b] = qb[j];
+  }
+  const double *T = P.base + blk.r * P.base_stride;
+  for (int e = 0; e < 9; ++e)
+    for (int b = 0; b < BLK; ++b) R[e][b] = T[4 * (e / 3) + e % 3];
+  for (int e = 0; e < 3; ++e)
+    for (int b = 0; b < BLK; ++b) t[e][b] = T[4 * e + 3];
+}
+
+struct Link {
+  double c[BLK], s[BLK], d[BLK], a, ca, sa;
+};
+
+inline void link_values(const Problem &P, const Block &blk, int64_t j, Link &L) {
+  const double *dh = P.dh + blk.r * P.dh_stride + 4 * j;
+  const double rv = P.rev[blk.r * P.rev_stride + j], th0 = dh[0], d0 = dh[1];
+  L.a = dh[2];
+  sincos_poly(dh[3], &L.sa, &L.ca);
+#pragma omp simd
+  for (int b = 0; b < BLK; ++b) {
+    sincos_poly(th0 + blk.qT[j][b] * rv, &L.s[b], &L.c[b]);
+    L.d[b] = d0 + blk.qT[j][b] * (1.0 - rv);
+  }
+}
+
+// (R, t) <- (R, t) * A_j for every lane.
+inline void apply_link(bool mdh, const Link &L, double R[9][BLK], double t[3][BLK]) {
+  const double ca = L.ca, sa = L.sa, a = L.a;
+  if (!mdh) {
+#pragma omp simd
+    for (int b = 0; b < BLK; ++b) {
+      const double c = L.c[b], s = L.s[b];
+      const double A1 = -s * ca, A2 = s * sa, A4 = c * ca, A5 = -c * sa, tx = a * c, ty = a * s;
+      for (int r = 0; r < 3; ++r) {
+        double x = R[3 * r][b], y = R[3 * r + 1][b], z = R[3 * r + 2][b];
+        R[3 * r][b] = x * c + y * s;
+        R[3 * r + 1][b] = x * A1 + y * A4 + z * sa;
+        R[3 * r + 2][b] = x * A2 + y * A5 + z * ca;
+        t[r][b] += x * tx + y * ty + z * L.d[b];
+      }
+    }
+  } else {
+#pragma omp simd
+    for (int b = 0; b < BLK; ++b) {
+      const double c = L.c[b], s = L.s[b];
+      const double A3 = s * ca, A4 = c * ca, A6 = s * sa, A7 = c * sa, ty = -sa * L.d[b], tz = ca * L.d[b];
+      for (int r = 0; r < 3; ++r) {
+        double x = R[3 * r][b], y = R[3 * r + 1][b], z = R[3 * r + 2][b];
+        R[3 * r][b] = x * c + y * A3 + z * A6;
+        R[3 * r + 1][b] = -x * s + y * A4 + z * A7;
+        R[3 * r + 2][b] = -y * sa + z * ca;
+        t[r][b] += x * a + y * ty + z * tz;
+      }
+    }
+  }
+}
+
+// out[b * rows + e] = X[e * BLK + b] for b < m: a tile written pose-major.
+inline void store_tile(int rows, int m, const double *X, double *out) {
+  for (int b = 0; b < m; ++b)
+#pragma omp simd
+    for (int e = 0; e < rows; ++e) out[(int64_t)b * rows + e] = X[e * BLK + b];
+}
+
+// End pose with the tool into T (pose-major, 16 per pose; skipped when T_out is null); the
+// end position per lane into pe.
+inline void write_end(const Problem &P, const Block &blk, double R[9][BLK], double t[3][BLK], double pe[3][BLK],
+                      double *T_out) {
+  const double *tool = P.tool + blk.r * P.tool_stride;
+  double Tt[16][BLK];
+#pragma omp simd
+  for (int b = 0; b < BLK; ++b) {
+    for (int r = 0; r < 3; ++r) {
+      double x = R[3 * r][b], y = R[3 * r + 1][b], z = R[3 * r + 2][b];
+      for (int col = 0; col < 3; ++col) Tt[4 * r + col][b] = x * tool[col] + y * tool[4 + col] + z * tool[8 + col];
+      Tt[4 * r + 3][b] = x * tool[3] + y * tool[7] + z * tool[11] + t[r][b];
+      pe[r][b] = Tt[4 * r + 3][b];
+    }
+    Tt[12][b] = 0.0; Tt[13][b] = 0.0; Tt[14][b] = 0.0; Tt[15][b] = 1.0;
+  }
+  if (T_out != nullptr) store_tile(16, blk.m, &Tt[0][0], T_out + 16 * (blk.r * P.K + blk.k0));
+}
+
+int64_t n_blocks(const Problem &P) { return P.B * ((P.K + BLK - 1) / BLK); }
+
+void fk_kernel(const Problem &P, double *T_out) {
+#pragma omp parallel for schedule(static)
+  for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
+    Block blk;
+    Link L;
+    double R[9][BLK], t[3][BLK], pe[3][BLK];
+    block_init(P, ib, blk, R, t);
+    for (int64_t j = 0; j < P.n; ++j) {
+      link_values(P, blk, j, L);
+      apply_link(P.mdh, L, R, t);
+    }
+    write_end(P, blk, R, t, pe, T_out);
+  }
+}
+
+// The 4 columns of link i into the tile J[(row * m + 4i + k) * BLK + b],
+// dp = R_i v + (R_i w) x (p_end - t_i) and dphi = R_i w, (v, w) the twist of Omega_k of link i
+// in the frame after link i (derivatives.omega_twist_entries).
+template <bool MDH, int ROWS>
+inline void link_columns(int64_t m, int64_t i, const Link &L, const double F[12][BLK], const double pe[3][BLK],
+                         double *J) {
+  const double ca = L.ca, sa = L.sa, a = L.a;
+  double *J0 = J + 4 * i * BLK;
+#pragma omp simd
+  for (int b = 0; b < BLK; ++b) {
+    const double c = L.c[b], s = L.s[b], d = L.d[b];
+    const double lev0 = pe[0][b] - F[9][b], lev1 = pe[1][b] - F[10][b], lev2 = pe[2][b] - F[11][b];
+    auto col = [&](int k, double v0, double v1, double v2, double w0, double w1, double w2) {
+      const double vs0 = F[0][b] * v0 + F[1][b] * v1 + F[2][b] * v2;
+      const double vs1 = F[3][b] * v0 + F[4][b] * v1 + F[5][b] * v2;
+      const double vs2 = F[6][b] * v0 + F[7][b] * v1 + F[8][b] * v2;
+      const double ws0 = F[0][b] * w0 + F[1][b] * w1 + F[2][b] * w2;
+      const double ws1 = F[3][b] * w0 + F[4][b] * w1 + F[5][b] * w2;
+      const double ws2 = F[6][b] * w0 + F[7][b] * w1 + F[8][b] * w2;
+      double *out = J0 + k * BLK + b;
+      out[0] = vs0 + ws1 * lev2 - ws2 * lev1;
+      out[m * BLK] = vs1 + ws2 * lev0 - ws0 * lev2;
+      out[2 * m * BLK] = vs2 + ws0 * lev1 - ws1 * lev0;
+      if (ROWS == 6) {
+        out[3 * m * BLK] = ws0; out[4 * m * BLK] = ws1; out[5 * m * BLK] = ws2;
+      }
+    };
+    if (!MDH) {  // eq. 5: theta, d, a, alpha
+      col(0, 0.0, a * ca, -a * sa, 0.0, sa, ca);
+      col(1, 0.0, sa, ca, 0.0, 0.0, 0.0);
+      col(2, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+      col(3, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+    } else {  // eq. 7 (corrected)
+      col(0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+      col(1, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0);
+      col(2, c, -s, 0.0, 0.0, 0.0, 0.0);
+      col(3, -d * s, -d * c, 0.0, c, -s, 0.0);
+    }
+  }
+}
+
+void jac_kernel(const Problem &P, int rows, double *J_out, double *T_out) {
+  const int64_t m = 4 * P.n;
+#pragma omp parallel for schedule(static)
+  for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
+    static thread_local Block blk;
+    static thread_local Link L[MAXN];
+    static thread_local double F[MAXN][12][BLK];
+    static thread_local double Jt[6 * 4 * MAXN * BLK];
+    double R[9][BLK], t[3][BLK], pe[3][BLK];
+    block_init(P, ib, blk, R, t);
+    for (int64_t j = 0; j < P.n; ++j) {
+      link_values(P, blk, j, L[j]);
+      apply_link(P.mdh, L[j], R, t);
+      for (int e = 0; e < 9; ++e)
+#pragma omp simd
+        for (int b = 0; b < BLK; ++b) F[j][e][b] = R[e][b];
+      for (int e = 0; e < 3; ++e)
+#pragma omp simd
+        for (int b = 0; b < BLK; ++b) F[j][9 + e][b] = t[e][b];
+    }
+    write_end(P, blk, R, t, pe, T_out);
+    for (int64_t i = 0; i < P.n; ++i) {
+      if (P.mdh) {
+        if (rows == 6) link_columns<true, 6>(m, i, L[i], F[i], pe, Jt); else link_columns<true, 3>(m, i, L[i], F[i], pe, Jt);
+      } else {
+        if (rows == 6) link_columns<false, 6>(m, i, L[i], F[i], pe, Jt); else link_columns<false, 3>(m, i, L[i], F[i], pe, Jt);
+      }
+    }
+    store_tile(rows * m, blk.m, Jt, J_out + rows * m * (blk.r * P.K + blk.k0));
+  }
+}
+
+ffi::Error make_problem(ffi::Buffer<ffi::F64> &q, ffi::Buffer<ffi::F64> &dh, ffi::Buffer<ffi::F64> &rev,
+                        ffi::Buffer<ffi::F64> &base, ffi::Buffer<ffi::F64> &tool, int64_t mdh, Problem &P) {
+  auto qd = q.dimensions(), dd = dh.dimensions();
+  if (qd.size() < 1 || dd.size() < 2 || dd.back() != 4) return ffi::Error::InvalidArgument("jaxcal native: bad shapes");
+  P.n = dd[dd.size() - 2];
+  if (P.n < 1 || P.n > MAXN || qd.back() != P.n) return ffi::Error::InvalidArgument("jaxcal native: q and dh disagree on n");
+  int64_t nq = q.element_count() / P.n, ndh = dh.element_count() / (4 * P.n);
+  P.B = ndh;
+  if (nq % ndh != 0) return ffi::Error::InvalidArgument("jaxcal native: q is not batched like dh");
+  P.K = nq / ndh;
+  P.q = q.typed_data(); P.dh = dh.typed_data(); P.rev = rev.typed_data();
+  P.base = base.typed_data(); P.tool = tool.typed_data();
+  P.dh_stride = ndh > 1 ? 4 * P.n : 0;
+  P.rev_stride = (rev.element_count() == P.n) ? 0 : P.n;
+  P.base_stride = (base.element_count() == 16) ? 0 : 16;
+  P.tool_stride = (tool.element_count() == 16) ? 0 : 16;
+  if ((P.rev_stride && rev.element_count() != P.n * P.B) || (P.base_stride && base.element_count() != 16 * P.B) ||
+      (P.tool_stride && tool.element_count() != 16 * P.B))
+    return ffi::Error::InvalidArgument("jaxcal native: robot buffers are not batched like dh");
+  P.mdh = mdh != 0;
+  return ffi::Error::Success();
+}
+
+ffi::Error FkImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer<ffi::F64> rev,
+                  ffi::Buffer<ffi::F64> base, ffi::Buffer<ffi::F64> tool, ffi::ResultBuffer<ffi::F64> T,
+                  int64_t mdh) {
+  Problem P;
+  ffi::Error err = make_problem(q, dh, rev, base, tool, mdh, P);
+  if (err.failure()) return err;
+  if (T->element_count() != 16 * P.B * P.K) return ffi::Error::InvalidArgument("jaxcal native: bad output shape");
+  fk_kernel(P, T->typed_data());
+  return ffi::Error::Success();
+}
+
+ffi::Error JacImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer<ffi::F64> rev,
+                   ffi::Buffer<ffi::F64> base, ffi::Buffer<ffi::F64> tool, ffi::ResultBuffer<ffi::F64> J,
+                   ffi::ResultBuffer<ffi::F64> T, int64_t mdh, int64_t rows) {
+  Problem P;
+  ffi::Error err = make_problem(q, dh, rev, base, tool, mdh, P);
+  if (err.failure()) return err;
+  if ((rows != 3 && rows != 6) || J->element_count() != rows * 4 * P.n * P.B * P.K ||
+      T->element_count() != 16 * P.B * P.K)
+    return ffi::Error::InvalidArgument("jaxcal native: bad output shape");
+  jac_kernel(P, static_cast<int>(rows), J->typed_data(), T->typed_data());
+  return ffi::Error::Success();
+}
+
+}  // namespace
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalFk, FkImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Attr<int64_t>("mdh"));
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalJac, JacImpl,
+                              ffi::Ffi::Bind()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Arg<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Ret<ffi::Buffer<ffi::F64>>()
+                                  .Attr<int64_t>("mdh")
+                                  .Attr<int64_t>("rows"));

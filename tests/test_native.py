@@ -1,0 +1,140 @@
+"""The fused native kernels (jaxcal._native) against the pure-JAX reference they replace:
+forward kinematics and the identification Jacobian, both conventions, base/tool columns,
+position-only rows, prismatic joints, odd pose counts, leading axes, vmap over robots,
+derivatives; and the fallback when the kernel cannot be built or is switched off."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from conftest import random_dh, random_transform
+from jaxcal import Robot, fk, presets
+from jaxcal import _native
+from jaxcal.error_model import _columns_xla, identification_jacobian, jacobian_and_fk, n_params, perturb
+from jaxcal.kinematics import _fk_xla
+
+pytestmark = pytest.mark.skipif(not _native.available(), reason=f"native kernel not in use: {_native.status()[1]}")
+
+ATOL = 1e-9  # mm (positions of order 1e3 mm) and rad; the two differ by rounding only (~1e-13)
+
+
+def _robot(conv, types, seed):
+    rng = np.random.default_rng(seed)
+    n = len(types)
+    return Robot(random_dh(rng, n), convention=conv, joint_types=types, base=random_transform(rng),
+                 tool=random_transform(rng))
+
+
+ROBOTS = [("sdh", ("R",) * 6, 1), ("mdh", ("R",) * 7, 2), ("sdh", ("R", "P", "R", "R"), 3), ("mdh", ("P", "R", "R"), 4)]
+
+
+@pytest.mark.parametrize("conv,types,seed", ROBOTS)
+@pytest.mark.parametrize("shape", [(1,), (63,), (65,), (2, 3, 70)])
+def test_fk_matches_pure_jax(conv, types, seed, shape):
+    robot = _robot(conv, types, seed)
+    q = np.random.default_rng(seed + 10).uniform(-3, 3, shape + (robot.n_joints,))
+    got = np.asarray(fk(robot, q))
+    assert got.shape == shape + (4, 4)
+    assert_allclose(got, np.asarray(jax.jit(_fk_xla)(robot, jnp.asarray(q))), rtol=0, atol=ATOL)
+
+
+@pytest.mark.parametrize("conv,types,seed", ROBOTS)
+@pytest.mark.parametrize("base,tool,position_only", [(False, False, False), (True, True, False), (True, False, True),
+                                                     (False, True, True)])
+def test_jacobian_matches_pure_jax(conv, types, seed, base, tool, position_only):
+    robot = _robot(conv, types, seed)
+    q = jnp.asarray(np.random.default_rng(seed + 20).uniform(-3, 3, (2, 67, robot.n_joints)))
+    J, T = jacobian_and_fk(robot, q, base=base, tool=tool, position_only=position_only)
+    J_ref, T_ref = jax.jit(_columns_xla, static_argnames=("base", "tool", "pose_rows", "rows", "with_pose"))(
+        robot, q, base=base, tool=tool, pose_rows=True, rows=3 if position_only else 6, with_pose=True)
+    assert J.shape == J_ref.shape and T.shape == (2, 67, 4, 4)
+    assert_allclose(J, J_ref, rtol=0, atol=ATOL)
+    assert_allclose(T, T_ref, rtol=0, atol=ATOL)
+    assert_allclose(identification_jacobian(robot, q, base=base, tool=tool, position_only=position_only), J_ref,
+                    rtol=0, atol=ATOL)
+
+
+def _perturbed(robot, key):
+    m = n_params(robot, base=True, tool=True)
+    return perturb(robot, 1e-2 * jax.random.normal(key, (m,)), base=True, tool=True)
+
+
+def test_vmap_over_robots_and_pose_sets():
+    robot = presets.preset("panda")
+    robots = jax.vmap(lambda k: _perturbed(robot, k))(jax.random.split(jax.random.key(0), 5))
+    q = jnp.asarray(np.random.default_rng(5).uniform(-2, 2, (5, 40, 7)))
+    in_axes = (eqx_axes(robots), 0)
+    for f, ref in ((fk, _fk_xla),
+                   (lambda r, q: jacobian_and_fk(r, q, tool=True)[0],
+                    lambda r, q: _columns_xla(r, q, base=False, tool=True, pose_rows=True))):
+        got = jax.vmap(f, in_axes=in_axes)(robots, q)          # robots and pose sets batched
+        want = jax.vmap(ref, in_axes=in_axes)(robots, q)
+        assert_allclose(got, want, rtol=0, atol=ATOL)
+        shared = jax.vmap(f, in_axes=(in_axes[0], None))(robots, q[0])  # one pose set, five robots
+        assert_allclose(shared, jax.vmap(ref, in_axes=(in_axes[0], None))(robots, q[0]), rtol=0, atol=ATOL)
+        one_robot = jax.vmap(f, in_axes=(None, 0))(robot, q)   # one robot, five pose sets
+        assert_allclose(one_robot, jax.vmap(ref, in_axes=(None, 0))(robot, q), rtol=0, atol=ATOL)
+    nested = jax.vmap(jax.vmap(fk, in_axes=(None, 0)), in_axes=(in_axes[0], None))(robots, q)  # (5 robots, 5 sets)
+    assert nested.shape == (5, 5, 40, 4, 4)
+    assert_allclose(nested[3, 2], _fk_xla(jax.tree.map(lambda x: x[3], robots), q[2]), rtol=0, atol=ATOL)
+
+
+def eqx_axes(robots):
+    """vmap axes for a batched Robot: 0 on its arrays."""
+    return jax.tree.map(lambda _: 0, robots)
+
+
+def test_derivatives_go_through_the_reference():
+    robot = presets.preset("puma560")
+    q = jnp.asarray(np.random.default_rng(6).uniform(-2, 2, (4, 6)))
+    x0 = jnp.asarray(np.random.default_rng(7).normal(size=n_params(robot, tool=True))) * 1e-2
+
+    def pos(x, q, f):
+        return f(perturb(robot, x, tool=True), q)[..., :3, 3]
+
+    for argnum in (0, 1):
+        got = jax.jacfwd(pos, argnums=argnum)(x0, q, fk)
+        want = jax.jacfwd(pos, argnums=argnum)(x0, q, _fk_xla)
+        assert_allclose(got, want, rtol=0, atol=1e-9)
+    g = jax.grad(lambda x: jnp.sum(jacobian_and_fk(perturb(robot, x), q)[0] ** 2))(x0[:24])
+    g_ref = jax.grad(lambda x: jnp.sum(_columns_xla(perturb(robot, x), q, base=False, tool=False,
+                                                    pose_rows=True) ** 2))(x0[:24])
+    assert_allclose(g, g_ref, rtol=1e-9, atol=1e-9)
+
+
+def test_long_chain_uses_pure_jax():
+    rng = np.random.default_rng(7)
+    robot = Robot(random_dh(rng, _native.MAX_JOINTS + 1), convention="sdh")
+    q = rng.uniform(-1, 1, (3, robot.n_joints))
+    assert not _native.usable(robot)
+    assert_allclose(fk(robot, q), jax.jit(_fk_xla)(robot, jnp.asarray(q)), rtol=0, atol=0)
+
+
+def _run(env_extra, tmp_path):
+    code = textwrap.dedent("""
+        import numpy as np, jaxcal
+        from jaxcal import _native
+        ok, why = _native.status()
+        T = jaxcal.fk(jaxcal.preset("paper-6r"), np.full((2, 6), 0.3))
+        print(ok, "|", why, "|", repr(float(T[0, 0, 3])))
+    """)
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path), **env_extra)
+    p = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    return p.stdout.strip().splitlines()[-1].split(" | ")
+
+
+def test_fallback_when_switched_off_or_not_buildable(tmp_path):
+    want = float(fk(presets.preset("paper-6r"), np.full((2, 6), 0.3))[0, 0, 3])
+    ok, why, x = _run({"JAXCAL_NATIVE": "0"}, tmp_path)
+    assert ok == "False" and "JAXCAL_NATIVE=0" in why and abs(float(x) - want) < ATOL
+    ok, why, x = _run({"CXX": "false"}, tmp_path)  # a "compiler" that always fails, empty cache
+    assert ok == "False" and "compiling the native kernel with false failed" in why and abs(float(x) - want) < ATOL
+    assert not list(tmp_path.rglob("*.so"))
