@@ -9,13 +9,20 @@ pipes x 8 doubles x 2 = 32; AVX2: 16).
 
 Two ceilings below that peak, measured in the same run: the memory roofline (compulsory bytes
 per pose, :func:`compulsory_bytes`, times the STREAM-style bandwidth of
-:func:`stream_bandwidth`) and the time of sin + cos of every joint angle alone (the hand-counted
-FLOPs in that time, as if everything else were free).
+:func:`stream_bandwidth`) and the time of sin + cos of every joint angle alone, with XLA's and
+with :func:`jaxcal.trig.sincos` (the hand-counted FLOPs in that time, as if everything else
+were free).
 
 Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform poses):
-* jaxcal as shipped: structure of arrays (every entry of the running transform a ``(K,)``
-  vector) with a ``lax.scan`` over the links, so each link's entries are materialised once;
-  the Jacobian then forms every column at once from the materialised frames;
+* jaxcal as shipped: the fused native kernel (``jaxcal/_native/chain.cc``, XLA FFI): blocks of
+  64 poses through all links in registers/L1, polynomial sincos, vectorised over poses; also
+  timed at 10^4 poses per call (at 10^5 the Jacobian's 115 MB output is fresh memory that XLA
+  page-faults in every call);
+* pure JAX (the fallback without a compiler): structure of arrays (every entry of the running
+  transform a ``(K,)`` vector) with a ``lax.scan`` over the links, so each link's entries are
+  materialised once; the Jacobian then forms every column at once from the materialised
+  frames; sin/cos by :func:`jaxcal.trig.sincos`;
+* the same with XLA's own sin/cos (the shipped form of commit 01cbb2a);
 * the previous Jacobian (commit d42a99f): the spatial twists formed inside the scan;
 * jaxcal before (commit 1bd4056): 4x4 matrices, links unrolled in Python, fused elementwise
   rigid products; its Jacobian from those frames by broadcasting;
@@ -119,6 +126,20 @@ def stream_bandwidth(n: int = 1 << 25) -> dict:
             "jax_bytes_per_s": 16 * n / statistics.median(jruns), "n": n}
 
 
+def native_status() -> dict:
+    """Whether jaxcal's native kernel is in use here, and the time of a fresh build (a child
+    process with an empty cache: what a new machine pays once)."""
+    import tempfile
+    from jaxcal import _native
+    ok, why = _native.status()
+    with tempfile.TemporaryDirectory() as d:
+        code = "import time; from jaxcal import _native; t = time.perf_counter(); _native.status(); print(time.perf_counter() - t)"
+        p = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, XDG_CACHE_HOME=d), capture_output=True,
+                           text=True)
+    return {"in_use": ok, "reason": why, "build_s": float(p.stdout.strip().splitlines()[-1]) if p.returncode == 0
+            else float("nan")}
+
+
 def compulsory_bytes(n: int) -> dict:
     """Bytes per pose that any implementation must move to or from memory: the joint angles in
     (n doubles) and the result out (FK: the 4x4 pose, 16 doubles; Jacobian: 6 x 4n doubles)."""
@@ -126,6 +147,10 @@ def compulsory_bytes(n: int) -> dict:
 
 
 # -- the variants ------------------------------------------------------------------------------
+
+NATIVE = "jaxcal: native kernel"
+PURE = "pure JAX (the fallback)"
+SMALL = 10_000  # poses per call for the second native row: its output stays clear of page faults
 
 def variants(robot):
     import jax
@@ -243,15 +268,43 @@ def variants(robot):
             return pose_error(jaxcal.fk(perturb(robot, x), qk), jaxcal.fk(robot, qk))
         return jax.vmap(lambda qk: jax.jacfwd(err)(jnp.zeros(m), qk))(q)
 
+    from jaxcal.error_model import _columns_xla
+    from jaxcal.kinematics import _chain, _fk_xla
+    from jaxcal.lie import make_transform
+
+    def libm_inputs(q):  # link_inputs with XLA's sin/cos (the pure-JAX path before jaxcal.trig)
+        qT = q.T
+        theta = robot.dh[:, 0:1] + qT * robot.revolute_mask[:, None]
+        return jnp.cos(theta), jnp.sin(theta), robot.dh[:, 1:2] + qT * (1.0 - robot.revolute_mask[:, None])
+
+    def fk_libm(q):
+        R, t, _ = _chain(robot, libm_inputs(q), frames=False)
+        return compose(make_transform(jnp.moveaxis(R, -1, 0), t.T), robot.tool)
+
+    def jac_libm(q):
+        import jaxcal.error_model as em
+        saved = em.link_inputs
+        em.link_inputs = lambda robot_, q_: libm_inputs(q_)
+        try:
+            return _columns_xla(robot, q, base=False, tool=False, pose_rows=True)
+        finally:
+            em.link_inputs = saved
+
     fk = lambda q: jaxcal.fk(robot, q)
+    fk_x = lambda q: _fk_xla(robot, q)
+    jac_x = lambda q: _columns_xla(robot, q, base=False, tool=False, pose_rows=True)
     return {
-        "FK": {"jaxcal (SoA, lax.scan)": fk, "before: 4x4 unrolled, fused": fk_before,
+        "FK": {NATIVE: fk, PURE: fk_x, "pure JAX, XLA sin/cos (01cbb2a)": fk_libm,
+               "before: 4x4 unrolled, fused": fk_before,
                "4x4, lax.scan over links": fk_scan, "SoA, links unrolled": fk_soa,
-               "chunked 1024 (lax.map)": chunked(fk, 1024), "chunked 8192 (lax.map)": chunked(fk, 8192)},
-        "Jacobian": {"jaxcal (frames, then columns)": jac, "twists in the scan (d42a99f)": jac_scan_twists,
+               "pure JAX chunked 1024 (lax.map)": chunked(fk_x, 1024),
+               "pure JAX chunked 8192 (lax.map)": chunked(fk_x, 8192)},
+        "Jacobian": {NATIVE: jac, PURE: jac_x, "pure JAX, XLA sin/cos (01cbb2a)": jac_libm,
+                     "twists in the scan (d42a99f)": jac_scan_twists,
                      "before: closed form, 4x4": jac_before,
                      "jacfwd through FK": jac_jacfwd,
-                     "chunked 1024 (lax.map)": chunked(jac, 1024), "chunked 8192 (lax.map)": chunked(jac, 8192)},
+                     "pure JAX chunked 1024 (lax.map)": chunked(jac_x, 1024),
+                     "pure JAX chunked 8192 (lax.map)": chunked(jac_x, 8192)},
     }
 
 
@@ -265,12 +318,23 @@ def measure(poses: int, repeats: int, only_default=False) -> dict:
     ref = {"FK": np.asarray(jaxcal.fk(robot, Q[:100])),
            "Jacobian": np.asarray(jaxcal.error_model.identification_jacobian(robot, Q[:100]))}
     # the floor set by the transcendentals: sin and cos of every joint angle, nothing else
-    first, runs = time_fn(jax.jit(lambda q: jnp.sin(q) + jnp.cos(q)), Q, repeats=repeats)
-    out = {"sincos_only": {"median_s": statistics.median(runs), "min_s": min(runs), "max_s": max(runs)}}
+    from jaxcal.trig import sincos
+    out = {}
+    for key, f in (("sincos_only", lambda q: jnp.sin(q) + jnp.cos(q)), ("sincos_poly", lambda q: sum(sincos(q)))):
+        first, runs = time_fn(jax.jit(f), Q, repeats=repeats)
+        out[key] = {"median_s": statistics.median(runs), "min_s": min(runs), "max_s": max(runs)}
     for op, vs in variants(robot).items():
         out[op] = {}
+        if not only_default:  # the native kernel with fewer poses per call (the XLA output buffer of 1e5 poses
+            f = jax.jit(vs[NATIVE])  # is fresh memory every call: page faults; see the README)
+            first, runs = time_fn(f, Q[:SMALL], repeats=repeats)
+            med = statistics.median(runs)
+            out[op][f"{NATIVE}, {SMALL:,} poses/call"] = {
+                "fusions": 0, "median_s": med * poses / SMALL, "min_s": min(runs) * poses / SMALL,
+                "max_s": max(runs) * poses / SMALL, "compile_s": first - med, "poses_per_s": SMALL / med,
+                "xla_flops_per_pose": None, "poses_per_call": SMALL}
         for name, f in vs.items():
-            if only_default and not name.startswith("jaxcal"):
+            if only_default and name != PURE:
                 continue
             jf = jax.jit(f)
             got = np.asarray(jf(Q[:100]))
@@ -281,8 +345,10 @@ def measure(poses: int, repeats: int, only_default=False) -> dict:
             n_fusions = sum(1 for line in hlo.splitlines() if " fusion(" in line and "kind=k" in line)
             out[op][name] = {"fusions": n_fusions, "median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
                              "poses_per_s": poses / med,
-                             # XLA's cost analysis counts a loop body once: no figure for lax.map
-                             "xla_flops_per_pose": None if "lax.map" in name else xla_flops(jf, Q) / poses}
+                             # XLA's cost analysis counts a loop body once (no figure for lax.map) and
+                             # cannot see into the native kernel
+                             "xla_flops_per_pose": None if "lax.map" in name or name == NATIVE
+                             else xla_flops(jf, Q) / poses}
     return out
 
 
@@ -309,6 +375,9 @@ def main():
           f"{peak['numpy_dgemm_flops'] / 1e9:.1f}, jax {peak['jax_dgemm_flops'] / 1e9:.1f} GFLOP/s")
     hand = hand_flops(6)
     print("FLOPs per pose by hand:", hand, "\n  (" + HAND_NOTE + ")")
+    native = native_status()
+    print(f"native kernel: in use {native['in_use']} ({native['reason']}); a fresh build (empty cache) took "
+          f"{native['build_s']:.2f} s")
     res = measure(args.poses, args.repeats)
     ref_peak = max(peak["numpy_dgemm_flops"], peak["jax_dgemm_flops"])
     print(f"\n{args.poses} poses; fraction = hand FLOPs x poses/s / peak (measured dgemm | nominal)")
@@ -325,25 +394,29 @@ def main():
                     "ceiling_frac_peak": ceil / ref_peak}
         print(f"  roofline for {op}: {nbytes[op]} compulsory bytes/pose, {ai:.2f} FLOP/byte -> memory-bound "
               f"ceiling {ceil / 1e9:.1f} GFLOP/s = {ceil / ref_peak:.1%} of the measured peak")
-    sc = res.pop("sincos_only")
-    print(f"sin + cos of all {args.poses} x 6 joint angles alone: median {sc['median_s'] * 1e3:.2f} ms "
-          f"(min {sc['min_s'] * 1e3:.2f}, max {sc['max_s'] * 1e3:.2f})")
+    sc, sp = res.pop("sincos_only"), res.pop("sincos_poly")
+    print(f"sin + cos of all {args.poses} x 6 joint angles alone: XLA's median {sc['median_s'] * 1e3:.2f} ms "
+          f"(min {sc['min_s'] * 1e3:.2f}, max {sc['max_s'] * 1e3:.2f}); jaxcal.trig.sincos in XLA "
+          f"{sp['median_s'] * 1e3:.2f} ms (min {sp['min_s'] * 1e3:.2f}, max {sp['max_s'] * 1e3:.2f})")
+    sc["poly"] = sp
     # the ceiling the transcendentals set: every other operation free, the hand-counted FLOPs in
     # the time of sin + cos alone (both FK and the Jacobian need exactly these 12 values per pose)
     sc["ceiling"] = {}
     for op in ("FK", "Jacobian"):
         gf = hand[op] * args.poses / sc["median_s"]
         sc["ceiling"][op] = {"gflops": gf / 1e9, "frac_dgemm": gf / ref_peak}
+        gp = hand[op] * args.poses / sp["median_s"]
+        sc["ceiling"][op].update(gflops_poly=gp / 1e9, frac_dgemm_poly=gp / ref_peak)
         print(f"  ceiling for {op} if everything but sin/cos were free: {gf / 1e9:.1f} GFLOP/s = "
-              f"{gf / ref_peak:.1%} of the measured peak")
+              f"{gf / ref_peak:.1%} of the measured peak with XLA's sin/cos, {gp / ref_peak:.1%} with jaxcal.trig's")
     for op, vs in res.items():
-        base = vs[next(iter(vs))]["median_s"]
+        base = vs[NATIVE]["median_s"]
         for name, r in vs.items():
             gf = hand[op] * r["poses_per_s"]
             xf = "   n/a" if r["xla_flops_per_pose"] is None else f"{r['xla_flops_per_pose']:6.0f}"
             r.update(gflops_hand=gf / 1e9, frac_dgemm=gf / ref_peak, frac_nominal=gf / peak["nominal_flops"],
                      speedup_vs_shipped=base / r["median_s"], frac_roofline=gf / roof[op]["ceiling_flops"])
-            print(f"{op:9s} {name:30s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
+            print(f"{op:9s} {name:43s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
                   f"{r['max_s'] * 1e3:.2f}) {r['poses_per_s']:>11,.0f} poses/s  x{r['speedup_vs_shipped']:.2f}  "
                   f"XLA {xf} FLOP/pose  {r['gflops_hand']:6.2f} GFLOP/s = "
                   f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%} ({r['frac_roofline']:5.1%} of its roofline)  "
@@ -362,17 +435,17 @@ def main():
         r = json.loads(p.stdout.strip().splitlines()[-1])
         flag_rows[flags] = r
         for op, vs in r.items():
-            if op == "sincos_only":
+            if op.startswith("sincos"):
                 continue
             for name, x in vs.items():
                 ratio = res[op][name]["median_s"] / x["median_s"]
-                print(f"XLA_FLAGS={flags!r}: {op:9s} median {x['median_s'] * 1e3:8.2f} ms  x{ratio:.2f} vs default")
+                print(f"XLA_FLAGS={flags!r}: {op:9s} {name} median {x['median_s'] * 1e3:8.2f} ms  x{ratio:.2f} vs default")
     if args.json:
         os.makedirs(os.path.dirname(args.json) or ".", exist_ok=True)
         with open(args.json, "w") as f:
             json.dump({"machine": machine(), "poses": args.poses, "peak": peak, "hand_flops_per_pose": hand,
                        "hand_note": HAND_NOTE, "variants": res, "sincos_only": sc, "bandwidth": bw,
-                       "roofline": roof, "xla_flags": flag_rows}, f, indent=1)
+                       "roofline": roof, "xla_flags": flag_rows, "native": native}, f, indent=1)
 
 
 if __name__ == "__main__":
