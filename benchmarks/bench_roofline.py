@@ -330,8 +330,8 @@ def measure(poses: int, repeats: int, only_default=False) -> dict:
             first, runs = time_fn(f, Q[:SMALL], repeats=repeats)
             med = statistics.median(runs)
             out[op][f"{NATIVE}, {SMALL:,} poses/call"] = {
-                "fusions": 0, "median_s": med * poses / SMALL, "min_s": min(runs) * poses / SMALL,
-                "max_s": max(runs) * poses / SMALL, "compile_s": first - med, "poses_per_s": SMALL / med,
+                "fusions": 0, "median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
+                "poses_per_s": SMALL / med,
                 "xla_flops_per_pose": None, "poses_per_call": SMALL}
         for name, f in vs.items():
             if only_default and name != PURE:
@@ -410,13 +410,14 @@ def main():
         print(f"  ceiling for {op} if everything but sin/cos were free: {gf / 1e9:.1f} GFLOP/s = "
               f"{gf / ref_peak:.1%} of the measured peak with XLA's sin/cos, {gp / ref_peak:.1%} with jaxcal.trig's")
     for op, vs in res.items():
-        base = vs[NATIVE]["median_s"]
+        base = vs[NATIVE]["poses_per_s"]
         for name, r in vs.items():
             gf = hand[op] * r["poses_per_s"]
             xf = "   n/a" if r["xla_flops_per_pose"] is None else f"{r['xla_flops_per_pose']:6.0f}"
             r.update(gflops_hand=gf / 1e9, frac_dgemm=gf / ref_peak, frac_nominal=gf / peak["nominal_flops"],
-                     speedup_vs_shipped=base / r["median_s"], frac_roofline=gf / roof[op]["ceiling_flops"])
-            print(f"{op:9s} {name:43s} median {r['median_s'] * 1e3:8.2f} ms (min {r['min_s'] * 1e3:.2f}, max "
+                     speedup_vs_shipped=r["poses_per_s"] / base, frac_roofline=gf / roof[op]["ceiling_flops"])
+            per = f"/{r['poses_per_call']:,}" if "poses_per_call" in r else ""
+            print(f"{op:9s} {name:43s} median {r['median_s'] * 1e3:8.2f} ms{per} (min {r['min_s'] * 1e3:.2f}, max "
                   f"{r['max_s'] * 1e3:.2f}) {r['poses_per_s']:>11,.0f} poses/s  x{r['speedup_vs_shipped']:.2f}  "
                   f"XLA {xf} FLOP/pose  {r['gflops_hand']:6.2f} GFLOP/s = "
                   f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%} ({r['frac_roofline']:5.1%} of its roofline)  "

@@ -1,4 +1,6 @@
-"""`jaxcal verify`: every analytic matrix of the paper (eq. 3-10) against ``jax.jacfwd``.
+"""`jaxcal verify`: every analytic matrix of the paper (eq. 3-10) against ``jax.jacfwd``, and
+the native kernel (compiled on this machine, :mod:`jaxcal._native`) against the pure-JAX
+forward kinematics.
 
 A self-check a user can run on their own machine; the test suite checks the same things with
 tighter sweeps.
@@ -10,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _native
 from . import derivatives as D
 from . import error_model as E
 from . import kinematics as K
@@ -48,6 +51,9 @@ def check_all(n_points: int = 2000, seed: int = 0) -> list[tuple[str, float, flo
         ad = jax.vmap(lambda q: jax.jacfwd(true_err)(jnp.zeros(m), q))(Q)
         rows.append((f"identification Jacobian, {name} (eq. 10, adjoint form)",
                      float(jnp.abs(J - ad).max()), 1e-9))
+        if _native.usable(robot):  # J above came from the kernel; its FK against the pure-JAX chain
+            rows.append((f"native FK kernel vs pure JAX, {name}",
+                         float(jnp.abs(K.fk(robot, Q) - jax.jit(K._fk_xla)(robot, Q)).max()), 1e-9))
         d = jnp.asarray(rng.normal(size=(robot.n_joints, 4)))
         lit = E.error_twist_matrix(robot, Q, d)
         adj = E.twist_jacobian(robot, Q) @ d.ravel()

@@ -138,3 +138,12 @@ def test_fallback_when_switched_off_or_not_buildable(tmp_path):
     ok, why, x = _run({"CXX": "false"}, tmp_path)  # a "compiler" that always fails, empty cache
     assert ok == "False" and "compiling the native kernel with false failed" in why and abs(float(x) - want) < ATOL
     assert not list(tmp_path.rglob("*.so"))
+
+
+def test_jaxcal_verify_checks_the_kernel():
+    from jaxcal.verify import check_all
+
+    rows = check_all(60, 0)
+    native = [r for r in rows if r[0].startswith("native FK kernel")]
+    assert len(native) == len(presets.PRESETS)
+    assert all(err <= tol for _, err, tol in rows), [r for r in rows if r[1] > r[2]]

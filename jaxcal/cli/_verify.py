@@ -29,6 +29,9 @@ def verify(points: int = typer.Option(2000, help="random parameter points per ch
         ok_all &= ok
         table.add_row(what, f"{err:.2e}", f"{tol:.0e}", "yes" if ok else "[red]NO[/red]")
     console.print(table)
+    from .. import _native
+    in_use, why = _native.status()
+    console.print(f"native kernel: {'in use' if in_use else 'not in use'} ({why})")
     console.print("Paper errata: see docs/errata.md")
     raise typer.Exit(0 if ok_all else 1)
 
