@@ -18,6 +18,9 @@ Two error representations are provided:
   maps ``x`` to the first-order change of the end *position* (3 rows) and *orientation*
   (3 rows, a rotation vector), both in the measurement (base) frame. Position rows are
   ``dp = v + w x p_end``.
+
+The identification Jacobian runs the native kernel (:mod:`jaxcal._native`) on the CPU when it
+is available, with :func:`_columns_xla` as its pure-JAX reference and fallback.
 """
 
 from __future__ import annotations

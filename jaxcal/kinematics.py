@@ -1,9 +1,12 @@
 """Link transforms and forward kinematics (paper eq. 1-2), batched over leading pose axes.
 
-All functions are pure ``jax.numpy`` and broadcast over any leading axes, so they can be
-``jit``-ed and ``vmap``-ed over poses and over robots. The loop over the (static, small) ``n``
-joints is a ``lax.scan`` over links on a structure-of-arrays chain (see
-:func:`_chain` for why); there is no loop over poses.
+All functions broadcast over any leading axes and can be ``jit``-ed, ``vmap``-ed over poses
+and over robots, and differentiated. On the CPU, :func:`fk` runs the fused native kernel of
+:mod:`jaxcal._native` when it is available; :func:`_fk_xla` is the pure-JAX implementation
+(its reference, its fallback, and what derivatives go through). There, the loop over the
+(static, small) ``n`` joints is a ``lax.scan`` over links on a structure-of-arrays chain (see
+:func:`_chain` for why) with the polynomial sin/cos of :mod:`jaxcal.trig`; there is no loop
+over poses.
 """
 
 from __future__ import annotations
