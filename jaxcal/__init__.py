@@ -9,6 +9,7 @@ from . import derivatives, design, error_model, identifiability, kinematics, lie
 from .calibrate import BatchResult, CalibrationResult, calibrate, calibrate_batch
 from .errors import DataError, JaxcalError, PrecisionError, RobotFileError
 from .kinematics import fk, fk_frames, to_mdh, to_sdh
+from ._native import status as native_status
 from .presets import preset
 from .robot import Robot
 from .measurements import Measurements, UnitWarning, read_measurements, write_measurements
@@ -18,7 +19,7 @@ __all__ = [
     "BatchResult", "CalibrationResult", "Measurements", "UnitWarning", "calibrate", "calibrate_batch",
     "identifiability", "measurements", "read_measurements", "simulate", "write_measurements",
     "DataError", "JaxcalError", "PrecisionError", "RobotFileError", "Robot",
-    "derivatives", "error_model", "fk", "fk_frames", "kinematics", "lie", "load_robot",
+    "derivatives", "error_model", "fk", "fk_frames", "kinematics", "lie", "load_robot", "native_status",
     "preset", "presets", "save_robot", "to_mdh", "to_sdh",
 ]
 __version__ = "0.1.0"

@@ -120,8 +120,7 @@ def test_long_chain_uses_pure_jax():
 def _run(env_extra, tmp_path):
     code = textwrap.dedent("""
         import numpy as np, jaxcal
-        from jaxcal import _native
-        ok, why = _native.status()
+        ok, why = jaxcal.native_status()
         T = jaxcal.fk(jaxcal.preset("paper-6r"), np.full((2, 6), 0.3))
         print(ok, "|", why, "|", repr(float(T[0, 0, 3])))
     """)

@@ -8,7 +8,8 @@ flags, the jax version and the CPU. That takes about 2 s once per machine. When 
 built (no compiler, no headers), when the default JAX backend is not the CPU, or with
 ``JAXCAL_NATIVE=0`` in the environment, jaxcal uses its pure-JAX implementation
 (:func:`jaxcal.kinematics._fk_xla`, :func:`jaxcal.error_model._columns_xla`), which is also
-the reference the tests hold the kernels to. :func:`status` says which is in use and why.
+the reference the tests hold the kernels to. :func:`status` (``jaxcal.native_status()``) says
+which is in use and why.
 
 Both kernels are wrapped in a ``jax.custom_jvp`` whose tangent comes from the pure-JAX
 implementation, so ``jax.jvp``/``jacfwd``/``grad`` work as before; ``vmap`` batches the call
@@ -90,7 +91,8 @@ def _load() -> None:
 
 
 def status() -> tuple[bool, str]:
-    """``(in_use, reason)``: whether FK and the Jacobian run the native kernel, and why (not)."""
+    """``(in_use, reason)``: whether FK and the Jacobian run the native kernel, and why (not).
+    Public as ``jaxcal.native_status()``; the first call builds or loads the kernel."""
     if not _state:
         _load()
     if _state["ok"] and jax.default_backend() != "cpu":

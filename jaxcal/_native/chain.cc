@@ -323,26 +323,14 @@ ffi::Error JacImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffe
   return ffi::Error::Success();
 }
 
+using F64 = ffi::Buffer<ffi::F64>;
+
+// The five inputs both handlers take: q, dh, rev, base, tool.
+auto bind_inputs() { return ffi::Ffi::Bind().Arg<F64>().Arg<F64>().Arg<F64>().Arg<F64>().Arg<F64>(); }
+
 }  // namespace
 
-XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalFk, FkImpl,
-                              ffi::Ffi::Bind()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Ret<ffi::Buffer<ffi::F64>>()
-                                  .Attr<int64_t>("mdh"));
+XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalFk, FkImpl, bind_inputs().Ret<F64>().Attr<int64_t>("mdh"));
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalJac, JacImpl,
-                              ffi::Ffi::Bind()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Arg<ffi::Buffer<ffi::F64>>()
-                                  .Ret<ffi::Buffer<ffi::F64>>()
-                                  .Ret<ffi::Buffer<ffi::F64>>()
-                                  .Attr<int64_t>("mdh")
-                                  .Attr<int64_t>("rows"));
+                              bind_inputs().Ret<F64>().Ret<F64>().Attr<int64_t>("mdh").Attr<int64_t>("rows"));
