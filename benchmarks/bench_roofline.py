@@ -71,6 +71,18 @@ def time_fn(fn, *args, repeats=7):
     return first, runs
 
 
+def faults_per_call(fn, *args, repeats=5) -> float:
+    """Minor page faults per warm call (``getrusage``): a fresh output buffer beyond glibc's mmap
+    threshold is faulted in page by page on every call."""
+    import resource
+    import jax
+    jax.block_until_ready(fn(*args))
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(repeats):
+        jax.block_until_ready(fn(*args))
+    return (resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before) / repeats
+
+
 def xla_flops(fn, *args) -> float:
     ca = fn.lower(*args).compile().cost_analysis()
     ca = ca[0] if isinstance(ca, (list, tuple)) else ca
@@ -173,8 +185,8 @@ def measure(poses: int, repeats: int, only_default=False) -> dict:
             med = statistics.median(runs)
             out[op][f"{NATIVE}, {small:,} poses/call"] = {
                 "fusions": 0, "median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
-                "poses_per_s": small / med,
-                "xla_flops_per_pose": None, "poses_per_call": small}
+                "poses_per_s": small / med, "xla_flops_per_pose": None, "poses_per_call": small,
+                "faults_per_call": faults_per_call(f, Q[:small])}
         for name, f in vs.items():
             if only_default and name != PURE:
                 continue
@@ -191,6 +203,8 @@ def measure(poses: int, repeats: int, only_default=False) -> dict:
                              # cannot see into the native kernel
                              "xla_flops_per_pose": None if "lax.map" in name or name == NATIVE
                              else xla_flops(jf, Q) / poses}
+            if name == NATIVE:
+                out[op][name]["faults_per_call"] = faults_per_call(jf, Q)
     return out
 
 
@@ -264,7 +278,8 @@ def main():
                   f"XLA {xf} FLOP/pose  {r['gflops_hand']:6.2f} GFLOP/s = "
                   f"{r['frac_dgemm']:6.1%} | {r['frac_nominal']:6.1%} ({r['frac_roofline']:5.1%} of its roofline)  "
                   f"compile {r['compile_s']:.2f} s  "
-                  f"{r['fusions']} loop fusions")
+                  f"{r['fusions']} loop fusions"
+                  + (f"  {r['faults_per_call']:,.0f} page faults/call" if "faults_per_call" in r else ""))
     flag_rows = {}
     for flags in args.flags:
         env = dict(os.environ, XLA_FLAGS=flags)

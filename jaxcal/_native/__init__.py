@@ -4,7 +4,7 @@ called from JAX through the XLA FFI (``jax.ffi.ffi_call``).
 On first use the kernel is compiled with the system C++ compiler (``$CXX`` or ``c++``,
 ``-O3 -march=native``, OpenMP when available) against the FFI headers shipped in jaxlib, and
 cached in ``$XDG_CACHE_HOME/jaxcal`` (default ``~/.cache/jaxcal``), keyed by the source, the
-flags, the jax version and the CPU. That takes about 2 s once per machine. When it cannot be
+flags, the jax version and the CPU. That takes about 3 s once per machine. When it cannot be
 built (no compiler, no headers), when the default JAX backend is not the CPU, or with
 ``JAXCAL_NATIVE=0`` in the environment, jaxcal uses its pure-JAX implementation
 (:func:`jaxcal.kinematics._fk_xla`, :func:`jaxcal.error_model._columns_xla`), which is also
@@ -40,7 +40,7 @@ _state: dict = {}
 def _cpu_id() -> str:
     try:
         lines = Path("/proc/cpuinfo").read_text().splitlines()
-        return "".join(l for l in lines if l.startswith(("model name", "flags")))[:4000]
+        return "".join(line for line in lines if line.startswith(("model name", "flags")))[:4000]
     except OSError:
         return platform.processor() or platform.machine()
 
@@ -71,6 +71,7 @@ def _build() -> Path:
         if proc.returncode == 0:
             os.replace(tmp, lib)  # atomic: concurrent builds (pytest -n) do not see half a file
             return lib
+        tmp.unlink(missing_ok=True)
         last = (proc.stderr.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
         errors.append(f"{' '.join(extra) or 'without OpenMP'}: {last[:300]}")
     raise RuntimeError(f"compiling the native kernel with {cxx} failed ({'; '.join(errors)})")

@@ -49,7 +49,7 @@ def make_residual(robot: Robot, *, base: bool, tool: bool, position_only: bool, 
         x, q, measured = primals
         dx = tangents[0]  # not differentiable with respect to q or the measurements (data)
         cal = perturb(robot, x, base=base, tool=tool)
-        J, T = jacobian_and_fk(cal, q, base=base, tool=tool)  # one pass over the chain
+        J, T = jacobian_and_fk(cal, q, base=base, tool=tool, position_only=position_only)  # one pass over the chain
         e = pose_error(measured, T)
         # the residual's Jacobian, formed in the primal (elementwise; a batch of 3x3 @ 3xm
         # matmuls per pose was the slow part), so the tangent is one matrix-vector product:
