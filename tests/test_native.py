@@ -81,6 +81,10 @@ def test_vmap_over_robots_and_pose_sets():
         assert_allclose(shared, jax.vmap(ref, in_axes=(in_axes[0], None))(robots, q[0]), rtol=0, atol=ATOL)
         one_robot = jax.vmap(f, in_axes=(None, 0))(robot, q)   # one robot, five pose sets
         assert_allclose(one_robot, jax.vmap(ref, in_axes=(None, 0))(robot, q), rtol=0, atol=ATOL)
+    # the kernel is what ran (a fallback to pure JAX would pass the comparisons above too)
+    assert "jaxcal_fk" in jax.jit(jax.vmap(fk, in_axes=in_axes)).lower(robots, q).as_text()
+    assert "jaxcal_jac" in jax.jit(jax.vmap(lambda r, q: jacobian_and_fk(r, q)[0], in_axes=in_axes)).lower(
+        robots, q).as_text()
     nested = jax.vmap(jax.vmap(fk, in_axes=(None, 0)), in_axes=(in_axes[0], None))(robots, q)  # (5 robots, 5 sets)
     assert nested.shape == (5, 5, 40, 4, 4)
     assert_allclose(nested[3, 2], _fk_xla(jax.tree.map(lambda x: x[3], robots), q[2]), rtol=0, atol=ATOL)
