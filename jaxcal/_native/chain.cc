@@ -18,7 +18,12 @@
 //   t = (a, -sa d, ca d).
 // sin/cos of theta: the polynomial of jaxcal/trig.py (Cody-Waite by pi/2, Taylor to r^17/r^18).
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #if defined(__AVX512F__)
 #include <immintrin.h>
@@ -186,6 +191,21 @@ inline void write_end(const Problem &P, const Block &blk, double R[9][BLK], doub
   if (T_out != nullptr) store_tile(16, blk.m, &Tt[0][0], T_out + 16 * (blk.r * P.K + blk.k0));
 }
 
+// Ask Linux for 2 MiB pages behind a large output buffer. XLA gives every call a fresh buffer,
+// which glibc maps from the kernel beyond 32 MiB; touching it 4 KiB page by page cost the
+// 10^5-pose Jacobian (115 MB) 28,000 page faults per call, 3-4x its computing time
+// (benchmarks/bench_roofline.py counts them). Only the 2 MiB-aligned interior of the buffer is
+// advised; a hint, a no-op where transparent huge pages are off.
+inline void advise_huge(void *p, size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  const uintptr_t H = uintptr_t(2) << 20, lo = reinterpret_cast<uintptr_t>(p), a = (lo + H - 1) & ~(H - 1),
+                  e = (lo + bytes) & ~(H - 1);
+  if (bytes >= 2 * H && e > a) madvise(reinterpret_cast<void *>(a), e - a, MADV_HUGEPAGE);
+#else
+  (void)p, (void)bytes;
+#endif
+}
+
 int64_t n_blocks(const Problem &P) { return P.B * ((P.K + BLK - 1) / BLK); }
 
 void fk_kernel(const Problem &P, double *T_out) {
@@ -306,6 +326,7 @@ ffi::Error FkImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer
   ffi::Error err = make_problem(q, dh, rev, base, tool, mdh, P);
   if (err.failure()) return err;
   if (T->element_count() != 16 * P.B * P.K) return ffi::Error::InvalidArgument("jaxcal native: bad output shape");
+  advise_huge(T->typed_data(), T->size_bytes());
   fk_kernel(P, T->typed_data());
   return ffi::Error::Success();
 }
@@ -319,6 +340,8 @@ ffi::Error JacImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffe
   if ((rows != 3 && rows != 6) || J->element_count() != rows * 4 * P.n * P.B * P.K ||
       T->element_count() != 16 * P.B * P.K)
     return ffi::Error::InvalidArgument("jaxcal native: bad output shape");
+  advise_huge(J->typed_data(), J->size_bytes());
+  advise_huge(T->typed_data(), T->size_bytes());
   jac_kernel(P, static_cast<int>(rows), J->typed_data(), T->typed_data());
   return ffi::Error::Success();
 }
