@@ -1,10 +1,11 @@
 """Robots/second of vmapped Gauss–Newton (issue 3): R simulated paper arms x K poses each,
 calibrated in one compiled call. Baseline in the same run: the same optimistix GN letting JAX
-differentiate through forward kinematics (no analytic JVP). jaxcal GN and LM are also timed in a fresh
-process with ``GLIBC_TUNABLES=glibc.malloc.hugetlb=1`` (``--envs``): XLA's buffers for the
-whole batch are fresh memory on every call, faulted in 4 KiB at a time without it.
+differentiate through forward kinematics (no analytic JVP). jaxcal GN and LM are also timed
+in a fresh process with ``GLIBC_TUNABLES=glibc.malloc.hugetlb=1`` (``--envs``): XLA's buffers
+for the whole batch are fresh memory on every call, faulted in 4 KiB at a time without it.
+Each row counts the minor page faults of one call.
 
-    python benchmarks/bench_gn_batch.py [--robots 1000] [--poses 100] [--repeats 5]
+    python benchmarks/bench_gn_batch.py [--robots 1000] [--poses 100] [--repeats 5] [--envs ...]
 """
 
 from __future__ import annotations

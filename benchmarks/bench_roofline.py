@@ -16,8 +16,8 @@ were free).
 Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform poses):
 * jaxcal as shipped: the fused native kernel (``jaxcal/_native/chain.cc``, XLA FFI): blocks of
   64 poses through all links in registers/L1, polynomial sincos, vectorised over poses; also
-  timed at 10^4 poses per call (at 10^5 the Jacobian's 115 MB output is fresh memory that XLA
-  page-faults in every call);
+  timed at 10^4 poses per call (at 10^5 the Jacobian's 115 MB output is fresh memory on every
+  call, which Linux must fault in and zero; the kernel asks for 2 MiB pages for it);
 * pure JAX (the fallback without a compiler): structure of arrays (every entry of the running
   transform a ``(K,)`` vector) with a ``lax.scan`` over the links, so each link's entries are
   materialised once; the Jacobian then forms every column at once from the materialised
@@ -31,7 +31,9 @@ Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform
   recomputes it (the finding that led to the shipped form);
 * chunking: ``lax.map`` over blocks of poses so intermediates stay in cache;
 * autodiff ``jacfwd`` through FK instead of the closed-form Jacobian;
-* XLA CPU flags (each in a fresh process; ``--flags`` to choose).
+* XLA CPU flags (each in a fresh process; ``--flags`` to choose), and environment settings
+  with the native kernel (``--envs``, e.g. ``GLIBC_TUNABLES=glibc.malloc.hugetlb=1``; none by
+  default).
 
     python benchmarks/bench_roofline.py [--poses 100000] [--json docs/bench/roofline.json]
 """
