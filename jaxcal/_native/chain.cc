@@ -71,7 +71,10 @@ struct Block {
   double qT[MAXN][BLK];
 };
 
-inline void block_init(const Problem &P, int64_t ib, Block &blk, double R[9][BLK], double t[3][BLK]) {
+// A frame per lane, F[e][b]: rotation entries e = 0..8 row-major, translation e = 9..11.
+using Frame = double[12][BLK];
+
+inline void block_init(const Problem &P, int64_t ib, Block &blk, Frame &F) {
   const int64_t per = (P.K + BLK - 1) / BLK;
   blk.r = ib / per;
   blk.k0 = (ib % per) * BLK;
@@ -83,9 +86,9 @@ inline void block_init(const Problem &P, int64_t ib, Block &blk, double R[9][BLK
   }
   const double *T = P.base + blk.r * P.base_stride;
   for (int e = 0; e < 9; ++e)
-    for (int b = 0; b < BLK; ++b) R[e][b] = T[4 * (e / 3) + e % 3];
+    for (int b = 0; b < BLK; ++b) F[e][b] = T[4 * (e / 3) + e % 3];
   for (int e = 0; e < 3; ++e)
-    for (int b = 0; b < BLK; ++b) t[e][b] = T[4 * e + 3];
+    for (int b = 0; b < BLK; ++b) F[9 + e][b] = T[4 * e + 3];
 }
 
 struct Link {
@@ -104,8 +107,9 @@ inline void link_values(const Problem &P, const Block &blk, int64_t j, Link &L) 
   }
 }
 
-// (R, t) <- (R, t) * A_j for every lane.
-inline void apply_link(bool mdh, const Link &L, double R[9][BLK], double t[3][BLK]) {
+// Fo = Fi * A_j for every lane. Each output row reads only the same row of Fi, so Fo may be
+// Fi (FK updates one frame in place; the Jacobian writes each link's frame into its own slot).
+inline void apply_link(bool mdh, const Link &L, const Frame &Fi, Frame &Fo) {
   const double ca = L.ca, sa = L.sa, a = L.a;
   if (!mdh) {
 #pragma omp simd
@@ -113,11 +117,11 @@ inline void apply_link(bool mdh, const Link &L, double R[9][BLK], double t[3][BL
       const double c = L.c[b], s = L.s[b];
       const double A1 = -s * ca, A2 = s * sa, A4 = c * ca, A5 = -c * sa, tx = a * c, ty = a * s;
       for (int r = 0; r < 3; ++r) {
-        double x = R[3 * r][b], y = R[3 * r + 1][b], z = R[3 * r + 2][b];
-        R[3 * r][b] = x * c + y * s;
-        R[3 * r + 1][b] = x * A1 + y * A4 + z * sa;
-        R[3 * r + 2][b] = x * A2 + y * A5 + z * ca;
-        t[r][b] += x * tx + y * ty + z * L.d[b];
+        const double x = Fi[3 * r][b], y = Fi[3 * r + 1][b], z = Fi[3 * r + 2][b];
+        Fo[3 * r][b] = x * c + y * s;
+        Fo[3 * r + 1][b] = x * A1 + y * A4 + z * sa;
+        Fo[3 * r + 2][b] = x * A2 + y * A5 + z * ca;
+        Fo[9 + r][b] = Fi[9 + r][b] + x * tx + y * ty + z * L.d[b];
       }
     }
   } else {
@@ -126,11 +130,11 @@ inline void apply_link(bool mdh, const Link &L, double R[9][BLK], double t[3][BL
       const double c = L.c[b], s = L.s[b];
       const double A3 = s * ca, A4 = c * ca, A6 = s * sa, A7 = c * sa, ty = -sa * L.d[b], tz = ca * L.d[b];
       for (int r = 0; r < 3; ++r) {
-        double x = R[3 * r][b], y = R[3 * r + 1][b], z = R[3 * r + 2][b];
-        R[3 * r][b] = x * c + y * A3 + z * A6;
-        R[3 * r + 1][b] = -x * s + y * A4 + z * A7;
-        R[3 * r + 2][b] = -y * sa + z * ca;
-        t[r][b] += x * a + y * ty + z * tz;
+        const double x = Fi[3 * r][b], y = Fi[3 * r + 1][b], z = Fi[3 * r + 2][b];
+        Fo[3 * r][b] = x * c + y * A3 + z * A6;
+        Fo[3 * r + 1][b] = -x * s + y * A4 + z * A7;
+        Fo[3 * r + 2][b] = -y * sa + z * ca;
+        Fo[9 + r][b] = Fi[9 + r][b] + x * a + y * ty + z * tz;
       }
     }
   }
@@ -174,16 +178,16 @@ inline void store_tile(int rows, int m, const double *X, double *out) {
 
 // End pose with the tool into T (pose-major, 16 per pose; skipped when T_out is null); the
 // end position per lane into pe.
-inline void write_end(const Problem &P, const Block &blk, double R[9][BLK], double t[3][BLK], double pe[3][BLK],
+inline void write_end(const Problem &P, const Block &blk, const Frame &F, double pe[3][BLK],
                       double *T_out) {
   const double *tool = P.tool + blk.r * P.tool_stride;
   double Tt[16][BLK];
 #pragma omp simd
   for (int b = 0; b < BLK; ++b) {
     for (int r = 0; r < 3; ++r) {
-      double x = R[3 * r][b], y = R[3 * r + 1][b], z = R[3 * r + 2][b];
+      const double x = F[3 * r][b], y = F[3 * r + 1][b], z = F[3 * r + 2][b];
       for (int col = 0; col < 3; ++col) Tt[4 * r + col][b] = x * tool[col] + y * tool[4 + col] + z * tool[8 + col];
-      Tt[4 * r + 3][b] = x * tool[3] + y * tool[7] + z * tool[11] + t[r][b];
+      Tt[4 * r + 3][b] = x * tool[3] + y * tool[7] + z * tool[11] + F[9 + r][b];
       pe[r][b] = Tt[4 * r + 3][b];
     }
     Tt[12][b] = 0.0; Tt[13][b] = 0.0; Tt[14][b] = 0.0; Tt[15][b] = 1.0;
@@ -213,13 +217,14 @@ void fk_kernel(const Problem &P, double *T_out) {
   for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
     Block blk;
     Link L;
-    double R[9][BLK], t[3][BLK], pe[3][BLK];
-    block_init(P, ib, blk, R, t);
+    Frame F;
+    double pe[3][BLK];
+    block_init(P, ib, blk, F);
     for (int64_t j = 0; j < P.n; ++j) {
       link_values(P, blk, j, L);
-      apply_link(P.mdh, L, R, t);
+      apply_link(P.mdh, L, F, F);
     }
-    write_end(P, blk, R, t, pe, T_out);
+    write_end(P, blk, F, pe, T_out);
   }
 }
 
@@ -270,26 +275,20 @@ void jac_kernel(const Problem &P, int rows, double *J_out, double *T_out) {
   for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
     static thread_local Block blk;
     static thread_local Link L[MAXN];
-    static thread_local double F[MAXN][12][BLK];
+    static thread_local Frame F[MAXN + 1];  // F[0] the base, F[j + 1] the frame after link j
     static thread_local double Jt[6 * 4 * MAXN * BLK];
-    double R[9][BLK], t[3][BLK], pe[3][BLK];
-    block_init(P, ib, blk, R, t);
+    double pe[3][BLK];
+    block_init(P, ib, blk, F[0]);
     for (int64_t j = 0; j < P.n; ++j) {
       link_values(P, blk, j, L[j]);
-      apply_link(P.mdh, L[j], R, t);
-      for (int e = 0; e < 9; ++e)
-#pragma omp simd
-        for (int b = 0; b < BLK; ++b) F[j][e][b] = R[e][b];
-      for (int e = 0; e < 3; ++e)
-#pragma omp simd
-        for (int b = 0; b < BLK; ++b) F[j][9 + e][b] = t[e][b];
+      apply_link(P.mdh, L[j], F[j], F[j + 1]);
     }
-    write_end(P, blk, R, t, pe, T_out);
+    write_end(P, blk, F[P.n], pe, T_out);
     for (int64_t i = 0; i < P.n; ++i) {
       if (P.mdh) {
-        if (rows == 6) link_columns<true, 6>(m, i, L[i], F[i], pe, Jt); else link_columns<true, 3>(m, i, L[i], F[i], pe, Jt);
+        if (rows == 6) link_columns<true, 6>(m, i, L[i], F[i + 1], pe, Jt); else link_columns<true, 3>(m, i, L[i], F[i + 1], pe, Jt);
       } else {
-        if (rows == 6) link_columns<false, 6>(m, i, L[i], F[i], pe, Jt); else link_columns<false, 3>(m, i, L[i], F[i], pe, Jt);
+        if (rows == 6) link_columns<false, 6>(m, i, L[i], F[i + 1], pe, Jt); else link_columns<false, 3>(m, i, L[i], F[i + 1], pe, Jt);
       }
     }
     store_tile(rows * m, blk.m, Jt, J_out + rows * m * (blk.r * P.K + blk.k0));
