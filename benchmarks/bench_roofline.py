@@ -224,8 +224,8 @@ def main():
     ap.add_argument("--flags", nargs="*", default=[
         "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
         "--xla_cpu_enable_fast_math=true", "--xla_cpu_use_thunk_runtime=false"],
-        help='XLA_FLAGS settings, each timed with pure JAX in a fresh process; give each as --flags="--xla_..." '
-             '(argparse takes a bare "--xla_..." for an option); --flags alone for none')
+        help='XLA_FLAGS settings, each timed with pure JAX in a fresh process; from the command line one per '
+             'run, as --flags="--xla_..." (argparse takes a bare "--xla_..." for an option); --flags alone for none')
     ap.add_argument("--envs", nargs="*", default=[], help="environment settings (e.g. " + HUGETLB + "), each "
                     "timed with the native kernel in a fresh process")
     ap.add_argument("--json")
