@@ -28,7 +28,7 @@ import jaxcal
 from jaxcal.calibrate import calibrate_batch, identify
 from jaxcal.error_model import perturb, pose_error
 from jaxcal.simulate import simulate
-from _util import machine, summary, timed
+from _util import HUGETLB, machine, summary, timed
 
 
 def autodiff_gn(robot, free, m, sp, sr):
@@ -52,7 +52,7 @@ def main():
     ap.add_argument("--robots", type=int, default=1000)
     ap.add_argument("--poses", type=int, default=100)
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--envs", nargs="*", default=["GLIBC_TUNABLES=glibc.malloc.hugetlb=1"],
+    ap.add_argument("--envs", nargs="*", default=[HUGETLB],
                     help="environment settings, each timing jaxcal gn and lm in a fresh process")
     ap.add_argument("--_child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()

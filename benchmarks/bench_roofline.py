@@ -56,11 +56,6 @@ HAND_NOTE = (
     "position lever w x p_end (9) and an add (3) = 51 -> 63n + 6n + 204n + FK end position (63)")
 
 
-HUGETLB = "GLIBC_TUNABLES=glibc.malloc.hugetlb=1"
-"""glibc (2.35+) then asks Linux for 2 MiB pages behind the large blocks it maps for malloc: XLA's
-fresh buffers fault in 512x fewer times (the kernel already advises its own outputs)."""
-
-
 def hand_flops(n: int) -> dict:
     return {"FK": 63 * (n + 1) + 6 * n, "Jacobian": 63 * n + 6 * n + 204 * n + 63}
 
@@ -166,6 +161,7 @@ def compulsory_bytes(n: int) -> dict:
 
 
 from _roofline_variants import NATIVE, PURE, SMALL, variants  # noqa: E402
+from _util import HUGETLB  # noqa: E402
 
 
 def measure(poses: int, repeats: int, only=None) -> dict:

@@ -4,7 +4,7 @@ called from JAX through the XLA FFI (``jax.ffi.ffi_call``).
 On first use the kernel is compiled with the system C++ compiler (``$CXX`` or ``c++``,
 ``-O3 -march=native``, OpenMP when available) against the FFI headers shipped in jaxlib, and
 cached in ``$XDG_CACHE_HOME/jaxcal`` (default ``~/.cache/jaxcal``), keyed by the source, the
-flags, the jax version and the CPU. That takes about 3 s once per machine. When it cannot be
+flags, the jax version and the CPU. That takes 3–4 s once per machine. When it cannot be
 built (no compiler, no headers), when the default JAX backend is not the CPU, or with
 ``JAXCAL_NATIVE=0`` in the environment, jaxcal uses its pure-JAX implementation
 (:func:`jaxcal.kinematics._fk_xla`, :func:`jaxcal.error_model._columns_xla`), which is also

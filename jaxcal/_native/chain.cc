@@ -197,7 +197,7 @@ inline void write_end(const Problem &P, const Block &blk, const Frame &F, double
 
 // Ask Linux for 2 MiB pages behind a large output buffer. XLA gives every call a fresh buffer,
 // which glibc maps from the kernel beyond 32 MiB; touching it 4 KiB page by page cost the
-// 10^5-pose Jacobian (115 MB) 28,000 page faults per call, 3-4x its computing time
+// 10^5-pose Jacobian (115 MB) 28,000 page faults per call, ~30 ms against ~4 ms of computing
 // (benchmarks/bench_roofline.py counts them). Only the 2 MiB-aligned interior of the buffer is
 // advised; a hint, a no-op where transparent huge pages are off.
 inline void advise_huge(void *p, size_t bytes) {
