@@ -32,7 +32,8 @@ def _robot(conv, types, seed):
                  tool=random_transform(rng))
 
 
-ROBOTS = [("sdh", ("R",) * 6, 1), ("mdh", ("R",) * 7, 2), ("sdh", ("R", "P", "R", "R"), 3), ("mdh", ("P", "R", "R"), 4)]
+ROBOTS = [("sdh", ("R",) * 6, 1), ("mdh", ("R",) * 7, 2), ("sdh", ("R", "P", "R", "R"), 3), ("mdh", ("P", "R", "R"), 4),
+          ("sdh", ("R", "P") * 8, 5)]  # the longest chain the kernel takes (MAX_JOINTS)
 
 
 @pytest.mark.parametrize("conv,types,seed", ROBOTS)

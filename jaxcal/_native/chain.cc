@@ -143,6 +143,7 @@ inline void apply_link(bool mdh, const Link &L, const Frame &Fi, Frame &Fo) {
 // out[b * rows + e] = X[e * BLK + b] for b < m: a tile written pose-major. With AVX-512, 8 x 8
 // blocks are transposed in registers (the strided gathers of the plain loop cost the Jacobian
 // more than computing it); the rest, and other CPUs, take the plain loop.
+template <int S = BLK>
 inline void store_tile(int rows, int m, const double *X, double *out) {
   int b0 = 0;
 #if defined(__AVX512F__)
@@ -152,7 +153,7 @@ inline void store_tile(int rows, int m, const double *X, double *out) {
     for (; b0 + 8 <= m; b0 += 8) {
       for (int e0 = 0; e0 < rows; e0 += 8) {
         __m512d r[8], t[8], u[8];
-        for (int i = 0; i < 8; ++i) r[i] = _mm512_loadu_pd(X + (e0 + i) * BLK + b0);
+        for (int i = 0; i < 8; ++i) r[i] = _mm512_loadu_pd(X + (e0 + i) * S + b0);
         for (int i = 0; i < 8; i += 2) {
           t[i] = _mm512_unpacklo_pd(r[i], r[i + 1]);
           t[i + 1] = _mm512_unpackhi_pd(r[i], r[i + 1]);
@@ -173,7 +174,7 @@ inline void store_tile(int rows, int m, const double *X, double *out) {
 #endif
   for (int b = b0; b < m; ++b)
 #pragma omp simd
-    for (int e = 0; e < rows; ++e) out[(int64_t)b * rows + e] = X[e * BLK + b];
+    for (int e = 0; e < rows; ++e) out[(int64_t)b * rows + e] = X[e * S + b];
 }
 
 // End pose with the tool into T (pose-major, 16 per pose; skipped when T_out is null); the
@@ -228,44 +229,39 @@ void fk_kernel(const Problem &P, double *T_out) {
   }
 }
 
-// The 4 columns of link i into the tile J[(row * m + 4i + k) * BLK + b],
-// dp = R_i v + (R_i w) x (p_end - t_i) and dphi = R_i w, (v, w) the twist of Omega_k of link i
-// in the frame after link i (derivatives.omega_twist_entries).
-template <bool MDH, int ROWS>
-inline void link_columns(int64_t m, int64_t i, const Link &L, const double F[12][BLK], const double pe[3][BLK],
+// The 4 columns of link i for the 8 poses b0 .. b0+7 of the block, into the tile
+// J[(row * m + 4i + k) * 8 + l] (8 poses: the tile stays in L1 and is written out at once).
+// Each column is the unit twist of one DH parameter: a rotation about an axis u through a point
+// o, dp = u x (p_end - o) and dphi = u, or a translation along u, dp = u and dphi = 0. These are
+// derivatives.omega_twist_entries carried into the world frame through the frames around link i
+// (error_model._columns is the twist form, and the tests hold the two together):
+//   SDH (eq. 5): theta about z_{i-1} through o_{i-1}, d along z_{i-1}, a along x_i, alpha about
+//     x_i through o_i;
+//   MDH (eq. 7, corrected): theta about z_i through o_i, d along z_i, a along x_{i-1}, alpha
+//     about x_{i-1} through o_{i-1}.
+// So z comes from Fz and x from Fx, the frames before (Fb = F[i]) or after (Fa = F[i+1]) link i:
+// two cross products per link, nothing multiplied by a zero entry of a twist.
+template <int ROWS>
+inline void link_columns(int64_t m, int64_t i, const Frame &Fz, const Frame &Fx, const double pe[3][BLK], int b0,
                          double *J) {
-  const double ca = L.ca, sa = L.sa, a = L.a;
-  double *J0 = J + 4 * i * BLK;
+  double *J0 = J + 4 * i * 8;
 #pragma omp simd
-  for (int b = 0; b < BLK; ++b) {
-    const double c = L.c[b], s = L.s[b], d = L.d[b];
-    const double lev0 = pe[0][b] - F[9][b], lev1 = pe[1][b] - F[10][b], lev2 = pe[2][b] - F[11][b];
-    auto col = [&](int k, double v0, double v1, double v2, double w0, double w1, double w2) {
-      const double vs0 = F[0][b] * v0 + F[1][b] * v1 + F[2][b] * v2;
-      const double vs1 = F[3][b] * v0 + F[4][b] * v1 + F[5][b] * v2;
-      const double vs2 = F[6][b] * v0 + F[7][b] * v1 + F[8][b] * v2;
-      const double ws0 = F[0][b] * w0 + F[1][b] * w1 + F[2][b] * w2;
-      const double ws1 = F[3][b] * w0 + F[4][b] * w1 + F[5][b] * w2;
-      const double ws2 = F[6][b] * w0 + F[7][b] * w1 + F[8][b] * w2;
-      double *out = J0 + k * BLK + b;
-      out[0] = vs0 + ws1 * lev2 - ws2 * lev1;
-      out[m * BLK] = vs1 + ws2 * lev0 - ws0 * lev2;
-      out[2 * m * BLK] = vs2 + ws0 * lev1 - ws1 * lev0;
+  for (int l = 0; l < 8; ++l) {
+    const int b = b0 + l;
+    const double z0 = Fz[2][b], z1 = Fz[5][b], z2 = Fz[8][b], x0 = Fx[0][b], x1 = Fx[3][b], x2 = Fx[6][b];
+    const double lz0 = pe[0][b] - Fz[9][b], lz1 = pe[1][b] - Fz[10][b], lz2 = pe[2][b] - Fz[11][b];
+    const double lx0 = pe[0][b] - Fx[9][b], lx1 = pe[1][b] - Fx[10][b], lx2 = pe[2][b] - Fx[11][b];
+    auto col = [&](int k, double p0, double p1, double p2, double w0, double w1, double w2) {
+      double *out = J0 + k * 8 + l;
+      out[0] = p0; out[m * 8] = p1; out[2 * m * 8] = p2;
       if (ROWS == 6) {
-        out[3 * m * BLK] = ws0; out[4 * m * BLK] = ws1; out[5 * m * BLK] = ws2;
+        out[3 * m * 8] = w0; out[4 * m * 8] = w1; out[5 * m * 8] = w2;
       }
     };
-    if (!MDH) {  // eq. 5: theta, d, a, alpha
-      col(0, 0.0, a * ca, -a * sa, 0.0, sa, ca);
-      col(1, 0.0, sa, ca, 0.0, 0.0, 0.0);
-      col(2, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-      col(3, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
-    } else {  // eq. 7 (corrected)
-      col(0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0);
-      col(1, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0);
-      col(2, c, -s, 0.0, 0.0, 0.0, 0.0);
-      col(3, -d * s, -d * c, 0.0, c, -s, 0.0);
-    }
+    col(0, z1 * lz2 - z2 * lz1, z2 * lz0 - z0 * lz2, z0 * lz1 - z1 * lz0, z0, z1, z2);  // theta: about z
+    col(1, z0, z1, z2, 0.0, 0.0, 0.0);                                                   // d: along z
+    col(2, x0, x1, x2, 0.0, 0.0, 0.0);                                                   // a: along x
+    col(3, x1 * lx2 - x2 * lx1, x2 * lx0 - x0 * lx2, x0 * lx1 - x1 * lx0, x0, x1, x2);  // alpha: about x
   }
 }
 
@@ -274,24 +270,23 @@ void jac_kernel(const Problem &P, int rows, double *J_out, double *T_out) {
 #pragma omp parallel for schedule(static)
   for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
     static thread_local Block blk;
-    static thread_local Link L[MAXN];
     static thread_local Frame F[MAXN + 1];  // F[0] the base, F[j + 1] the frame after link j
-    static thread_local double Jt[6 * 4 * MAXN * BLK];
+    static thread_local double Jt[6 * 4 * MAXN * 8];
+    Link L;
     double pe[3][BLK];
     block_init(P, ib, blk, F[0]);
     for (int64_t j = 0; j < P.n; ++j) {
-      link_values(P, blk, j, L[j]);
-      apply_link(P.mdh, L[j], F[j], F[j + 1]);
+      link_values(P, blk, j, L);
+      apply_link(P.mdh, L, F[j], F[j + 1]);
     }
     write_end(P, blk, F[P.n], pe, T_out);
-    for (int64_t i = 0; i < P.n; ++i) {
-      if (P.mdh) {
-        if (rows == 6) link_columns<true, 6>(m, i, L[i], F[i + 1], pe, Jt); else link_columns<true, 3>(m, i, L[i], F[i + 1], pe, Jt);
-      } else {
-        if (rows == 6) link_columns<false, 6>(m, i, L[i], F[i + 1], pe, Jt); else link_columns<false, 3>(m, i, L[i], F[i + 1], pe, Jt);
+    for (int b0 = 0; b0 < blk.m; b0 += 8) {
+      for (int64_t i = 0; i < P.n; ++i) {
+        const Frame &Fz = P.mdh ? F[i + 1] : F[i], &Fx = P.mdh ? F[i] : F[i + 1];
+        if (rows == 6) link_columns<6>(m, i, Fz, Fx, pe, b0, Jt); else link_columns<3>(m, i, Fz, Fx, pe, b0, Jt);
       }
+      store_tile<8>(rows * m, blk.m - b0 < 8 ? blk.m - b0 : 8, Jt, J_out + rows * m * (blk.r * P.K + blk.k0 + b0));
     }
-    store_tile(rows * m, blk.m, Jt, J_out + rows * m * (blk.r * P.K + blk.k0));
   }
 }
 
