@@ -14,10 +14,25 @@ HUGETLB = "GLIBC_TUNABLES=glibc.malloc.hugetlb=1"
 XLA's fresh buffers fault in 512x fewer times (read at process start: a fresh process each)."""
 
 
+def cpu_model() -> str:
+    """Model name, family/model and the vector ISA from /proc/cpuinfo: the same VM image has run
+    on Zen 5 (AVX-512) and Zen 3 (AVX2) hosts here, with 2-5x different kernel speeds."""
+    try:
+        info = {}
+        for line in open("/proc/cpuinfo"):
+            k, _, v = line.partition(":")
+            info.setdefault(k.strip(), v.strip())
+    except OSError:
+        return platform.processor() or platform.machine()
+    flags = info.get("flags", "").split()
+    isa = next((x for x in ("avx512f", "avx2", "avx", "sse4_2") if x in flags), "?")
+    return f"{info.get('model name', '?')} (family {info.get('cpu family', '?')} model {info.get('model', '?')}, {isa})"
+
+
 def machine() -> dict:
     dev = jax.devices()[0]
     return {"platform": dev.platform, "device": str(getattr(dev, "device_kind", dev)),
-            "cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+            "cpu": cpu_model(), "cores": os.cpu_count(),
             "python": platform.python_version(), "jax": jax.__version__,
             "xla_flags": os.environ.get("XLA_FLAGS", "")}
 

@@ -166,3 +166,32 @@ def test_jaxcal_verify_checks_the_kernel():
     native = [r for r in rows if r[0].startswith("native FK kernel")]
     assert len(native) == len(presets.PRESETS)
     assert all(err <= tol for _, err, tol in rows), [r for r in rows if r[1] > r[2]]
+
+
+def _np_sdh_fk(robot, q):
+    """Standard-DH FK in NumPy with libm's sin/cos, one pose at a time (independent reference)."""
+    out = []
+    for qk in q:
+        T = np.asarray(robot.base)
+        for (th0, d0, a, al), qj, t in zip(np.asarray(robot.dh), qk, robot.joint_types):
+            th, d = (th0 + qj, d0) if t == "R" else (th0, d0 + qj)
+            ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(al), np.sin(al)
+            T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
+                              [0, sa, ca, d], [0, 0, 0, 1]])
+        out.append(T @ np.asarray(robot.tool))
+    return np.array(out)
+
+
+def test_fk_all_quadrants_over_the_domain():
+    """The kernel's sincos takes the quadrant n mod 4 in floating point (vectorised on AVX2 as on
+    AVX-512): every quadrant, angles on the quadrant boundaries k pi/4 and across the whole
+    accepted range ±DOMAIN rad, against NumPy's sin/cos."""
+    from jaxcal.trig import DOMAIN
+    robot = _robot("sdh", ("R",) * 6, 7)
+    rng = np.random.default_rng(17)
+    ks = np.arange(-40, 41)  # k pi/4: every quadrant and its boundaries, both signs
+    q = np.concatenate([(np.resize(ks, (len(ks), 6)) + np.arange(6)) * np.pi / 4,
+                        rng.uniform(-DOMAIN, DOMAIN, (60, 6)), np.full((1, 6), DOMAIN), np.full((1, 6), -DOMAIN)])
+    robot = Robot(robot.dh.at[:, 0].set(0.0), convention="sdh", joint_types=robot.joint_types,
+                  base=robot.base, tool=robot.tool)  # theta = q exactly (no offset added)
+    assert_allclose(np.asarray(fk(robot, q)), _np_sdh_fk(robot, q), rtol=0, atol=ATOL)

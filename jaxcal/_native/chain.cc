@@ -25,7 +25,7 @@
 #include <sys/mman.h>
 #endif
 
-#if defined(__AVX512F__)
+#if defined(__AVX__)
 #include <immintrin.h>
 #endif
 
@@ -49,10 +49,15 @@ inline void sincos_poly(double x, double *s_out, double *c_out) {
   double c = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320
              + r2 * (-1.0 / 3628800 + r2 * (1.0 / 479001600.0 + r2 * (-1.0 / 87178291200.0
              + r2 * (1.0 / 20922789888000.0 + r2 * (-1.0 / 6402373705728000.0)))))))));
-  int64_t k = static_cast<int64_t>(n) & 3;
-  double ss = (k & 1) ? c : s, cc = (k & 1) ? s : c;
-  *s_out = (k & 2) ? -ss : ss;
-  *c_out = ((k + 1) & 2) ? -cc : cc;
+  // The quadrant n mod 4 as k = n - 4 round(n/4) in {-2, ..., 2}, in floating point (exact for
+  // |n| < 2^53). Without AVX-512 there is no vector conversion of doubles to 64-bit integers,
+  // and GCC 12 does not vectorise std::floor in an omp simd loop: either kept it from
+  // vectorising the whole loop over poses on AVX2 (measured: FK 5x slower than it need be).
+  const double k = n - 4.0 * std::nearbyint(n * 0.25), ak = std::fabs(k);
+  const bool odd = ak == 1.0;
+  const double ss = odd ? c : s, cc = odd ? s : c;
+  *s_out = (k == -1.0 || ak == 2.0) ? -ss : ss;  // quadrants 2, 3
+  *c_out = (k == 1.0 || ak == 2.0) ? -cc : cc;   // quadrants 1, 2
 }
 
 struct Problem {
@@ -140,9 +145,9 @@ inline void apply_link(bool mdh, const Link &L, const Frame &Fi, Frame &Fo) {
   }
 }
 
-// out[b * rows + e] = X[e * BLK + b] for b < m: a tile written pose-major. With AVX-512, 8 x 8
+// out[b * rows + e] = X[e * S + b] for b < m: a tile written pose-major. With AVX-512, 8 x 8
 // blocks are transposed in registers (the strided gathers of the plain loop cost the Jacobian
-// more than computing it); the rest, and other CPUs, take the plain loop.
+// more than computing it); with AVX (AVX2 machines), 4 x 4 blocks; the rest take the plain loop.
 template <int S = BLK>
 inline void store_tile(int rows, int m, const double *X, double *out) {
   int b0 = 0;
@@ -168,6 +173,23 @@ inline void store_tile(int rows, int m, const double *X, double *out) {
           _mm512_storeu_pd(out + (int64_t)(b0 + j) * rows + e0, _mm512_permutex2var_pd(u[j], i3, u[j + 4]));
           _mm512_storeu_pd(out + (int64_t)(b0 + j + 4) * rows + e0, _mm512_permutex2var_pd(u[j], i4, u[j + 4]));
         }
+      }
+    }
+  }
+#endif
+#if defined(__AVX__)
+  if (rows % 4 == 0) {  // 4 x 4 blocks (AVX2 machines, and AVX-512 ones for the rest)
+    for (; b0 + 4 <= m; b0 += 4) {
+      for (int e0 = 0; e0 < rows; e0 += 4) {
+        const __m256d r0 = _mm256_loadu_pd(X + (e0 + 0) * S + b0), r1 = _mm256_loadu_pd(X + (e0 + 1) * S + b0),
+                      r2 = _mm256_loadu_pd(X + (e0 + 2) * S + b0), r3 = _mm256_loadu_pd(X + (e0 + 3) * S + b0);
+        const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1),
+                      t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+        double *o = out + (int64_t)b0 * rows + e0;
+        _mm256_storeu_pd(o, _mm256_permute2f128_pd(t0, t2, 0x20));
+        _mm256_storeu_pd(o + rows, _mm256_permute2f128_pd(t1, t3, 0x20));
+        _mm256_storeu_pd(o + 2 * rows, _mm256_permute2f128_pd(t0, t2, 0x31));
+        _mm256_storeu_pd(o + 3 * rows, _mm256_permute2f128_pd(t1, t3, 0x31));
       }
     }
   }
