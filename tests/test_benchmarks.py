@@ -1,13 +1,20 @@
 """Smoke test of the peer comparison benchmark (without pybotics, which needs its own venv):
 jaxcal's GN and scipy's finite-difference least squares on the same problem reach the same
-optimum, and the script says that pybotics was not compared."""
+optimum, and the script says that pybotics was not compared. And the kernel A/B script runs
+on a git revision and on a file and names a bad version."""
 
 import json
 import subprocess
 import sys
 from pathlib import Path
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_vs_pybotics.py"
+import pytest
+
+from jaxcal import _native
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "benchmarks" / "bench_vs_pybotics.py"
+AB = ROOT / "benchmarks" / "bench_kernel_ab.py"
 
 
 def test_bench_vs_pybotics_standin(tmp_path):
@@ -23,3 +30,17 @@ def test_bench_vs_pybotics_standin(tmp_path):
     # noise 0.02 mm: both land on the same least-squares optimum, near the truth
     assert abs(jx["val_rms_mm"] - sc["val_rms_mm"]) < 1e-4
     assert jx["val_rms_mm"] < 0.05
+
+
+@pytest.mark.skipif(not _native.available(), reason="native kernel not in use")
+def test_bench_kernel_ab_runs_and_names_bad_versions():
+    src = str(ROOT / "jaxcal" / "_native" / "chain.cc")
+    p = subprocess.run([sys.executable, str(AB), src, src, "--rounds", "1", "--repeats", "1"],
+                       capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-2000:]
+    rows = [line for line in p.stdout.splitlines() if " poses/call " in line]
+    assert len(rows) == 8 and all(" ms [" in r for r in rows)  # 2 ops x 2 sizes x 2 versions
+    assert rows[0].rstrip().endswith("x 1.00")  # the baseline against itself
+    bad = subprocess.run([sys.executable, str(AB), "no-such-revision-xyz", "--rounds", "1"], capture_output=True,
+                         text=True, timeout=120, cwd=ROOT)
+    assert bad.returncode != 0 and "no-such-revision-xyz" in bad.stderr

@@ -1,0 +1,100 @@
+"""A/B of native-kernel versions: ``chain.cc`` from git revisions (or files) timed side by side.
+
+Each version is built (cached like the shipped kernel, keyed by its source) and timed in its own
+fresh process, the processes interleaved over ``--rounds`` so that a slow stretch of a shared
+machine hits every version alike. Paper arm, FK and the identification Jacobian at 10^4 and 10^5
+poses per call; medians and min over ``--repeats`` calls per process, the median over rounds,
+and the ratio against the first version (the baseline).
+
+    python benchmarks/bench_kernel_ab.py 4be92ef HEAD        # git revisions
+    python benchmarks/bench_kernel_ab.py old.cc jaxcal/_native/chain.cc
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+
+from _util import machine
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+
+CHILD = r"""
+import json, statistics, sys, time
+from pathlib import Path
+import numpy as np
+import jax
+import jaxcal
+from jaxcal import _native
+_native.SOURCE = Path(sys.argv[1])  # before the first use: the kernel is built from this source
+ok, why = _native.status()
+if not ok:
+    raise SystemExit(why)
+robot = jaxcal.preset("paper-6r")
+out = {}
+for K in (10_000, 100_000):
+    Q = jax.numpy.asarray(np.random.default_rng(0).uniform(-np.pi, np.pi, (K, 6)))
+    for op, f in (("FK", jax.jit(lambda q: jaxcal.fk(robot, q))),
+                  ("Jacobian", jax.jit(lambda q: jaxcal.error_model.identification_jacobian(robot, q)))):
+        jax.block_until_ready(f(Q))
+        runs = []
+        for _ in range(int(sys.argv[2])):
+            t = time.perf_counter()
+            jax.block_until_ready(f(Q))
+            runs.append(time.perf_counter() - t)
+        out[f"{op}, {K:,} poses/call"] = [statistics.median(runs), min(runs)]
+print(json.dumps(out))
+"""
+
+
+def source_of(spec: str, tmp: str) -> str:
+    """A file path as is; anything else is a git revision whose chain.cc is written to tmp."""
+    if os.path.isfile(spec):
+        return os.path.abspath(spec)
+    p = subprocess.run(["git", "-C", ROOT, "show", f"{spec}:jaxcal/_native/chain.cc"], capture_output=True, text=True)
+    if p.returncode:
+        raise SystemExit(f"{spec!r} is neither a file nor a git revision with jaxcal/_native/chain.cc "
+                         f"({p.stderr.strip()[:200]})")
+    text = p.stdout
+    path = os.path.join(tmp, f"chain-{spec.replace('/', '_')}.cc")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("versions", nargs="+", help="git revisions or chain.cc files; the first is the baseline")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=21)
+    args = ap.parse_args()
+    print("machine:", machine())
+    with tempfile.TemporaryDirectory() as tmp:
+        srcs = [source_of(v, tmp) for v in args.versions]
+        got = {v: [] for v in args.versions}
+        for _ in range(args.rounds):
+            for v, src in zip(args.versions, srcs):
+                p = subprocess.run([sys.executable, "-c", CHILD, src, str(args.repeats)], capture_output=True, text=True)
+                if p.returncode:
+                    raise SystemExit(f"{v}: {p.stderr.strip()[-2000:]}")
+                got[v].append(json.loads(p.stdout.strip().splitlines()[-1]))
+    base = args.versions[0]
+    print(f"{args.rounds} rounds of fresh processes, {args.repeats} calls each; ms per call: median of the "
+          f"rounds' medians [each round's median] (min of all calls); ratio = baseline / version")
+    for key in got[base][0]:
+        ref = statistics.median(r[key][0] for r in got[base])
+        for v in args.versions:
+            meds = [r[key][0] for r in got[v]]
+            med = statistics.median(meds)
+            print(f"{key:28s} {v:>12s}  {med * 1e3:8.3f} ms [{', '.join(f'{m * 1e3:.3f}' for m in meds)}]"
+                  f" (min {min(r[key][1] for r in got[v]) * 1e3:.3f})  x{ref / med:5.2f}")
+
+
+if __name__ == "__main__":
+    main()
