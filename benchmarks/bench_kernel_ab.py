@@ -26,12 +26,14 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
 CHILD = r"""
-import json, statistics, sys, time
+import json, statistics, sys
 from pathlib import Path
 import numpy as np
 import jax
 import jaxcal
 from jaxcal import _native
+sys.path.insert(0, sys.argv[3])
+from _util import timed
 _native.SOURCE = Path(sys.argv[1])  # before the first use: the kernel is built from this source
 ok, why = _native.status()
 if not ok:
@@ -42,12 +44,7 @@ for K in (10_000, 100_000):
     Q = jax.numpy.asarray(np.random.default_rng(0).uniform(-np.pi, np.pi, (K, 6)))
     for op, f in (("FK", jax.jit(lambda q: jaxcal.fk(robot, q))),
                   ("Jacobian", jax.jit(lambda q: jaxcal.error_model.identification_jacobian(robot, q)))):
-        jax.block_until_ready(f(Q))
-        runs = []
-        for _ in range(int(sys.argv[2])):
-            t = time.perf_counter()
-            jax.block_until_ready(f(Q))
-            runs.append(time.perf_counter() - t)
+        _, runs = timed(f, Q, repeats=int(sys.argv[2]))
         out[f"{op}, {K:,} poses/call"] = [statistics.median(runs), min(runs)]
 print(json.dumps(out))
 """
@@ -80,7 +77,7 @@ def main():
         got = {v: [] for v in args.versions}
         for _ in range(args.rounds):
             for v, src in zip(args.versions, srcs):
-                p = subprocess.run([sys.executable, "-c", CHILD, src, str(args.repeats)], capture_output=True, text=True)
+                p = subprocess.run([sys.executable, "-c", CHILD, src, str(args.repeats), HERE], capture_output=True, text=True)
                 if p.returncode:
                     raise SystemExit(f"{v}: {p.stderr.strip()[-2000:]}")
                 got[v].append(json.loads(p.stdout.strip().splitlines()[-1]))

@@ -1,7 +1,7 @@
 """Smoke test of the peer comparison benchmark (without pybotics, which needs its own venv):
 jaxcal's GN and scipy's finite-difference least squares on the same problem reach the same
 optimum, and the script says that pybotics was not compared. And the kernel A/B script runs
-on a git revision and on a file and names a bad version."""
+on a git revision (in a git checkout) and on a file, and names a version it cannot find."""
 
 import json
 import subprocess
@@ -35,12 +35,14 @@ def test_bench_vs_pybotics_standin(tmp_path):
 @pytest.mark.skipif(not _native.available(), reason="native kernel not in use")
 def test_bench_kernel_ab_runs_and_names_bad_versions():
     src = str(ROOT / "jaxcal" / "_native" / "chain.cc")
-    p = subprocess.run([sys.executable, str(AB), src, src, "--rounds", "1", "--repeats", "1"],
+    in_git = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True).returncode == 0
+    base = "HEAD" if in_git else src  # a git revision where there is a checkout (CI's clean clone is one)
+    p = subprocess.run([sys.executable, str(AB), base, src, "--rounds", "1", "--repeats", "1"],
                        capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert p.returncode == 0, p.stderr[-2000:]
     rows = [line for line in p.stdout.splitlines() if " poses/call " in line]
     assert len(rows) == 8 and all(" ms [" in r for r in rows)  # 2 ops x 2 sizes x 2 versions
-    assert rows[0].rstrip().endswith("x 1.00")  # the baseline against itself
+    assert f" {base} " in rows[0] and rows[0].rstrip().endswith("x 1.00")  # the baseline, against itself
     bad = subprocess.run([sys.executable, str(AB), "no-such-revision-xyz", "--rounds", "1"], capture_output=True,
                          text=True, timeout=120, cwd=ROOT)
     assert bad.returncode != 0 and "no-such-revision-xyz" in bad.stderr
