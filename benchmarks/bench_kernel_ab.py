@@ -8,6 +8,10 @@ and the ratio against the first version (the baseline).
 
     python benchmarks/bench_kernel_ab.py 4be92ef HEAD        # git revisions
     python benchmarks/bench_kernel_ab.py old.cc jaxcal/_native/chain.cc
+    python benchmarks/bench_kernel_ab.py HEAD@-mprefer-vector-width=256 HEAD   # compiler flags
+
+A version may end in ``@FLAG,FLAG``: flags appended to the shipped ones (``jaxcal._native._FLAGS``
+of this checkout, whatever the revision), so a later flag overrides an earlier one.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from jaxcal import _native
 sys.path.insert(0, sys.argv[3])
 from _util import timed
 _native.SOURCE = Path(sys.argv[1])  # before the first use: the kernel is built from this source
+_native._FLAGS = _native._FLAGS + [f for f in sys.argv[4].split(",") if f]
 ok, why = _native.status()
 if not ok:
     raise SystemExit(why)
@@ -50,6 +55,12 @@ print(json.dumps(out))
 """
 
 
+def split_flags(version: str) -> tuple[str, str]:
+    """``"REV@-fa,-fb"`` -> ``("REV", "-fa,-fb")``; no ``@``: no extra flags."""
+    spec, _, flags = version.partition("@")
+    return spec, flags
+
+
 def source_of(spec: str, tmp: str) -> str:
     """A file path as is; anything else is a git revision whose chain.cc is written to tmp."""
     if os.path.isfile(spec):
@@ -59,7 +70,7 @@ def source_of(spec: str, tmp: str) -> str:
         raise SystemExit(f"{spec!r} is neither a file nor a git revision with jaxcal/_native/chain.cc "
                          f"({p.stderr.strip()[:200]})")
     text = p.stdout
-    path = os.path.join(tmp, f"chain-{spec.replace('/', '_')}.cc")
+    path = os.path.join(tmp, f"chain-{spec.replace('/', '_').replace('~', '_')}.cc")
     with open(path, "w") as f:
         f.write(text)
     return path
@@ -67,17 +78,20 @@ def source_of(spec: str, tmp: str) -> str:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("versions", nargs="+", help="git revisions or chain.cc files; the first is the baseline")
+    ap.add_argument("versions", nargs="+",
+                    help="git revisions or chain.cc files, each optionally @FLAG,FLAG; the first is the baseline")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeats", type=int, default=21)
     args = ap.parse_args()
     print("machine:", machine())
     with tempfile.TemporaryDirectory() as tmp:
-        srcs = [source_of(v, tmp) for v in args.versions]
+        specs = [split_flags(v) for v in args.versions]
+        srcs = [(source_of(spec, tmp), flags) for spec, flags in specs]
         got = {v: [] for v in args.versions}
         for _ in range(args.rounds):
-            for v, src in zip(args.versions, srcs):
-                p = subprocess.run([sys.executable, "-c", CHILD, src, str(args.repeats), HERE], capture_output=True, text=True)
+            for v, (src, flags) in zip(args.versions, srcs):
+                p = subprocess.run([sys.executable, "-c", CHILD, src, str(args.repeats), HERE, flags],
+                                   capture_output=True, text=True)
                 if p.returncode:
                     raise SystemExit(f"{v}: {p.stderr.strip()[-2000:]}")
                 got[v].append(json.loads(p.stdout.strip().splitlines()[-1]))
@@ -89,7 +103,7 @@ def main():
         for v in args.versions:
             meds = [r[key][0] for r in got[v]]
             med = statistics.median(meds)
-            print(f"{key:28s} {v:>12s}  {med * 1e3:8.3f} ms [{', '.join(f'{m * 1e3:.3f}' for m in meds)}]"
+            print(f"{key:28s} {v:>36s}  {med * 1e3:8.3f} ms [{', '.join(f'{m * 1e3:.3f}' for m in meds)}]"
                   f" (min {min(r[key][1] for r in got[v]) * 1e3:.3f})  x{ref / med:5.2f}")
 
 

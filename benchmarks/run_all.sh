@@ -14,4 +14,5 @@ run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/pyt
 run roofline bench_roofline.py --repeats 15 --json "$out/roofline.json"
 run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"
-run kernel_ab bench_kernel_ab.py 4be92ef 3e15317  # the kernel before / after its AVX2 fix
+# the kernel before / after its AVX2 fix (both with GCC's 256-bit preference), and as shipped (512-bit vectors)
+run kernel_ab bench_kernel_ab.py 4be92ef@-mprefer-vector-width=256 3e15317@-mprefer-vector-width=256 3e15317

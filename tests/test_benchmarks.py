@@ -37,7 +37,7 @@ def test_bench_kernel_ab_runs_and_names_bad_versions():
     src = str(ROOT / "jaxcal" / "_native" / "chain.cc")
     in_git = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True).returncode == 0
     base = "HEAD" if in_git else src  # a git revision where there is a checkout (CI's clean clone is one)
-    p = subprocess.run([sys.executable, str(AB), base, src, "--rounds", "1", "--repeats", "1"],
+    p = subprocess.run([sys.executable, str(AB), base, f"{src}@-DJAXCAL_AB_SMOKE=1", "--rounds", "1", "--repeats", "1"],
                        capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert p.returncode == 0, p.stderr[-2000:]
     rows = [line for line in p.stdout.splitlines() if " poses/call " in line]
@@ -46,3 +46,7 @@ def test_bench_kernel_ab_runs_and_names_bad_versions():
     bad = subprocess.run([sys.executable, str(AB), "no-such-revision-xyz", "--rounds", "1"], capture_output=True,
                          text=True, timeout=120, cwd=ROOT)
     assert bad.returncode != 0 and "no-such-revision-xyz" in bad.stderr
+    # flags after @ reach the compiler: one it does not know fails the build, and the error says so
+    bad = subprocess.run([sys.executable, str(AB), f"{src}@-fno-such-flag-xyz", "--rounds", "1", "--repeats", "1"],
+                         capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert bad.returncode != 0 and "no-such-flag-xyz" in bad.stderr
