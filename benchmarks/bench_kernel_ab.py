@@ -55,12 +55,6 @@ print(json.dumps(out))
 """
 
 
-def split_flags(version: str) -> tuple[str, str]:
-    """``"REV@-fa,-fb"`` -> ``("REV", "-fa,-fb")``; no ``@``: no extra flags."""
-    spec, _, flags = version.partition("@")
-    return spec, flags
-
-
 def source_of(spec: str, tmp: str) -> str:
     """A file path as is; anything else is a git revision whose chain.cc is written to tmp."""
     if os.path.isfile(spec):
@@ -70,7 +64,7 @@ def source_of(spec: str, tmp: str) -> str:
         raise SystemExit(f"{spec!r} is neither a file nor a git revision with jaxcal/_native/chain.cc "
                          f"({p.stderr.strip()[:200]})")
     text = p.stdout
-    path = os.path.join(tmp, f"chain-{spec.replace('/', '_').replace('~', '_')}.cc")
+    path = os.path.join(tmp, f"chain-{spec.replace('/', '_')}.cc")
     with open(path, "w") as f:
         f.write(text)
     return path
@@ -85,8 +79,7 @@ def main():
     args = ap.parse_args()
     print("machine:", machine())
     with tempfile.TemporaryDirectory() as tmp:
-        specs = [split_flags(v) for v in args.versions]
-        srcs = [(source_of(spec, tmp), flags) for spec, flags in specs]
+        srcs = [(source_of(spec, tmp), flags) for spec, _, flags in (v.partition("@") for v in args.versions)]
         got = {v: [] for v in args.versions}
         for _ in range(args.rounds):
             for v, (src, flags) in zip(args.versions, srcs):

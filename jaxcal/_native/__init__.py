@@ -2,9 +2,9 @@
 called from JAX through the XLA FFI (``jax.ffi.ffi_call``).
 
 On first use the kernel is compiled with the system C++ compiler (``$CXX`` or ``c++``,
-``-O3 -march=native``, 512-bit vectors where the CPU has them, OpenMP when available) against the FFI headers shipped in jaxlib, and
-cached in ``$XDG_CACHE_HOME/jaxcal`` (default ``~/.cache/jaxcal``), keyed by the source, the
-flags, the jax version and the CPU. That takes 3–4 s once per machine. When it cannot be
+``-O3 -march=native``, 512-bit vectors where the CPU has them, OpenMP when available) against
+the FFI headers shipped in jaxlib, and cached in ``$XDG_CACHE_HOME/jaxcal`` (default
+``~/.cache/jaxcal``), keyed by the source, the flags, the jax version and the CPU. That takes 3–4 s once per machine. When it cannot be
 built (no compiler, no headers), when the default JAX backend is not the CPU, or with
 ``JAXCAL_NATIVE=0`` in the environment, jaxcal uses its pure-JAX implementation
 (:func:`jaxcal.kinematics._fk_xla`, :func:`jaxcal.error_model._columns_xla`), which is also
@@ -36,8 +36,8 @@ MAX_JOINTS = 16
 _FLAGS = ["-O3", "-march=native", "-std=c++17", "-shared", "-fPIC", "-fno-math-errno", "-w"]
 if platform.machine().lower() in ("x86_64", "amd64"):
     # GCC tunes most AVX-512 CPUs to 256-bit vectors (-march=native on an Intel Xeon here meant
-    # -mprefer-vector-width=256); with 512 the kernel ran FK 1.2x and the Jacobian 1.2-1.3x faster
-    # on that host (benchmarks/README.md). No effect without AVX-512; GCC knows the flag on x86 only.
+    # -mprefer-vector-width=256); with 512 the kernel ran FK 1.24x and the Jacobian 1.09x faster
+    # at 10^4 poses per call on that host (docs/bench/kernel_ab.txt). No effect without AVX-512; GCC knows the flag on x86 only.
     _FLAGS.append("-mprefer-vector-width=512")
 _state: dict = {}
 
