@@ -50,20 +50,21 @@ import sys
 import time
 
 HAND_NOTE = (
-    "hand count of the arithmetic each result needs, n links, the DH link's zeros used: a link's "
-    "matrix entries 6 after sin/cos of theta (those of the constant alpha fold); the running frame "
-    "times a link 57 (per row: rotation 3 + 5 + 5, translation 6) -> 63 per link; the tool, a "
-    "general rigid product, 45 + 18 = 63. FK = 63n + 63. Jacobian (J alone): the n frames 63n, "
-    "the end position with the tool 18, the levers p_end - o_j to the n + 1 frame origins "
-    "3(n + 1), per link two cross products (the columns of theta and alpha; those of d and a are "
-    "frame axes, no arithmetic) 18n -> 84n + 21. Not counted: sin/cos, joint offsets. Before "
-    "2026-11-22 (third session) the count was 63(n+1) + 6n and 273n + 63 (general 3x3 products, "
-    "the columns as general twists R v + (R w) x lever, zero entries multiplied): 477 / 1,701 for "
-    "6 joints instead of 441 / 525")
+    "hand count of the arithmetic each result needs, n links: the running frame times a link as "
+    "two plane rotations (paper eq. 1: SDH A = Rz(theta) Tz(d) Tx(a) Rx(alpha)), per row of the "
+    "frame u = x c + y s and v = y c - x s (6), (v ca + z sa, z ca - v sa) (6), t + a u + d z (4): "
+    "16 -> 48 per link; the tool, a general rigid product, 45 + 18 = 63. FK = 48n + 63. Jacobian "
+    "(J alone): the n frames 48n, the end position with the tool 18, the levers p_end - o_j to "
+    "the n + 1 frame origins 3(n + 1), per link two cross products (the columns of theta and "
+    "alpha; those of d and a are frame axes, no arithmetic) 18n -> 69n + 21. Not counted: sin/cos, "
+    "joint offsets. Earlier counts: 63n + 63 and 84n + 21 until 2026-11-23 (the link matrix formed "
+    "first, 6, then multiplied, 57: 441 / 525 for 6 joints instead of 351 / 435), and 63(n+1) + 6n "
+    "and 273n + 63 until 2026-11-22 (general 3x3 products, the columns as general twists: 477 / "
+    "1,701)")
 
 
 def hand_flops(n: int) -> dict:
-    return {"FK": 63 * n + 63, "Jacobian": 84 * n + 21}
+    return {"FK": 48 * n + 63, "Jacobian": 69 * n + 21}
 
 
 def time_fn(fn, *args, repeats=7):

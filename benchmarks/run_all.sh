@@ -14,5 +14,5 @@ run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/pyt
 run roofline bench_roofline.py --repeats 15 --json "$out/roofline.json"
 run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"
-# the kernel before / after its AVX2 fix (both with GCC's 256-bit preference), and as shipped (512-bit vectors)
-run kernel_ab bench_kernel_ab.py --rounds 5 --repeats 61 4be92ef@-mprefer-vector-width=256 3e15317@-mprefer-vector-width=256 3e15317
+# the kernel before / after the register-resident chain of c2113e9 (both as shipped, 512-bit vectors)
+run kernel_ab bench_kernel_ab.py --rounds 5 --repeats 61 1de7fc5 c2113e9
