@@ -1,9 +1,13 @@
-"""The variants timed by ``bench_roofline.py``: the shipped native kernel, the pure-JAX fallback
-and the earlier forms and levers (each a function of the joint angles ``q (K, n)`` for one robot)."""
+"""The variants timed by ``bench_roofline.py``: the shipped native kernel (both FK layouts), the
+pure-JAX fallback and the earlier forms and levers (each a function of the joint angles
+``q (K, n)`` for one robot; those in :data:`POSE_LAST` of ``q (n, K)``)."""
 
 from __future__ import annotations
 
 NATIVE = "jaxcal: native kernel"
+NATIVE_LAST = "jaxcal: native kernel, pose axis last"
+POSE_LAST = {NATIVE_LAST}
+"""Variants that take the joint values as ``(n, K)`` and return ``(4, 4, K)`` (``fk_pose_last``)."""
 PURE = "pure JAX (the fallback)"
 SMALL = 10_000  # poses per call for the second native row: its output stays clear of page faults
 
@@ -150,7 +154,7 @@ def variants(robot):
     fk_x = lambda q: _fk_xla(robot, q)
     jac_x = lambda q: _columns_xla(robot, q, base=False, tool=False, pose_rows=True)
     return {
-        "FK": {NATIVE: fk, PURE: fk_x, "pure JAX, XLA sin/cos (01cbb2a)": fk_libm,
+        "FK": {NATIVE: fk, NATIVE_LAST: lambda qT: jaxcal.fk_pose_last(robot, qT), PURE: fk_x, "pure JAX, XLA sin/cos (01cbb2a)": fk_libm,
                "before: 4x4 unrolled, fused": fk_before,
                "4x4, lax.scan over links": fk_scan, "SoA, links unrolled": fk_soa,
                "pure JAX chunked 1024 (lax.map)": chunked(fk_x, 1024),

@@ -13,6 +13,21 @@ HUGETLB = "GLIBC_TUNABLES=glibc.malloc.hugetlb=1"
 """glibc (2.35+) then asks Linux for 2 MiB pages behind the large blocks it maps for malloc, so
 XLA's fresh buffers fault in 512x fewer times (read at process start: a fresh process each)."""
 
+KEEP_HEAP = ("GLIBC_TUNABLES=glibc.malloc.trim_threshold=536870912:glibc.malloc.mmap_threshold=33554432:"
+             "glibc.malloc.top_pad=67108864")
+"""glibc keeps freed memory (up to 512 MB) in the process and maps nothing below 32 MB apart. By
+default it returns the top of its heap to Linux when enough is free, and XLA's next output buffer
+of that size is faulted in again page by page: FK on 10^4 poses per call (1.3 MB out) then ran
+in 0.12-0.16 ms with 36-70 minor page faults and 70-110 us of system time per call, against
+0.067-0.075 ms and none with this setting (2026-11-23, getrusage per call; which calls fault
+depends on the heap's history, so a long process drifts between the two)."""
+
+SYNC = "jax_cpu_enable_async_dispatch=False"
+"""JAX runs a computation in the calling thread instead of handing it to a worker thread (a JAX
+config update; no environment variable reads it). After large computations in the same process,
+each FK call of 10^4 poses here took 2 context switches and 25-45 us of system time, 0.16 ms
+instead of 0.07 (getrusage per call, 2026-11-23); with this setting it did not."""
+
 
 def cpu_model() -> str:
     """Model name, family/model and the vector ISA from /proc/cpuinfo: the same VM image has run

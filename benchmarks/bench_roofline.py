@@ -16,9 +16,12 @@ hand-counted FLOPs in that time, as if everything else were free).
 
 Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform poses):
 * jaxcal as shipped: the fused native kernel (``jaxcal/_native/chain.cc``, XLA FFI): blocks of
-  64 poses through all links in registers/L1, polynomial sincos, vectorised over poses; also
-  timed at 10^4 poses per call (at 10^5 the Jacobian's 115 MB output is fresh memory on every
-  call, which Linux must fault in and zero; the kernel asks for 2 MiB pages for it);
+  64 poses through all links in registers/L1, polynomial sincos, vectorised over poses; FK also
+  with the pose axis last (``jaxcal.fk_pose_last``: joint values ``(n, K)`` in, ``(4, 4, K)``
+  out, no transposes); also timed at 10^4 poses per call (at 10^5 the Jacobian's 115 MB output
+  is fresh memory on every call, which Linux must fault in and zero; the kernel asks for 2 MiB
+  pages for it), and at every size of ``--sweep``; the native rows time each sample over many
+  back-to-back calls (about 2 ms), a call of 10^4 poses taking tens of microseconds;
 * pure JAX (the fallback without a compiler): structure of arrays (every entry of the running
   transform a ``(K,)`` vector) with a ``lax.scan`` over the links, so each link's entries are
   materialised once; the Jacobian then forms every column at once from the materialised
@@ -36,7 +39,7 @@ Levers, each timed in this run on the same poses (paper arm, ``--poses`` uniform
   with the native kernel (``--envs``, e.g. ``GLIBC_TUNABLES=glibc.malloc.hugetlb=1``; none by
   default).
 
-    python benchmarks/bench_roofline.py [--poses 100000] [--json docs/bench/roofline.json]
+    python benchmarks/bench_roofline.py [--poses 100000] [--sweep 1000 10000 ...] [--json docs/bench/roofline.json]
 """
 
 from __future__ import annotations
@@ -67,7 +70,9 @@ def hand_flops(n: int) -> dict:
     return {"FK": 48 * n + 63, "Jacobian": 69 * n + 21}
 
 
-def time_fn(fn, *args, repeats=7):
+def time_fn(fn, *args, repeats=7, inner=1):
+    """(first call's seconds, warm seconds per call): each of ``repeats`` samples times ``inner``
+    calls back to back (a call of a few tens of microseconds is timed over many)."""
     import jax
     t0 = time.perf_counter()
     jax.block_until_ready(fn(*args))
@@ -75,9 +80,15 @@ def time_fn(fn, *args, repeats=7):
     runs = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        runs.append(time.perf_counter() - t0)
+        for _ in range(inner):
+            jax.block_until_ready(fn(*args))
+        runs.append((time.perf_counter() - t0) / inner)
     return first, runs
+
+
+def inner_calls(poses: int) -> int:
+    """Calls per timing sample: about 2 ms of work for the native kernel."""
+    return max(1, min(200, 200_000 // poses))
 
 
 def faults_per_call(fn, *args, repeats=5) -> float:
@@ -197,19 +208,37 @@ def compulsory_bytes(n: int) -> dict:
     return {"FK": 8 * (n + 16), "Jacobian": 8 * (n + 6 * 4 * n)}
 
 
-from _roofline_variants import NATIVE, PURE, SMALL, variants  # noqa: E402
-from _util import HUGETLB  # noqa: E402
+from _roofline_variants import NATIVE, NATIVE_LAST, POSE_LAST, PURE, SMALL, variants  # noqa: E402
+from _util import HUGETLB, KEEP_HEAP, SYNC  # noqa: E402
 
 
-def measure(poses: int, repeats: int, only=None) -> dict:
-    """Every variant (``only=None``) plus the native kernel at :data:`SMALL` poses per call, or
-    just the variants named in ``only`` (the fresh-process rows)."""
+def native_row(f, x, poses, repeats):
+    """A native-kernel row at ``poses`` poses per call, each sample over :func:`inner_calls` calls."""
+    first, runs = time_fn(f, x, repeats=repeats, inner=inner_calls(poses))
+    med = statistics.median(runs)
+    return {"fusions": 0, "median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
+            "poses_per_s": poses / med, "xla_flops_per_pose": None, "poses_per_call": poses,
+            "faults_per_call": faults_per_call(f, x)}
+
+
+def measure(poses: int, repeats: int, only=None, sweep=()) -> dict:
+    """Every variant (``only=None``) or just those named in ``only`` (the fresh-process rows); the
+    native kernels also at :data:`SMALL` poses per call and at every size in ``sweep`` (under
+    ``"sweep"``). Variants in :data:`POSE_LAST` get the joint values as ``(n, K)``."""
     import jax
     import jax.numpy as jnp
     import numpy as np
     import jaxcal
     robot = jaxcal.preset("paper-6r")
-    Q = jnp.asarray(np.random.default_rng(0).uniform(-np.pi, np.pi, (poses, 6)))
+    Qn = np.random.default_rng(0).uniform(-np.pi, np.pi, (poses, 6))
+    Q, QT = jnp.asarray(Qn), jnp.asarray(np.ascontiguousarray(Qn.T))
+
+    def arg(name, k=None):
+        return (QT[:, :k] if name in POSE_LAST else Q[:k]) if k is not None else (QT if name in POSE_LAST else Q)
+
+    def pose_major(name, out):
+        return np.moveaxis(np.asarray(out), -1, 0) if name in POSE_LAST else np.asarray(out)
+
     ref = {"FK": np.asarray(jaxcal.fk(robot, Q[:100])),
            "Jacobian": np.asarray(jaxcal.error_model.identification_jacobian(robot, Q[:100]))}
     # the floor set by the transcendentals: sin and cos of every joint angle, nothing else
@@ -218,36 +247,55 @@ def measure(poses: int, repeats: int, only=None) -> dict:
     for key, f in (("sincos_only", lambda q: jnp.sin(q) + jnp.cos(q)), ("sincos_poly", lambda q: sum(sincos(q)))):
         first, runs = time_fn(jax.jit(f), Q, repeats=repeats)
         out[key] = {"median_s": statistics.median(runs), "min_s": min(runs), "max_s": max(runs)}
-    for op, vs in variants(robot).items():
+    vs_all = variants(robot)
+    for op, vs in vs_all.items():
         out[op] = {}
-        if only is None:  # the native kernel with fewer poses per call (the XLA output buffer of 1e5 poses
-            f = jax.jit(vs[NATIVE])  # is fresh memory every call: page faults; see the README)
-            small = min(SMALL, poses)
-            first, runs = time_fn(f, Q[:small], repeats=repeats)
-            med = statistics.median(runs)
-            out[op][f"{NATIVE}, {small:,} poses/call"] = {
-                "fusions": 0, "median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
-                "poses_per_s": small / med, "xla_flops_per_pose": None, "poses_per_call": small,
-                "faults_per_call": faults_per_call(f, Q[:small])}
+        # the native kernels with fewer poses per call too (the XLA output buffer of 1e5 poses is fresh
+        small = min(SMALL, poses)  # memory every call: page faults; see the README)
+        for name in (NATIVE, NATIVE_LAST):
+            if name in vs and (only is None or name in only):
+                out[op][f"{name}, {small:,} poses/call"] = native_row(jax.jit(vs[name]), arg(name, small), small,
+                                                                      repeats)
         for name, f in vs.items():
             if only is not None and name not in only:
                 continue
             jf = jax.jit(f)
-            got = np.asarray(jf(Q[:100]))
+            got = pose_major(name, jf(arg(name, 100)))
             assert np.allclose(got, ref[op], atol=1e-8), f"{op} {name} disagrees with jaxcal"
-            first, runs = time_fn(jf, Q, repeats=repeats)
+            x = arg(name)
+            if name in (NATIVE, NATIVE_LAST):
+                out[op][name] = native_row(jf, x, poses, repeats)
+                continue
+            first, runs = time_fn(jf, x, repeats=repeats)
             med = statistics.median(runs)
-            hlo = jf.lower(Q).compile().as_text()
+            hlo = jf.lower(x).compile().as_text()
             n_fusions = sum(1 for line in hlo.splitlines() if " fusion(" in line and "kind=k" in line)
             out[op][name] = {"fusions": n_fusions, "median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": first - med,
                              "poses_per_s": poses / med,
-                             # XLA's cost analysis counts a loop body once (no figure for lax.map) and
-                             # cannot see into the native kernel
-                             "xla_flops_per_pose": None if "lax.map" in name or name == NATIVE
-                             else xla_flops(jf, Q) / poses}
-            if name == NATIVE:
-                out[op][name]["faults_per_call"] = faults_per_call(jf, Q)
+                             # XLA's cost analysis counts a loop body once (no figure for lax.map)
+                             "xla_flops_per_pose": None if "lax.map" in name else xla_flops(jf, x) / poses}
+    if sweep:
+        out["sweep"] = {}
+        for op, name in (("FK", NATIVE), ("FK", NATIVE_LAST), ("Jacobian", NATIVE)):
+            if only is not None and name not in only:
+                continue
+            f = jax.jit(vs_all[op][name])
+            for k in sweep:
+                Qk = np.random.default_rng(1).uniform(-np.pi, np.pi, (k, 6))
+                x = jnp.asarray(np.ascontiguousarray(Qk.T) if name in POSE_LAST else Qk)
+                out["sweep"][f"{op} | {name} | {k}"] = native_row(f, x, k, repeats)
     return out
+
+
+def print_sweep(sweep: dict, hand: dict, ref_peak: float, title: str):
+    print(f"\n{title} (each sample over ~2 ms of calls; % of the measured peak, median (at the fastest sample)):")
+    for key, r in sweep.items():
+        op, name, k = key.split(" | ")
+        gf = hand[op] * r["poses_per_s"]
+        r.update(gflops_hand=gf / 1e9, frac_dgemm=gf / ref_peak, frac_dgemm_best=hand[op] * int(k) / r["min_s"] / ref_peak)
+        print(f"  {op:9s} {name:38s} {int(k):>7,} poses/call: {r['median_s'] * 1e3:8.4f} ms (min "
+              f"{r['min_s'] * 1e3:.4f}, max {r['max_s'] * 1e3:.4f}) {r['poses_per_s'] / 1e6:7.1f} M poses/s "
+              f"{r['frac_dgemm']:6.1%} ({r['frac_dgemm_best']:.1%})  {r['faults_per_call']:,.0f} page faults/call")
 
 
 def main():
@@ -259,13 +307,23 @@ def main():
         "--xla_cpu_enable_fast_math=true", "--xla_cpu_use_thunk_runtime=false"],
         help='XLA_FLAGS settings, each timed with pure JAX in a fresh process; from the command line one per '
              'run, as --flags="--xla_..." (argparse takes a bare "--xla_..." for an option); --flags alone for none')
-    ap.add_argument("--envs", nargs="*", default=[], help="environment settings (e.g. " + HUGETLB + "), each "
-                    "timed with the native kernel in a fresh process")
+    ap.add_argument("--envs", nargs="*", default=[KEEP_HEAP, f"{KEEP_HEAP} {SYNC}"],
+                    help="runtime settings, each timed with the native kernels (their rows and --sweep) in a fresh "
+                         "process: environment variables (e.g. " + HUGETLB + ") and jax_* config updates, space "
+                         "separated; default: _util.KEEP_HEAP, glibc keeping freed memory, alone and with "
+                         "_util.SYNC; --envs alone for none")
+    ap.add_argument("--sweep", type=int, nargs="*", default=[1_000, 3_000, 10_000, 30_000, 100_000],
+                    help="poses per call at which the native kernels are also timed (--sweep alone for none)")
     ap.add_argument("--json")
     ap.add_argument("--_child", nargs="*", help=argparse.SUPPRESS)
+    ap.add_argument("--_jax", nargs="*", default=[], help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._child is not None:
-        print(json.dumps(measure(args.poses, args.repeats, only=set(args._child))))
+        import jax
+        for setting in args._jax:
+            name, value = setting.split("=", 1)
+            jax.config.update(name, {"True": True, "False": False}.get(value, value))
+        print(json.dumps(measure(args.poses, args.repeats, only=set(args._child), sweep=args.sweep)))
         return
 
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -280,7 +338,7 @@ def main():
     native = native_status()
     print(f"native kernel: in use {native['in_use']} ({native['reason']}); a fresh build (empty cache) took "
           f"{native['build_s']:.2f} s")
-    res = measure(args.poses, args.repeats)
+    res = measure(args.poses, args.repeats, sweep=args.sweep)
     ref_peak = max(peak["numpy_dgemm_flops"], peak["jax_dgemm_flops"])
     print(f"\n{args.poses} poses; fraction = hand FLOPs x poses/s / peak (measured dgemm | nominal)")
     bw = stream_bandwidth()
@@ -303,6 +361,7 @@ def main():
             print(f"    writing its {k:,}-pose output ({wb['bytes'] / 1e6:.1f} MB, {wb['threads']} threads): "
                   f"{wb['bytes_per_s'] / 1e9:.1f} GB/s median (best {wb['best_bytes_per_s'] / 1e9:.1f}) -> ceiling "
                   f"{wceil / 1e9:.1f} GFLOP/s = {wceil / ref_peak:.1%} of the measured peak (\"its roofline\" below)")
+    sweep = res.pop("sweep", {})
     sc, sp = res.pop("sincos_only"), res.pop("sincos_poly")
     print(f"sin + cos of all {args.poses} x 6 joint angles alone: XLA's median {sc['median_s'] * 1e3:.2f} ms "
           f"(min {sc['min_s'] * 1e3:.2f}, max {sc['max_s'] * 1e3:.2f}); jaxcal.trig.sincos in XLA "
@@ -334,14 +393,22 @@ def main():
                   f"compile {r['compile_s']:.2f} s  "
                   f"{r['fusions']} loop fusions"
                   + (f"  {r['faults_per_call']:,.0f} page faults/call" if "faults_per_call" in r else ""))
+    if sweep:
+        print_sweep(sweep, hand, ref_peak, "the native kernels vs poses per call")
     flag_rows = {}
     # each setting in a fresh process: XLA flags with the pure-JAX path, environment settings
     # (read by glibc at process start) with the native kernel
     settings = [(f"XLA_FLAGS={f!r}", {"XLA_FLAGS": f}, PURE) for f in args.flags]
-    settings += [(e, dict([e.split("=", 1)]), NATIVE) for e in args.envs]
-    for label, extra, name in settings:
-        p = subprocess.run([sys.executable, __file__, "--_child", name, "--poses", str(args.poses), "--repeats",
-                            str(args.repeats)], env=dict(os.environ, **extra), capture_output=True, text=True)
+    settings = [(label, env, [], names) for label, env, names in settings]
+    for e in args.envs:
+        tokens = e.split()
+        settings.append((e, dict(t.split("=", 1) for t in tokens if not t.startswith("jax_")),
+                         [t for t in tokens if t.startswith("jax_")], [NATIVE, NATIVE_LAST]))
+    for label, extra, jax_config, names in settings:
+        p = subprocess.run([sys.executable, __file__, "--_child", *([names] if isinstance(names, str) else names),
+                            "--poses", str(args.poses), "--repeats", str(args.repeats), "--sweep",
+                            *map(str, args.sweep if names != PURE else []), "--_jax", *jax_config],
+                           env=dict(os.environ, **extra), capture_output=True, text=True)
         if p.returncode != 0:
             msg = (p.stderr.strip().splitlines() or ["?"])[-1][:160]
             print(f"{label}: not accepted ({msg})")
@@ -349,8 +416,10 @@ def main():
             continue
         r = json.loads(p.stdout.strip().splitlines()[-1])
         flag_rows[label] = r
+        if r.get("sweep"):
+            print_sweep(r["sweep"], hand, ref_peak, f"{label}, fresh process: the native kernels vs poses per call")
         for op, vs in r.items():
-            if op.startswith("sincos"):
+            if op.startswith("sincos") or op == "sweep":
                 continue
             for name, x in vs.items():
                 ratio = res[op][name]["median_s"] / x["median_s"]
@@ -363,7 +432,7 @@ def main():
         with open(args.json, "w") as f:
             json.dump({"machine": machine(), "poses": args.poses, "peak": peak, "hand_flops_per_pose": hand,
                        "hand_note": HAND_NOTE, "variants": res, "sincos_only": sc, "bandwidth": bw,
-                       "roofline": roof, "settings": flag_rows, "native": native}, f, indent=1)
+                       "roofline": roof, "settings": flag_rows, "native": native, "sweep": sweep}, f, indent=1)
 
 
 if __name__ == "__main__":

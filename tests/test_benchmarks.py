@@ -50,3 +50,22 @@ def test_bench_kernel_ab_runs_and_names_bad_versions():
     bad = subprocess.run([sys.executable, str(AB), f"{src}@-fno-such-flag-xyz", "--rounds", "1", "--repeats", "1"],
                          capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert bad.returncode != 0 and "no-such-flag-xyz" in bad.stderr
+
+
+@pytest.mark.skipif(not _native.available(), reason="native kernel not in use")
+def test_bench_kernel_phases_runs():
+    """The harness builds against the kernel's source, checks that both FK layouts write the
+    same poses, and prints every phase and every whole-kernel row; the phases add up to the
+    whole block."""
+    p = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_kernel_phases.py"), "--poses", "640",
+                        "--repeats", "3", "--peak", "100"], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-2000:]
+    lines = p.stdout.splitlines()
+    phases = [line for line in lines if line.startswith("FK phases")]
+    assert len(phases) == 2 and all("sincos" in line and "chain" in line for line in phases)
+    for line in phases:
+        parts = [float(x.split(" | ")[0].split()[-1]) for x in line.split(": ", 1)[1].split("; ")[0].split(", ")]
+        whole = float(line.split("whole block ")[1].split(" | ")[0])
+        assert abs(sum(parts) - whole) < 0.02 + 1e-3 * whole
+    names = [line.split(" median")[0].strip() for line in lines if " ns/pose " in line]
+    assert {"FK pose-major, 1 thread(s)", "FK pose-last, 1 thread(s)", "Jacobian, 1 thread(s)"} <= set(names)

@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
 from conftest import random_dh, random_transform
-from jaxcal import Robot, fk, fk_frames, kinematics as K, presets, to_mdh, to_sdh
+from jaxcal import DataError, Robot, fk, fk_frames, kinematics as K, presets, to_mdh, to_sdh
 
 
 def _rot(axis, angle):
@@ -130,3 +130,38 @@ def test_ur5_home_pose():
     z = d1 - d5 = -5.491 (mm)."""
     T = np.asarray(fk(presets.ur5(), jnp.zeros(6)))
     assert_allclose(T[:3, 3], [-817.25, -191.45, 89.159 - 94.65], atol=1e-9)
+
+
+@pytest.mark.parametrize("conv", ["sdh", "mdh"])
+def test_fk_pose_last_matches_reference(conv, rng):
+    """fk_pose_last: joint axis first in, pose axis last out, against the independent reference;
+    the pure-JAX form (the fallback) too, and leading pose axes kept."""
+    dh = random_dh(rng, 7)
+    types = ("R", "P", "R", "R", "R", "P", "R")
+    base, tool = random_transform(rng), random_transform(rng)
+    robot = Robot(dh, convention=conv, joint_types=types, base=base, tool=tool)
+    Q = rng.uniform(-2, 2, (7, 3, 4)) * np.where(np.array(types) == "P", 100.0, 1.0)[:, None, None]
+    got = np.asarray(K.fk_pose_last(robot, Q))
+    assert got.shape == (4, 4, 3, 4)
+    xla = np.asarray(K._fk_pose_last_xla(robot, jnp.asarray(Q.reshape(7, -1)))).reshape(4, 4, 3, 4)
+    for idx in np.ndindex(3, 4):
+        want = ref_fk(conv, dh, types, base, tool, Q[(slice(None),) + idx])
+        assert_allclose(got[(...,) + idx], want, atol=1e-9)
+        assert_allclose(xla[(...,) + idx], want, atol=1e-9)
+
+
+def test_fk_pose_last_refuses_bad_input_by_position():
+    robot = presets.paper_6r()
+    with pytest.raises(DataError, match=r"shape \(6, \.\.\.\).*got \(10, 6\)"):
+        K.fk_pose_last(robot, np.zeros((10, 6)))
+    q = np.zeros((6, 10))
+    q[4, 7] = np.nan  # joint 5 of pose 7
+    with pytest.raises(DataError, match=r"q\[4, 7\] \(pose 7, joint 5\) is not finite"):
+        K.fk_pose_last(robot, q)
+    q[4, 7], q[1, 2] = 0.0, 3e5
+    with pytest.raises(DataError, match=r"q\[1, 2\] \(pose 2, joint 2\) = 300000 rad is beyond"):
+        K.fk_pose_last(robot, q)
+    q[1, 2] = 0.0
+    q_copy = q.copy()
+    K.fk_pose_last(robot, q)
+    assert np.array_equal(q, q_copy)  # the caller's array is not changed

@@ -12,13 +12,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from conftest import random_dh, random_transform
 from jaxcal import Robot, fk, presets
 from jaxcal import _native
 from jaxcal.error_model import _columns_xla, identification_jacobian, jacobian_and_fk, n_params, perturb
-from jaxcal.kinematics import _fk_xla
+from jaxcal.kinematics import _fk_pose_last_xla, _fk_xla, fk_pose_last
 
 pytestmark = pytest.mark.skipif(not _native.available(), reason=f"native kernel not in use: {_native.status()[1]}")
 
@@ -44,6 +44,10 @@ def test_fk_matches_pure_jax(conv, types, seed, shape):
     got = np.asarray(fk(robot, q))
     assert got.shape == shape + (4, 4)
     assert_allclose(got, np.asarray(jax.jit(_fk_xla)(robot, jnp.asarray(q))), rtol=0, atol=ATOL)
+    # the pose-last kernel: the same arithmetic per lane, so the same bits
+    last = np.asarray(fk_pose_last(robot, np.moveaxis(q, -1, 0)))
+    assert last.shape == (4, 4) + shape
+    assert_array_equal(np.moveaxis(last, (0, 1), (-2, -1)), got)
 
 
 @pytest.mark.parametrize("conv,types,seed", ROBOTS)
@@ -101,6 +105,12 @@ def test_vmap_over_robots_and_pose_sets():
     assert "jaxcal_fk" in jax.jit(jax.vmap(fk, in_axes=in_axes)).lower(robots, q).as_text()
     assert "jaxcal_jac" in jax.jit(jax.vmap(lambda r, q: jacobian_and_fk(r, q)[0], in_axes=in_axes)).lower(
         robots, q).as_text()
+    qT = jnp.moveaxis(q, -1, 1)  # (5 sets, 7 joints, 40 poses)
+    got = jax.vmap(fk_pose_last, in_axes=in_axes)(robots, qT)
+    assert got.shape == (5, 4, 4, 40)
+    assert_allclose(got, jax.vmap(lambda r, x: _fk_pose_last_xla(r, x), in_axes=in_axes)(robots, qT), rtol=0, atol=ATOL)
+    assert_allclose(jnp.moveaxis(got, -1, 1), jax.vmap(fk, in_axes=in_axes)(robots, q), rtol=0, atol=ATOL)
+    assert "jaxcal_fk_pose_last" in jax.jit(jax.vmap(fk_pose_last, in_axes=in_axes)).lower(robots, qT).as_text()
     nested = jax.vmap(jax.vmap(fk, in_axes=(None, 0)), in_axes=(in_axes[0], None))(robots, q)  # (5 robots, 5 sets)
     assert nested.shape == (5, 5, 40, 4, 4)
     assert_allclose(nested[3, 2], _fk_xla(jax.tree.map(lambda x: x[3], robots), q[2]), rtol=0, atol=ATOL)
@@ -119,10 +129,14 @@ def test_derivatives_go_through_the_reference():
     def pos(x, q, f):
         return f(perturb(robot, x, tool=True), q)[..., :3, 3]
 
+    def pos_last(x, q):
+        return jnp.moveaxis(fk_pose_last(perturb(robot, x, tool=True), q.T)[:3, 3], 0, -1)
+
     for argnum in (0, 1):
         got = jax.jacfwd(pos, argnums=argnum)(x0, q, fk)
         want = jax.jacfwd(pos, argnums=argnum)(x0, q, _fk_xla)
         assert_allclose(got, want, rtol=0, atol=1e-9)
+        assert_allclose(jax.jacfwd(pos_last, argnums=argnum)(x0, q), want, rtol=0, atol=1e-9)
     g = jax.grad(lambda x: jnp.sum(jacobian_and_fk(perturb(robot, x), q)[0] ** 2))(x0[:24])
     g_ref = jax.grad(lambda x: jnp.sum(_columns_xla(perturb(robot, x), q, base=False, tool=False,
                                                     pose_rows=True) ** 2))(x0[:24])
@@ -142,6 +156,8 @@ def _run(env_extra, tmp_path):
         import numpy as np, jaxcal
         ok, why = jaxcal.native_status()
         T = jaxcal.fk(jaxcal.preset("paper-6r"), np.full((2, 6), 0.3))
+        TL = jaxcal.fk_pose_last(jaxcal.preset("paper-6r"), np.full((6, 2), 0.3))
+        assert abs(float(TL[0, 3, 1]) - float(T[1, 0, 3])) < 1e-9
         print(ok, "|", why, "|", repr(float(T[0, 0, 3])))
     """)
     env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path), **env_extra)
@@ -195,3 +211,58 @@ def test_fk_all_quadrants_over_the_domain():
     robot = Robot(robot.dh.at[:, 0].set(0.0), convention="sdh", joint_types=robot.joint_types,
                   base=robot.base, tool=robot.tool)  # theta = q exactly (no offset added)
     assert_allclose(np.asarray(fk(robot, q)), _np_sdh_fk(robot, q), rtol=0, atol=ATOL)
+
+
+def test_kernel_sincos_matches_numpy():
+    """The kernel's own sin/cos (a table of the multiples of pi/8 with AVX-512, jaxcal.trig's
+    polynomials otherwise) to jaxcal.trig's bound, 2.3e-16: with one joint, a = 1 and no base or
+    tool, the end pose's first column is exactly (cos q, sin q, 0). Every pi/16 boundary, both
+    signs, the whole accepted range, and values small enough that sin q = q."""
+    from jaxcal.trig import DOMAIN
+    robot = Robot(np.array([[0.0, 0.0, 1.0, 0.0]]), convention="sdh", joint_types=("R",))
+    k = np.arange(-3000, 3001)
+    eps = np.array([-1e-9, -2.2e-16, 0.0, 2.2e-16, 1e-9])
+    x = np.concatenate([(k[:, None] * np.pi / 16 + eps).ravel(), np.random.default_rng(3).uniform(-1, 1, 20_000),
+                        np.random.default_rng(4).uniform(-DOMAIN, DOMAIN, 50_000), [DOMAIN, -DOMAIN],
+                        [0.0, 1e-300, -1e-300]])
+    for T in (np.asarray(fk(robot, x[:, None])), np.moveaxis(np.asarray(fk_pose_last(robot, x[None])), -1, 0)):
+        assert np.abs(T[:, 0, 0] - np.cos(x)).max() <= 2.3e-16
+        assert np.abs(T[:, 1, 0] - np.sin(x)).max() <= 2.3e-16
+        assert np.array_equal(T[-2:, 1, 0], x[-2:]) and np.all(T[-3:, 0, 0] == 1.0)
+
+
+@pytest.mark.skipif("avx512f" not in open("/proc/cpuinfo").read() if os.path.exists("/proc/cpuinfo") else True,
+                    reason="the default build already is the path without AVX-512")
+def test_build_without_avx512_matches(tmp_path):
+    """The kernel's paths for CPUs without AVX-512 (4 lanes, jaxcal.trig's sincos, 4 x 4 stores),
+    built here with JAXCAL_NATIVE_FLAGS=-mno-avx512f into an empty cache: FK both layouts and the
+    Jacobian against the pure-JAX reference, and its sincos to 2.3e-16."""
+    code = textwrap.dedent("""
+        import sys, numpy as np, jaxcal
+        from jaxcal.error_model import jacobian_and_fk
+        ok, why = jaxcal.native_status()
+        assert ok, why
+        d = np.load(sys.argv[1])
+        robot = jaxcal.Robot(d["dh"], convention="mdh", joint_types=tuple(d["types"]), base=d["base"], tool=d["tool"])
+        J, T = jacobian_and_fk(robot, d["q"], tool=True)
+        one = jaxcal.Robot(np.array([[0.0, 0.0, 1.0, 0.0]]), convention="sdh", joint_types=("R",))
+        np.savez(sys.argv[2], J=J, T=T, TL=jaxcal.fk_pose_last(robot, d["q"].T), S=jaxcal.fk(one, d["x"][:, None]))
+    """)
+    rng = np.random.default_rng(31)
+    types = ("R", "P", "R", "R", "R", "P", "R")
+    robot = Robot(random_dh(rng, 7), convention="mdh", joint_types=types, base=random_transform(rng),
+                  tool=random_transform(rng))
+    q, x = rng.uniform(-3, 3, (203, 7)), rng.uniform(-1e4, 1e4, 20_000)
+    np.savez(tmp_path / "in.npz", dh=robot.dh, types=np.array(types), base=robot.base, tool=robot.tool, q=q, x=x)
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "cache"), JAXCAL_NATIVE_FLAGS="-mno-avx512f")
+    p = subprocess.run([sys.executable, "-c", code, str(tmp_path / "in.npz"), str(tmp_path / "out.npz")], env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    out = np.load(tmp_path / "out.npz")
+    J_ref, T_ref = jax.jit(_columns_xla, static_argnames=("base", "tool", "pose_rows", "rows", "with_pose"))(
+        robot, jnp.asarray(q), base=False, tool=True, pose_rows=True, rows=6, with_pose=True)
+    assert_allclose(out["J"], J_ref, rtol=0, atol=ATOL)
+    assert_allclose(out["T"], T_ref, rtol=0, atol=ATOL)
+    assert_allclose(np.moveaxis(out["TL"], -1, 0), T_ref, rtol=0, atol=ATOL)
+    assert np.abs(out["S"][:, 0, 0] - np.cos(x)).max() <= 2.3e-16
+    assert np.abs(out["S"][:, 1, 0] - np.sin(x)).max() <= 2.3e-16

@@ -4,7 +4,9 @@ called from JAX through the XLA FFI (``jax.ffi.ffi_call``).
 On first use the kernel is compiled with the system C++ compiler (``$CXX`` or ``c++``,
 ``-O3 -march=native``, 512-bit vectors where the CPU has them, OpenMP when available) against
 the FFI headers shipped in jaxlib, and cached in ``$XDG_CACHE_HOME/jaxcal`` (default
-``~/.cache/jaxcal``), keyed by the source, the flags, the jax version and the CPU. That takes 3–4 s once per machine. When it cannot be
+``~/.cache/jaxcal``), keyed by the source, the flags, the jax version and the CPU. That takes 3–4 s once per machine.
+``JAXCAL_NATIVE_FLAGS`` in the environment appends compiler flags (e.g. ``-mno-avx512f``, which the
+tests use to check the kernel's paths for CPUs without AVX-512). When it cannot be
 built (no compiler, no headers), when the default JAX backend is not the CPU, or with
 ``JAXCAL_NATIVE=0`` in the environment, jaxcal uses its pure-JAX implementation
 (:func:`jaxcal.kinematics._fk_xla`, :func:`jaxcal.error_model._columns_xla`), which is also
@@ -30,7 +32,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-SOURCE = Path(__file__).with_name("chain.cc")
+SOURCE = _SHIPPED = Path(__file__).with_name("chain.cc")
 MAX_JOINTS = 16
 """Longest chain the kernel takes (``MAXN`` in ``chain.cc``); longer ones use pure JAX."""
 _FLAGS = ["-O3", "-march=native", "-std=c++17", "-shared", "-fPIC", "-fno-math-errno", "-w"]
@@ -64,14 +66,15 @@ def _build() -> Path:
     if not cxx:
         raise RuntimeError("no C++ compiler found (set CXX)")
     include = jax.ffi.include_dir()
-    key = hashlib.sha256(SOURCE.read_bytes() + repr((_FLAGS, cxx, jax.__version__, _cpu_id())).encode()).hexdigest()
+    flags = _FLAGS + os.environ.get("JAXCAL_NATIVE_FLAGS", "").split()
+    key = hashlib.sha256(SOURCE.read_bytes() + repr((flags, cxx, jax.__version__, _cpu_id())).encode()).hexdigest()
     lib = _cache_dir() / f"jaxcal-chain-{key[:20]}.so"
     if lib.exists():
         return lib
     errors = []
     for extra in (["-fopenmp"], []):  # OpenMP when the compiler has it (macOS clang does not)
         tmp = lib.with_suffix(f".{os.getpid()}.tmp")
-        cmd = [cxx, *_FLAGS, *extra, f"-I{include}", str(SOURCE), "-o", str(tmp)]
+        cmd = [cxx, *flags, *extra, f"-I{include}", str(SOURCE), "-o", str(tmp)]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode == 0:
             os.replace(tmp, lib)  # atomic: concurrent builds (pytest -n) do not see half a file
@@ -91,6 +94,8 @@ def _load() -> None:
         lib = ctypes.cdll.LoadLibrary(str(path))
         jax.ffi.register_ffi_target("jaxcal_fk", jax.ffi.pycapsule(lib.JaxcalFk), platform="cpu")
         jax.ffi.register_ffi_target("jaxcal_jac", jax.ffi.pycapsule(lib.JaxcalJac), platform="cpu")
+        if SOURCE == _SHIPPED or hasattr(lib, "JaxcalFkPoseLast"):  # older sources (bench_kernel_ab.py) lack it
+            jax.ffi.register_ffi_target("jaxcal_fk_pose_last", jax.ffi.pycapsule(lib.JaxcalFkPoseLast), platform="cpu")
         _state.update(ok=True, reason=f"compiled kernel {path}")
     except Exception as e:  # any failure: fall back to pure JAX, say why in status()
         _state.update(ok=False, reason=f"native kernel unavailable: {e}")
@@ -126,6 +131,14 @@ def fk_call(robot, q2):
     call = jax.ffi.ffi_call("jaxcal_fk", jax.ShapeDtypeStruct((q2.shape[0], 4, 4), jnp.float64),
                             vmap_method="broadcast_all")
     return call(q2, *_robot_buffers(robot), mdh=int(robot.convention == "mdh"))
+
+
+def fk_pose_last_call(robot, qT2):
+    """End poses ``(4, 4, K)`` for ``qT2 (n, K)``, the pose axis last (no JVP rule; see
+    :func:`jaxcal.kinematics.fk_pose_last`)."""
+    call = jax.ffi.ffi_call("jaxcal_fk_pose_last", jax.ShapeDtypeStruct((4, 4, qT2.shape[1]), jnp.float64),
+                            vmap_method="broadcast_all")
+    return call(qT2, *_robot_buffers(robot), mdh=int(robot.convention == "mdh"))
 
 
 def jac_call(robot, q2, rows: int):

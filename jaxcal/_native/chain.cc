@@ -6,17 +6,19 @@
 // Why: XLA CPU materialises every link's 12 entries for all poses between links and computed
 // float64 sin/cos one value at a time; here a block of BLK poses gets all its sincos first, then
 // runs through all links 8 poses at a time with the running transform in registers
-// (benchmarks/bench_roofline.py measures both).
+// (benchmarks/bench_roofline.py measures both, benchmarks/bench_kernel_phases.py each phase).
 //
-// Layout: q (B, K, n) joint values, B robots (leading batch axes flattened) of K poses each;
-// dh (B, n, 4) rows (theta, d, a, alpha); rev (n) 1.0 revolute / 0.0 prismatic (or (B, n));
-// base, tool (B, 4, 4). A robot-side buffer with a single robot's worth of entries is shared by
-// all B. Outputs: T (B, K, 4, 4); J (B, K, rows, 4n), columns link-major (theta, d, a, alpha),
-// rows dp (3) then dphi (3) as in error_model._columns (pose rows).
+// Layout: q (B, K, n) joint values, B robots (leading batch axes flattened) of K poses each, or
+// pose axis last, q (B, n, K) (JaxcalFkPoseLast); dh (B, n, 4) rows (theta, d, a, alpha); rev
+// (n) 1.0 revolute / 0.0 prismatic (or (B, n)); base, tool (B, 4, 4). A robot-side buffer with a
+// single robot's worth of entries is shared by all B. Outputs: T (B, K, 4, 4), or (B, 4, 4, K)
+// pose axis last; J (B, K, rows, 4n), columns link-major (theta, d, a, alpha), rows dp (3) then
+// dphi (3) as in error_model._columns (pose rows).
 // Standard DH link (paper eq. 1): R = [[c, -s ca, s sa], [s, c ca, -c sa], [0, sa, ca]],
 //   t = (a c, a s, d). Modified DH: R = [[c, -s, 0], [s ca, c ca, -sa], [s sa, c sa, ca]],
 //   t = (a, -sa d, ca d).
-// sin/cos of theta: the polynomial of jaxcal/trig.py (Cody-Waite by pi/2, Taylor to r^17/r^18).
+// sin/cos of theta: sincos_lanes below (with AVX-512 a table of the multiples of pi/8, otherwise the
+//   polynomials of jaxcal/trig.py).
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -38,60 +40,179 @@ namespace {
 constexpr int BLK = 64;
 constexpr int MAXN = 16;  // joints; longer chains use the pure-JAX path
 
-inline void sincos_poly(double x, double *s_out, double *c_out) {
-  const double p1 = 1.5707963267341256, p2 = 6.077100506303966e-11, p3 = 2.0222662487959506e-21;
-  double n = std::nearbyint(x * 0.6366197723675814);
-  double r = ((x - n * p1) - n * p2) - n * p3;
-  double r2 = r * r;
-  double s = r * (1.0 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880
-             + r2 * (-1.0 / 39916800 + r2 * (1.0 / 6227020800.0 + r2 * (-1.0 / 1307674368000.0
-             + r2 * (1.0 / 355687428096000.0)))))))));
-  double c = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320
-             + r2 * (-1.0 / 3628800 + r2 * (1.0 / 479001600.0 + r2 * (-1.0 / 87178291200.0
-             + r2 * (1.0 / 20922789888000.0 + r2 * (-1.0 / 6402373705728000.0)))))))));
-  // The quadrant n mod 4 as k = n - 4 round(n/4) in {-2, ..., 2}, in floating point (exact for
-  // |n| < 2^53). Without AVX-512 there is no vector conversion of doubles to 64-bit integers,
-  // and GCC 12 does not vectorise std::floor in an omp simd loop: either kept it from
-  // vectorising the whole loop over poses on AVX2 (with the 4 x 4 stores below, FK was 3.1x
-  // and the Jacobian 2.4x slower than now on a Zen 3 host: benchmarks/bench_kernel_ab.py).
-  const double k = n - 4.0 * std::nearbyint(n * 0.25), ak = std::fabs(k);
-  const bool odd = ak == 1.0;
-  const double ss = odd ? c : s, cc = odd ? s : c;
-  *s_out = (k == -1.0 || ak == 2.0) ? -ss : ss;  // quadrants 2, 3
-  *c_out = (k == 1.0 || ak == 2.0) ? -cc : cc;   // quadrants 1, 2
+// W lanes (poses) as one value (GCC/Clang vector extensions): one AVX-512 register of 8, else 4
+// (one AVX register, two NEON ones). With 8 lanes on AVX2 the 12 entries of a running frame took
+// 24 of its 16 registers, and the chain spilled: FK ran 1.5x slower than with 4 (an AVX2 build
+// on an AVX-512 host, benchmarks/bench_kernel_phases.py).
+#if defined(__AVX512F__)
+constexpr int W = 8;
+#else
+constexpr int W = 4;
+#endif
+typedef double vec __attribute__((vector_size(8 * W)));
+typedef uint64_t uvec __attribute__((vector_size(8 * W)));
+inline vec loadv(const double *p) { vec v; __builtin_memcpy(&v, p, sizeof v); return v; }
+inline void storev(double *p, vec v) { __builtin_memcpy(p, &v, sizeof v); }
+
+// sin and cos of 8 angles, |x| <= jaxcal.trig.DOMAIN. Both forms take n = round(x k/pi) by the
+// shifter 1.5 * 2^52 (after the addition the integer n sits in the low bits of t's mantissa, two's
+// complement mod 2^51, so n mod 16 is read off the bits) and r = x - n pi/k in three parts
+// (Cody-Waite with jaxcal/trig.py's split of pi/2, scaled: n P1 and n P2 exact for |n| < 2^20).
+#if defined(__AVX512F__)
+// With AVX-512, k = 8 and a table of the 16 multiples of pi/8: |r| <= pi/16, sin r and cos r by
+// Taylor series to r^11 and r^10 (the first omitted terms, r^13/13! and r^12/12!, at most 1.0e-19
+// and 6.7e-18), then sin x = sin(n pi/8) cos r + cos(n pi/8) sin r and cos x = cos(n pi/8) cos r -
+// sin(n pi/8) sin r, sin(n pi/8) and cos(n pi/8) looked up by n mod 16 with one two-register
+// permute each. About 23 vector operations for 8 sincos, against ~30 for the quadrant form below
+// and ~58 for the Taylor form on |r| <= pi/4 with a floating-point quadrant that both replaced
+// (benchmarks/bench_kernel_phases.py).
+constexpr double SIN16[16] = {0.0, 0.3826834323650898, 0.7071067811865476, 0.9238795325112867, 1.0,
+                              0.9238795325112867, 0.7071067811865476, 0.3826834323650898, 0.0,
+                              -0.3826834323650898, -0.7071067811865476, -0.9238795325112867, -1.0,
+                              -0.9238795325112867, -0.7071067811865476, -0.3826834323650898};
+constexpr double COS16[16] = {1.0, 0.9238795325112867, 0.7071067811865476, 0.3826834323650898, 0.0,
+                              -0.3826834323650898, -0.7071067811865476, -0.9238795325112867, -1.0,
+                              -0.9238795325112867, -0.7071067811865476, -0.3826834323650898, 0.0,
+                              0.3826834323650898, 0.7071067811865476, 0.9238795325112867};
+
+inline vec lookup16(const double *table, uvec k) {  // table[k mod 16] per lane
+  return (vec)_mm512_permutex2var_pd(_mm512_loadu_pd(table), (__m512i)k, _mm512_loadu_pd(table + 8));
 }
+
+inline void sincos_lanes(vec x, vec &s_out, vec &c_out) {
+  const double shifter = 6755399441055744.0;  // 1.5 * 2^52
+  const double p1 = 1.5707963267341256 / 4, p2 = 6.077100506303966e-11 / 4, p3 = 2.0222662487959506e-21 / 4;
+  const vec t = x * 2.5464790894703255 + shifter;  // 8/pi
+  const vec n = t - shifter;
+  const vec r = ((x - n * p1) - n * p2) - n * p3;
+  const vec z = r * r;
+  const vec s = r + (r * z) * (-1.0 / 6 + z * (1.0 / 120 + z * (-1.0 / 5040 + z * (1.0 / 362880
+                + z * (-1.0 / 39916800)))));
+  const vec c = (1.0 - 0.5 * z) + (z * z) * (1.0 / 24 + z * (-1.0 / 720 + z * (1.0 / 40320 + z * (-1.0 / 3628800))));
+  const uvec k = (uvec)t;
+  const vec sn = lookup16(SIN16, k), cn = lookup16(COS16, k);
+  s_out = sn * c + cn * s;
+  c_out = cn * c - sn * s;
+}
+#else
+// Without AVX-512 (no two-register permute; a gather or per-lane loads cost more than they save),
+// k = 2 and jaxcal/trig.py's polynomials on |r| <= pi/4 (fdlibm's minimax, to r^13 and r^14); odd
+// n swaps sin and cos, and the signs are bit 1 of n (sin) and of n + 1 (cos), xor-ed into the sign
+// bit, all as bit operations on the lanes (no vector conditionals, which not every compiler has).
+inline void sincos_lanes(vec x, vec &s_out, vec &c_out) {
+  const double shifter = 6755399441055744.0;  // 1.5 * 2^52
+  const double p1 = 1.5707963267341256, p2 = 6.077100506303966e-11, p3 = 2.0222662487959506e-21;
+  const double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03, S3 = -1.98412698298579493134e-04,
+               S4 = 2.75573137070700676789e-06, S5 = -2.50507602534068634195e-08, S6 = 1.58969099521155010221e-10;
+  const double C1 = 4.16666666666666019037e-02, C2 = -1.38888888888741095749e-03, C3 = 2.48015872894767294178e-05,
+               C4 = -2.75573143513906633035e-07, C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
+  const vec t = x * 0.6366197723675814 + shifter;  // 2/pi
+  const vec n = t - shifter;
+  const vec r = ((x - n * p1) - n * p2) - n * p3;
+  const vec z = r * r;
+  const uvec s = (uvec)(r + (r * z) * (S1 + z * (S2 + z * (S3 + z * (S4 + z * (S5 + z * S6))))));
+  const uvec c = (uvec)((1.0 - 0.5 * z) + (z * z) * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6))))));
+  const uvec k = (uvec)t, odd = -(k & 1), sign = uvec{} + (uint64_t(1) << 63);
+  s_out = (vec)(((s & ~odd) | (c & odd)) ^ ((k << 62) & sign));
+  c_out = (vec)(((c & ~odd) | (s & odd)) ^ (((k + 1) << 62) & sign));
+}
+#endif
+
+inline void sincos1(double x, double *s, double *c) {
+  vec sv, cv;
+  sincos_lanes(vec{} + x, sv, cv);
+  *s = sv[0];
+  *c = cv[0];
+}
+
+#if defined(__AVX512F__)
+// r[i][l] <- r[l][i]: an 8 x 8 transpose in registers (24 shuffles).
+inline void transpose8(__m512d r[8]) {
+  const __m512i i1 = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13), i2 = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
+  const __m512i i3 = _mm512_setr_epi64(0, 1, 2, 3, 8, 9, 10, 11), i4 = _mm512_setr_epi64(4, 5, 6, 7, 12, 13, 14, 15);
+  __m512d t[8], u[8];
+  for (int i = 0; i < 8; i += 2) {
+    t[i] = _mm512_unpacklo_pd(r[i], r[i + 1]);
+    t[i + 1] = _mm512_unpackhi_pd(r[i], r[i + 1]);
+  }
+  for (int h = 0; h < 8; h += 4) {
+    u[h] = _mm512_permutex2var_pd(t[h], i1, t[h + 2]);
+    u[h + 1] = _mm512_permutex2var_pd(t[h + 1], i1, t[h + 3]);
+    u[h + 2] = _mm512_permutex2var_pd(t[h], i2, t[h + 2]);
+    u[h + 3] = _mm512_permutex2var_pd(t[h + 1], i2, t[h + 3]);
+  }
+  for (int j = 0; j < 4; ++j) {
+    r[j] = _mm512_permutex2var_pd(u[j], i3, u[j + 4]);
+    r[j + 4] = _mm512_permutex2var_pd(u[j], i4, u[j + 4]);
+  }
+}
+#endif
 
 struct Problem {
   int64_t B, K, n;
   const double *q, *dh, *rev, *base, *tool;
   int64_t dh_stride, rev_stride, base_stride, tool_stride;  // 0 when shared by all robots
-  bool mdh;
+  bool mdh, pose_last;
 };
 
 // A block: m <= BLK consecutive poses k0 .. k0+m-1 of one robot r (blocks never straddle
-// robots, so every link constant is a scalar per block). Lanes m.. repeat pose k0 (written
-// nowhere).
+// robots, so every link constant is a scalar per block). Joint j's values for the block's lanes
+// are at qj[j * qstride + b]: straight from q when the pose axis is last and the block is
+// full, else from qT, joint-major, where lanes m.. repeat pose k0 (written nowhere).
 struct Block {
   int64_t r, k0;
   int m;
+  const double *qj;
+  int64_t qstride;
   double qT[MAXN][BLK];
 };
 
 // A frame per lane, F[e][b]: rotation entries e = 0..8 row-major, translation e = 9..11.
 using Frame = double[12][BLK];
 
-// The joint values of a block, joint-major. A full block is read with one strided (gather)
-// loop per joint; the scalar loop this replaced took ~9 of the ~48 cycles per pose of FK.
+// The joint values of a full block of pose-major q, joint-major: with AVX-512 each 8 poses' rows
+// (masked loads, 8 joints at a time) are transposed in registers; otherwise one strided loop per
+// joint (gathers: about 5 of the ~45 cycles per pose of FK on an AVX-512 host).
+inline void gather_full(const double *q, int64_t n, double qT[MAXN][BLK]) {
+#if defined(__AVX512F__)
+  for (int g = 0; g < BLK; g += 8) {
+    for (int64_t j0 = 0; j0 < n; j0 += 8) {
+      const int w = static_cast<int>(n - j0 < 8 ? n - j0 : 8);
+      const __mmask8 mask = static_cast<__mmask8>((1u << w) - 1);
+      __m512d r[8];
+      for (int b = 0; b < 8; ++b) r[b] = _mm512_maskz_loadu_pd(mask, q + (g + b) * n + j0);
+      transpose8(r);
+      for (int j = 0; j < w; ++j) _mm512_storeu_pd(&qT[j0 + j][g], r[j]);
+    }
+  }
+#else
+  for (int64_t j = 0; j < n; ++j)
+#pragma omp simd
+    for (int b = 0; b < BLK; ++b) qT[j][b] = q[b * n + j];
+#endif
+}
+
 inline void block_init(const Problem &P, int64_t ib, Block &blk) {
   const int64_t per = (P.K + BLK - 1) / BLK, n = P.n;
   blk.r = ib / per;
   blk.k0 = (ib % per) * BLK;
   blk.m = static_cast<int>(P.K - blk.k0 < BLK ? P.K - blk.k0 : BLK);
+  blk.qj = &blk.qT[0][0];
+  blk.qstride = BLK;
+  if (P.pose_last) {
+    const double *q = P.q + blk.r * n * P.K + blk.k0;  // joint j at q[j * K + b]
+    if (blk.m == BLK) {
+      blk.qj = q;
+      blk.qstride = P.K;
+    } else {
+      for (int64_t j = 0; j < n; ++j)
+        for (int b = 0; b < BLK; ++b) blk.qT[j][b] = q[j * P.K + (b < blk.m ? b : 0)];
+    }
+    return;
+  }
   const double *q = P.q + (blk.r * P.K + blk.k0) * n;
   if (blk.m == BLK) {
-    for (int64_t j = 0; j < n; ++j)
-#pragma omp simd
-      for (int b = 0; b < BLK; ++b) blk.qT[j][b] = q[b * n + j];
+    gather_full(q, n, blk.qT);
   } else {
     for (int b = 0; b < BLK; ++b) {
       const double *qb = q + (b < blk.m ? b : 0) * n;
@@ -108,72 +229,67 @@ struct Links {
 
 inline void link_values(const Problem &P, const Block &blk, Links &L) {
   const double *dh = P.dh + blk.r * P.dh_stride, *rev = P.rev + blk.r * P.rev_stride;
-#pragma omp simd
   for (int64_t j = 0; j < P.n; ++j) {
     L.a[j] = dh[4 * j + 2];
-    sincos_poly(dh[4 * j + 3], &L.sa[j], &L.ca[j]);
+    sincos1(dh[4 * j + 3], &L.sa[j], &L.ca[j]);
   }
   for (int64_t j = 0; j < P.n; ++j) {
     const double rv = rev[j], th0 = dh[4 * j], d0 = dh[4 * j + 1];
-#pragma omp simd
-    for (int b = 0; b < BLK; ++b) {
-      sincos_poly(th0 + blk.qT[j][b] * rv, &L.s[j][b], &L.c[j][b]);
-      L.d[j][b] = d0 + blk.qT[j][b] * (1.0 - rv);
+    const double *qj = blk.qj + j * blk.qstride;
+    for (int g = 0; g < BLK; g += W) {
+      const vec q = loadv(qj + g);
+      vec s, c;
+      sincos_lanes(th0 + q * rv, s, c);
+      storev(&L.s[j][g], s);
+      storev(&L.c[j][g], c);
+      storev(&L.d[j][g], d0 + q * (1.0 - rv));
     }
   }
 }
 
-// Eight lanes as one value; GCC and Clang lower it to the target's widest vectors (one AVX-512
-// register, two AVX ones, four NEON ones).
-typedef double v8d __attribute__((vector_size(64)));
-inline v8d load8(const double *p) { v8d v; __builtin_memcpy(&v, p, sizeof v); return v; }
-inline void store8(double *p, v8d v) { __builtin_memcpy(p, &v, sizeof v); }
-
-// The lanes g .. g+7 of a block through every link, the running frame R (12 entries) in
-// registers; each frame after a link is also stored into Fs[j + 1] when Fs is given (the
-// Jacobian), and the last one into Fend. Fo = Fi * A_j row by row, as two plane rotations
-// (paper eq. 1: SDH A = Rz(theta) Tz(d) Tx(a) Rx(alpha); MDH A = Rx(alpha) Tx(a) Rz(theta)
-// Tz(d)), 16 FLOP per row:
+// The lanes g .. g+W-1 of a block through every link, the running frame R (12 entries) in
+// registers; each frame before a link is also stored into Fs[j] when Fs is given (the
+// Jacobian). Fo = Fi * A_j row by row, as two plane rotations (paper eq. 1: SDH A = Rz(theta)
+// Tz(d) Tx(a) Rx(alpha); MDH A = Rx(alpha) Tx(a) Rz(theta) Tz(d)), 16 FLOP per row:
 //   SDH: u = x c + y s, v = y c - x s; row (u, v ca + z sa, z ca - v sa); t += a u + d z.
 //   MDH: y' = y ca + z sa, z' = z ca - y sa; row (x c + y' s, y' c - x s, z'); t += a x + d z'.
 // Loading and storing a frame of 12 x 64 lanes per link instead cost FK ~5 % more.
 template <bool MDH>
-inline void chain8(const Problem &P, const Block &blk, const Links &L, int g, Frame *Fs, Frame &Fend) {
+inline void chain_lanes(const Problem &P, const Block &blk, const Links &L, int g, Frame *Fs, vec R[12]) {
   const double *T = P.base + blk.r * P.base_stride;
-  v8d R[12];
-  for (int e = 0; e < 12; ++e) R[e] = v8d{} + (e < 9 ? T[4 * (e / 3) + e % 3] : T[4 * (e - 9) + 3]);
-  if (Fs != nullptr)
-    for (int e = 0; e < 12; ++e) store8(&Fs[0][e][g], R[e]);
+  for (int e = 0; e < 12; ++e) R[e] = vec{} + (e < 9 ? T[4 * (e / 3) + e % 3] : T[4 * (e - 9) + 3]);
   for (int64_t j = 0; j < P.n; ++j) {
-    const v8d c = load8(&L.c[j][g]), s = load8(&L.s[j][g]), d = load8(&L.d[j][g]);
+    if (Fs != nullptr)
+      for (int e = 0; e < 12; ++e) storev(&Fs[j][e][g], R[e]);
+    const vec c = loadv(&L.c[j][g]), s = loadv(&L.s[j][g]), d = loadv(&L.d[j][g]);
     const double ca = L.ca[j], sa = L.sa[j], a = L.a[j];
     for (int r = 0; r < 3; ++r) {
-      const v8d x = R[3 * r], y = R[3 * r + 1], z = R[3 * r + 2];
+      const vec x = R[3 * r], y = R[3 * r + 1], z = R[3 * r + 2];
       if (!MDH) {
-        const v8d u = x * c + y * s, v = y * c - x * s;
+        const vec u = x * c + y * s, v = y * c - x * s;
         R[3 * r] = u;
         R[3 * r + 1] = v * ca + z * sa;
         R[3 * r + 2] = z * ca - v * sa;
         R[9 + r] = R[9 + r] + u * a + z * d;
       } else {
-        const v8d y1 = y * ca + z * sa, z1 = z * ca - y * sa;
+        const vec y1 = y * ca + z * sa, z1 = z * ca - y * sa;
         R[3 * r] = x * c + y1 * s;
         R[3 * r + 1] = y1 * c - x * s;
         R[3 * r + 2] = z1;
         R[9 + r] = R[9 + r] + x * a + z1 * d;
       }
     }
-    if (Fs != nullptr)
-      for (int e = 0; e < 12; ++e) store8(&Fs[j + 1][e][g], R[e]);
   }
-  if (Fs == nullptr)
-    for (int e = 0; e < 12; ++e) store8(&Fend[e][g], R[e]);
+  if (Fs != nullptr)
+    for (int e = 0; e < 12; ++e) storev(&Fs[P.n][e][g], R[e]);
 }
 
-// The frames of a whole block: the end frame into Fend, and every frame into Fs when given.
-inline void chain(const Problem &P, const Block &blk, const Links &L, Frame *Fs, Frame &Fend) {
-  for (int g = 0; g < BLK; g += 8) {
-    if (P.mdh) chain8<true>(P, blk, L, g, Fs, Fend); else chain8<false>(P, blk, L, g, Fs, Fend);
+// The end pose's top three rows E[4 r + col] = (R * tool)[r][col], W lanes.
+inline void end_lanes(const double *tool, const vec R[12], vec E[12]) {
+  for (int r = 0; r < 3; ++r) {
+    const vec x = R[3 * r], y = R[3 * r + 1], z = R[3 * r + 2];
+    for (int col = 0; col < 3; ++col) E[4 * r + col] = x * tool[col] + y * tool[4 + col] + z * tool[8 + col];
+    E[4 * r + 3] = x * tool[3] + y * tool[7] + z * tool[11] + R[9 + r];
   }
 }
 
@@ -181,31 +297,16 @@ inline void chain(const Problem &P, const Block &blk, const Links &L, Frame *Fs,
 // blocks are transposed in registers (the strided gathers of the plain loop cost the Jacobian
 // more than computing it); with AVX (AVX2 machines), 4 x 4 blocks; the rest take the plain loop.
 template <int S = BLK>
-inline void store_tile(int rows, int m, const double *X, double *out, int64_t ostride = 0) {
-  const int64_t os = ostride ? ostride : rows;
+inline void store_tile(int rows, int m, const double *X, double *out) {
   int b0 = 0;
 #if defined(__AVX512F__)
   if (rows % 8 == 0) {
-    const __m512i i1 = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13), i2 = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
-    const __m512i i3 = _mm512_setr_epi64(0, 1, 2, 3, 8, 9, 10, 11), i4 = _mm512_setr_epi64(4, 5, 6, 7, 12, 13, 14, 15);
     for (; b0 + 8 <= m; b0 += 8) {
       for (int e0 = 0; e0 < rows; e0 += 8) {
-        __m512d r[8], t[8], u[8];
+        __m512d r[8];
         for (int i = 0; i < 8; ++i) r[i] = _mm512_loadu_pd(X + (e0 + i) * S + b0);
-        for (int i = 0; i < 8; i += 2) {
-          t[i] = _mm512_unpacklo_pd(r[i], r[i + 1]);
-          t[i + 1] = _mm512_unpackhi_pd(r[i], r[i + 1]);
-        }
-        for (int h = 0; h < 8; h += 4) {
-          u[h] = _mm512_permutex2var_pd(t[h], i1, t[h + 2]);
-          u[h + 1] = _mm512_permutex2var_pd(t[h + 1], i1, t[h + 3]);
-          u[h + 2] = _mm512_permutex2var_pd(t[h], i2, t[h + 2]);
-          u[h + 3] = _mm512_permutex2var_pd(t[h + 1], i2, t[h + 3]);
-        }
-        for (int j = 0; j < 4; ++j) {
-          _mm512_storeu_pd(out + (int64_t)(b0 + j) * os + e0, _mm512_permutex2var_pd(u[j], i3, u[j + 4]));
-          _mm512_storeu_pd(out + (int64_t)(b0 + j + 4) * os + e0, _mm512_permutex2var_pd(u[j], i4, u[j + 4]));
-        }
+        transpose8(r);
+        for (int j = 0; j < 8; ++j) _mm512_storeu_pd(out + (int64_t)(b0 + j) * rows + e0, r[j]);
       }
     }
   }
@@ -218,33 +319,34 @@ inline void store_tile(int rows, int m, const double *X, double *out, int64_t os
                       r2 = _mm256_loadu_pd(X + (e0 + 2) * S + b0), r3 = _mm256_loadu_pd(X + (e0 + 3) * S + b0);
         const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1),
                       t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-        double *o = out + (int64_t)b0 * os + e0;
+        double *o = out + (int64_t)b0 * rows + e0;
         _mm256_storeu_pd(o, _mm256_permute2f128_pd(t0, t2, 0x20));
-        _mm256_storeu_pd(o + os, _mm256_permute2f128_pd(t1, t3, 0x20));
-        _mm256_storeu_pd(o + 2 * os, _mm256_permute2f128_pd(t0, t2, 0x31));
-        _mm256_storeu_pd(o + 3 * os, _mm256_permute2f128_pd(t1, t3, 0x31));
+        _mm256_storeu_pd(o + rows, _mm256_permute2f128_pd(t1, t3, 0x20));
+        _mm256_storeu_pd(o + 2 * rows, _mm256_permute2f128_pd(t0, t2, 0x31));
+        _mm256_storeu_pd(o + 3 * rows, _mm256_permute2f128_pd(t1, t3, 0x31));
       }
     }
   }
 #endif
   for (int b = b0; b < m; ++b)
 #pragma omp simd
-    for (int e = 0; e < rows; ++e) out[(int64_t)b * os + e] = X[e * S + b];
+    for (int e = 0; e < rows; ++e) out[(int64_t)b * rows + e] = X[e * S + b];
 }
 
-// store_tile(16, m, X, out) for the end poses, whose rows 12..15 are (0, 0, 0, 1): with AVX-512,
-// rows 0..7 as one 8 x 8 transpose, rows 8..11 as 4 x 8 (eight shuffles for eight poses) and the
-// constant quarter of each pose as one 256-bit store, a third fewer shuffles than two 8 x 8
-// transposes (the shuffle port bounds this store).
-inline void store_poses(int m, const double *X, double *out) {
-  int b0 = 0;
+// The end poses of lanes 0 .. m-1 (m <= W) written pose-major, 16 doubles each (the last row
+// (0, 0, 0, 1)). With AVX-512 and all 8 lanes, straight from registers: rows 0..7 as one 8 x 8
+// transpose, rows 8..11 as 4 x 8 (eight shuffles for eight poses), the constant quarter of each
+// pose as one 256-bit store (the shuffle port bounds this store); otherwise through a tile.
+inline void store_pose_major(const vec E[12], int m, double *out) {
 #if defined(__AVX512F__)
-  const __m512i i1 = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11), i2 = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
-  const __m256d last = _mm256_setr_pd(0.0, 0.0, 0.0, 1.0);
-  for (; b0 + 8 <= m; b0 += 8) {
-    store_tile<BLK>(8, 8, X + b0, out + 16 * b0, 16);
-    const __m512d a = _mm512_loadu_pd(X + 8 * BLK + b0), b = _mm512_loadu_pd(X + 9 * BLK + b0),
-                  c = _mm512_loadu_pd(X + 10 * BLK + b0), d = _mm512_loadu_pd(X + 11 * BLK + b0);
+  if (m == 8) {
+    __m512d r[8];
+    for (int i = 0; i < 8; ++i) r[i] = (__m512d)E[i];
+    transpose8(r);
+    for (int b = 0; b < 8; ++b) _mm512_storeu_pd(out + 16 * b, r[b]);
+    const __m512i i1 = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11), i2 = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
+    const __m256d last = _mm256_setr_pd(0.0, 0.0, 0.0, 1.0);
+    const __m512d a = (__m512d)E[8], b = (__m512d)E[9], c = (__m512d)E[10], d = (__m512d)E[11];
     const __m512d t0 = _mm512_unpacklo_pd(a, b), t1 = _mm512_unpackhi_pd(a, b), t2 = _mm512_unpacklo_pd(c, d),
                   t3 = _mm512_unpackhi_pd(c, d);
     // u = poses (0, 2), (4, 6), (1, 3), (5, 7) of the eight, rows 8..11 each
@@ -252,34 +354,32 @@ inline void store_poses(int m, const double *X, double *out) {
                           _mm512_permutex2var_pd(t1, i1, t3), _mm512_permutex2var_pd(t1, i2, t3)};
     const int first[4] = {0, 4, 1, 5};
     for (int h = 0; h < 4; ++h) {
-      double *o = out + 16 * (int64_t)(b0 + first[h]) + 8;
+      double *o = out + 16 * first[h] + 8;
       _mm256_storeu_pd(o, _mm512_castpd512_pd256(u[h]));
       _mm256_storeu_pd(o + 32, _mm512_extractf64x4_pd(u[h], 1));
       _mm256_storeu_pd(o + 4, last);
       _mm256_storeu_pd(o + 36, last);
     }
+    return;
   }
 #endif
-  if (b0 < m) store_tile(16, m - b0, X + b0, out + 16 * (int64_t)b0);
+  double X[16][W];
+  for (int e = 0; e < 12; ++e) storev(X[e], E[e]);
+  for (int e = 12; e < 16; ++e) storev(X[e], vec{} + (e == 15 ? 1.0 : 0.0));
+  store_tile<W>(16, m, &X[0][0], out);
 }
 
-// End pose with the tool into T (pose-major, 16 per pose; skipped when T_out is null); the
-// end position per lane into pe.
-inline void write_end(const Problem &P, const Block &blk, const Frame &F, double pe[3][BLK],
-                      double *T_out) {
-  const double *tool = P.tool + blk.r * P.tool_stride;
-  double Tt[16][BLK];
-#pragma omp simd
-  for (int b = 0; b < BLK; ++b) {
-    for (int r = 0; r < 3; ++r) {
-      const double x = F[3 * r][b], y = F[3 * r + 1][b], z = F[3 * r + 2][b];
-      for (int col = 0; col < 3; ++col) Tt[4 * r + col][b] = x * tool[col] + y * tool[4 + col] + z * tool[8 + col];
-      Tt[4 * r + 3][b] = x * tool[3] + y * tool[7] + z * tool[11] + F[9 + r][b];
-      pe[r][b] = Tt[4 * r + 3][b];
+// The end poses of lanes 0 .. m-1 (m <= W) with the pose axis last: entry e of lane l at
+// out[e * K + l]. No transpose: plain stores.
+inline void store_pose_last(const vec E[12], int m, int64_t K, double *out) {
+  for (int e = 0; e < 16; ++e) {
+    const vec v = e < 12 ? E[e] : vec{} + (e == 15 ? 1.0 : 0.0);
+    if (m == W) {
+      storev(out + e * K, v);
+    } else {
+      for (int l = 0; l < m; ++l) out[e * K + l] = v[l];
     }
-    Tt[12][b] = 0.0; Tt[13][b] = 0.0; Tt[14][b] = 0.0; Tt[15][b] = 1.0;
   }
-  if (T_out != nullptr) store_poses(blk.m, &Tt[0][0], T_out + 16 * (blk.r * P.K + blk.k0));
 }
 
 // Ask Linux for 2 MiB pages behind a large output buffer. XLA gives every call a fresh buffer,
@@ -299,17 +399,39 @@ inline void advise_huge(void *p, size_t bytes) {
 
 int64_t n_blocks(const Problem &P) { return P.B * ((P.K + BLK - 1) / BLK); }
 
+// The end poses of a block, W lanes at a time: the chain (every frame into Fs when given), the
+// tool, then put(E, g, m) with the end pose's top rows E of lanes g .. g+m-1 (m <= W), the end
+// frame never leaving registers.
+template <bool MDH, class Put>
+inline void end_poses(const Problem &P, const Block &blk, const Links &L, Frame *Fs, Put &&put) {
+  const double *tool = P.tool + blk.r * P.tool_stride;
+  for (int g = 0; g < blk.m; g += W) {
+    vec R[12], E[12];
+    chain_lanes<MDH>(P, blk, L, g, Fs, R);
+    end_lanes(tool, R, E);
+    put(E, g, blk.m - g < W ? blk.m - g : W);
+  }
+}
+
+// One block of FK: joint values, sincos, end poses written in the layout asked for.
+template <bool MDH>
+inline void fk_block(const Problem &P, int64_t ib, double *T_out) {
+  Block blk;
+  Links L;
+  block_init(P, ib, blk);
+  link_values(P, blk, L);
+  end_poses<MDH>(P, blk, L, nullptr, [&](const vec *E, int g, int m) {
+    if (P.pose_last)
+      store_pose_last(E, m, P.K, T_out + 16 * blk.r * P.K + blk.k0 + g);
+    else
+      store_pose_major(E, m, T_out + 16 * (blk.r * P.K + blk.k0 + g));
+  });
+}
+
 void fk_kernel(const Problem &P, double *T_out) {
 #pragma omp parallel for schedule(static)
   for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
-    Block blk;
-    Links L;
-    Frame F;
-    double pe[3][BLK];
-    block_init(P, ib, blk);
-    link_values(P, blk, L);
-    chain(P, blk, L, nullptr, F);
-    write_end(P, blk, F, pe, T_out);
+    if (P.mdh) fk_block<true>(P, ib, T_out); else fk_block<false>(P, ib, T_out);
   }
 }
 
@@ -349,35 +471,47 @@ inline void link_columns(int64_t m, int64_t i, const Frame &Fz, const Frame &Fx,
   }
 }
 
-void jac_kernel(const Problem &P, int rows, double *J_out, double *T_out) {
+// One block of the Jacobian: every frame of the chain kept (F[0] the base, F[j + 1] the frame
+// after link j), the end poses written and their positions kept in pe, then the columns.
+template <bool MDH>
+inline void jac_block(const Problem &P, int64_t ib, int rows, double *J_out, double *T_out) {
+  static thread_local Block blk;
+  static thread_local Frame F[MAXN + 1];
+  static thread_local double Jt[6 * 4 * MAXN * 8];
+  static thread_local Links L;
+  double pe[3][BLK];
   const int64_t m = 4 * P.n;
+  block_init(P, ib, blk);
+  link_values(P, blk, L);
+  end_poses<MDH>(P, blk, L, F, [&](const vec *E, int g, int mg) {
+    store_pose_major(E, mg, T_out + 16 * (blk.r * P.K + blk.k0 + g));
+    for (int r = 0; r < 3; ++r) storev(&pe[r][g], E[4 * r + 3]);
+  });
+  for (int b0 = 0; b0 < blk.m; b0 += 8) {
+    for (int64_t i = 0; i < P.n; ++i) {
+      const Frame &Fz = MDH ? F[i + 1] : F[i], &Fx = MDH ? F[i] : F[i + 1];
+      if (rows == 6) link_columns<6>(m, i, Fz, Fx, pe, b0, Jt); else link_columns<3>(m, i, Fz, Fx, pe, b0, Jt);
+    }
+    store_tile<8>(rows * m, blk.m - b0 < 8 ? blk.m - b0 : 8, Jt, J_out + rows * m * (blk.r * P.K + blk.k0 + b0));
+  }
+}
+
+void jac_kernel(const Problem &P, int rows, double *J_out, double *T_out) {
 #pragma omp parallel for schedule(static)
   for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
-    static thread_local Block blk;
-    static thread_local Frame F[MAXN + 1];  // F[0] the base, F[j + 1] the frame after link j
-    static thread_local double Jt[6 * 4 * MAXN * 8];
-    static thread_local Links L;
-    double pe[3][BLK];
-    block_init(P, ib, blk);
-    link_values(P, blk, L);
-    chain(P, blk, L, F, F[P.n]);
-    write_end(P, blk, F[P.n], pe, T_out);
-    for (int b0 = 0; b0 < blk.m; b0 += 8) {
-      for (int64_t i = 0; i < P.n; ++i) {
-        const Frame &Fz = P.mdh ? F[i + 1] : F[i], &Fx = P.mdh ? F[i] : F[i + 1];
-        if (rows == 6) link_columns<6>(m, i, Fz, Fx, pe, b0, Jt); else link_columns<3>(m, i, Fz, Fx, pe, b0, Jt);
-      }
-      store_tile<8>(rows * m, blk.m - b0 < 8 ? blk.m - b0 : 8, Jt, J_out + rows * m * (blk.r * P.K + blk.k0 + b0));
-    }
+    if (P.mdh) jac_block<true>(P, ib, rows, J_out, T_out); else jac_block<false>(P, ib, rows, J_out, T_out);
   }
 }
 
 ffi::Error make_problem(ffi::Buffer<ffi::F64> &q, ffi::Buffer<ffi::F64> &dh, ffi::Buffer<ffi::F64> &rev,
-                        ffi::Buffer<ffi::F64> &base, ffi::Buffer<ffi::F64> &tool, int64_t mdh, Problem &P) {
+                        ffi::Buffer<ffi::F64> &base, ffi::Buffer<ffi::F64> &tool, int64_t mdh, bool pose_last,
+                        Problem &P) {
   auto qd = q.dimensions(), dd = dh.dimensions();
-  if (qd.size() < 1 || dd.size() < 2 || dd.back() != 4) return ffi::Error::InvalidArgument("jaxcal native: bad shapes");
+  if (qd.size() < (pose_last ? 2 : 1) || dd.size() < 2 || dd.back() != 4)
+    return ffi::Error::InvalidArgument("jaxcal native: bad shapes");
   P.n = dd[dd.size() - 2];
-  if (P.n < 1 || P.n > MAXN || qd.back() != P.n) return ffi::Error::InvalidArgument("jaxcal native: q and dh disagree on n");
+  if (P.n < 1 || P.n > MAXN || qd[qd.size() - (pose_last ? 2 : 1)] != P.n)
+    return ffi::Error::InvalidArgument("jaxcal native: q and dh disagree on n");
   int64_t nq = q.element_count() / P.n, ndh = dh.element_count() / (4 * P.n);
   P.B = ndh;
   if (nq % ndh != 0) return ffi::Error::InvalidArgument("jaxcal native: q is not batched like dh");
@@ -392,14 +526,15 @@ ffi::Error make_problem(ffi::Buffer<ffi::F64> &q, ffi::Buffer<ffi::F64> &dh, ffi
       (P.tool_stride && tool.element_count() != 16 * P.B))
     return ffi::Error::InvalidArgument("jaxcal native: robot buffers are not batched like dh");
   P.mdh = mdh != 0;
+  P.pose_last = pose_last;
   return ffi::Error::Success();
 }
 
-ffi::Error FkImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer<ffi::F64> rev,
-                  ffi::Buffer<ffi::F64> base, ffi::Buffer<ffi::F64> tool, ffi::ResultBuffer<ffi::F64> T,
-                  int64_t mdh) {
+ffi::Error fk_impl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer<ffi::F64> rev,
+                   ffi::Buffer<ffi::F64> base, ffi::Buffer<ffi::F64> tool, ffi::ResultBuffer<ffi::F64> T,
+                   int64_t mdh, bool pose_last) {
   Problem P;
-  ffi::Error err = make_problem(q, dh, rev, base, tool, mdh, P);
+  ffi::Error err = make_problem(q, dh, rev, base, tool, mdh, pose_last, P);
   if (err.failure()) return err;
   if (T->element_count() != 16 * P.B * P.K) return ffi::Error::InvalidArgument("jaxcal native: bad output shape");
   advise_huge(T->typed_data(), T->size_bytes());
@@ -407,11 +542,23 @@ ffi::Error FkImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer
   return ffi::Error::Success();
 }
 
+ffi::Error FkImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer<ffi::F64> rev,
+                  ffi::Buffer<ffi::F64> base, ffi::Buffer<ffi::F64> tool, ffi::ResultBuffer<ffi::F64> T,
+                  int64_t mdh) {
+  return fk_impl(q, dh, rev, base, tool, T, mdh, false);
+}
+
+ffi::Error FkPoseLastImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer<ffi::F64> rev,
+                          ffi::Buffer<ffi::F64> base, ffi::Buffer<ffi::F64> tool, ffi::ResultBuffer<ffi::F64> T,
+                          int64_t mdh) {
+  return fk_impl(q, dh, rev, base, tool, T, mdh, true);
+}
+
 ffi::Error JacImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffer<ffi::F64> rev,
                    ffi::Buffer<ffi::F64> base, ffi::Buffer<ffi::F64> tool, ffi::ResultBuffer<ffi::F64> J,
                    ffi::ResultBuffer<ffi::F64> T, int64_t mdh, int64_t rows) {
   Problem P;
-  ffi::Error err = make_problem(q, dh, rev, base, tool, mdh, P);
+  ffi::Error err = make_problem(q, dh, rev, base, tool, mdh, false, P);
   if (err.failure()) return err;
   if ((rows != 3 && rows != 6) || J->element_count() != rows * 4 * P.n * P.B * P.K ||
       T->element_count() != 16 * P.B * P.K)
@@ -424,12 +571,14 @@ ffi::Error JacImpl(ffi::Buffer<ffi::F64> q, ffi::Buffer<ffi::F64> dh, ffi::Buffe
 
 using F64 = ffi::Buffer<ffi::F64>;
 
-// The five inputs both handlers take: q, dh, rev, base, tool.
+// The five inputs every handler takes: q, dh, rev, base, tool.
 auto bind_inputs() { return ffi::Ffi::Bind().Arg<F64>().Arg<F64>().Arg<F64>().Arg<F64>().Arg<F64>(); }
 
 }  // namespace
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalFk, FkImpl, bind_inputs().Ret<F64>().Attr<int64_t>("mdh"));
+
+XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalFkPoseLast, FkPoseLastImpl, bind_inputs().Ret<F64>().Attr<int64_t>("mdh"));
 
 XLA_FFI_DEFINE_HANDLER_SYMBOL(JaxcalJac, JacImpl,
                               bind_inputs().Ret<F64>().Ret<F64>().Attr<int64_t>("mdh").Attr<int64_t>("rows"));

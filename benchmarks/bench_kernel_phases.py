@@ -1,0 +1,299 @@
+"""Where the native kernel's time goes, without JAX: a C++ harness that includes
+``jaxcal/_native/chain.cc`` and is built with the shipped flags (``jaxcal._native._FLAGS``).
+
+* **Phases of FK**, one thread, both layouts (pose-major ``fk``, pose axis last
+  ``fk_pose_last``): the per-block work is timed cumulatively over all blocks of ``--poses``
+  poses (the joint values' gather; + the sincos of every joint; + the chain through the links;
+  the whole block with the tool and the store) and the phases are the differences. Lanes are
+  those of the kernel (8 with AVX-512, else 4).
+* **Whole kernels**, on one thread and on every core: FK in both layouts and the identification
+  Jacobian (6 rows), ns per pose, the hand-counted FLOP rate (``bench_roofline.hand_flops``) and
+  its fraction of the float64 peak.
+* **Peak**: measured DGEMM (``bench_roofline.cpu_peak``, the reference of ``bench_roofline.py``)
+  and a loop of independent fused multiply-adds on the kernel's vectors (the FMA units' own
+  rate, usually above DGEMM's).
+
+Medians with min/max over ``--repeats`` passes; cycles are at the reference clock
+``/proc/cpuinfo`` reports (the time-stamp counter's rate; cores may run faster). ``--source``
+builds another version of the kernel (a file or a git revision) for the whole-kernel rows only
+(its internals may differ).
+
+    python benchmarks/bench_kernel_phases.py [--poses 10000] [--repeats 300] [--source REV|FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+
+HARNESS = r"""
+#include SOURCE
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <random>
+#include <vector>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace {
+using clk = std::chrono::steady_clock;
+#if defined(__AVX512F__)
+constexpr int HW = 8;  // the widest vector, in doubles (the kernel's lanes since 2026-11-23)
+#else
+constexpr int HW = 4;
+#endif
+typedef double hvec __attribute__((vector_size(8 * HW)));
+
+// whether this version of the kernel has the pose-last layout (since 2026-11-23)
+template <class T> auto set_pose_last(T &p, bool v, int) -> decltype(p.pose_last = v, bool()) { p.pose_last = v; return true; }
+template <class T> bool set_pose_last(T &, bool, long) { return false; }
+const double *q_major, *q_last;
+template <class T> bool layout(T &p, bool last) {  // the layout and the joint values laid out for it
+  p.q = last ? q_last : q_major;
+  return set_pose_last(p, last, 0);
+}
+
+void print_runs(const char *name, std::vector<double> &t, double per) {
+  std::sort(t.begin(), t.end());
+  printf("{\"name\": \"%s\", \"median\": %.6e, \"min\": %.6e, \"max\": %.6e}\n", name, t[t.size() / 2] / per,
+         t.front() / per, t.back() / per);
+}
+
+template <class F> std::vector<double> passes(int repeats, F f) {
+  f();
+  std::vector<double> t;
+  for (int r = 0; r < repeats; ++r) {
+    auto t0 = clk::now();
+    f();
+    t.push_back(std::chrono::duration<double>(clk::now() - t0).count());
+  }
+  return t;
+}
+
+#ifndef NO_PHASES
+double sink[12][W];
+// STAGE 1: joint values; 2: + sincos; 3: + the chain; 4: the whole block (tool and store)
+template <int STAGE> __attribute__((noinline)) void stages(const Problem &P, double *T) {
+  for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
+    if (STAGE == 4) {
+      fk_block<false>(P, ib, T);
+      continue;
+    }
+    Block blk;
+    Links L;
+    block_init(P, ib, blk);
+    if (STAGE >= 2) link_values(P, blk, L);
+    if (STAGE >= 3)
+      for (int g = 0; g < blk.m; g += W) {
+        vec R[12];
+        chain_lanes<false>(P, blk, L, g, nullptr, R);
+        for (int e = 0; e < 12; ++e) storev(sink[e], R[e]);
+      }
+    asm volatile("" : : "r"(&blk), "r"(&L) : "memory");
+  }
+}
+#endif
+
+double fma_rate(int threads, long iters) {
+  double total = 0;
+  auto t0 = clk::now();
+#pragma omp parallel num_threads(threads) reduction(+ : total)
+  {
+    hvec a[12], b = hvec{} + 0.9999999, c = hvec{} + 1e-9;  // 12 chains: enough for 2 FMA pipes of latency 4-6
+    for (int i = 0; i < 12; ++i) a[i] = hvec{} + (1.0 + i * 1e-9);
+    for (long k = 0; k < iters; ++k)
+      for (int i = 0; i < 12; ++i) a[i] = a[i] * b + c;
+    for (int i = 0; i < 12; ++i) total += a[i][0];
+  }
+  double s = std::chrono::duration<double>(clk::now() - t0).count();
+  if (total == 0.125) printf("#\n");
+  return threads * iters * 12.0 * HW * 2 / s;
+}
+}  // namespace
+
+int main(int argc, char **argv) {
+  int64_t K = atol(argv[1]);
+  int repeats = atoi(argv[2]);
+  int n, mdh;
+  if (scanf("%d %d", &n, &mdh) != 2) return 2;
+  std::vector<double> dh(4 * n), rev(n), base(16), tool(16);
+  for (auto *v : {&dh, &rev, &base, &tool})
+    for (auto &x : *v)
+      if (scanf("%lf", &x) != 1) return 2;
+  std::mt19937_64 g(0);
+  std::uniform_real_distribution<double> U(-3.141592653589793, 3.141592653589793);
+  std::vector<double> q(K * n), qT(n * K), T(16 * K), J(6 * 4 * n * K), T2(16 * K);
+  for (auto &x : q) x = U(g);
+  for (int64_t k = 0; k < K; ++k)
+    for (int j = 0; j < n; ++j) qT[j * K + k] = q[k * n + j];  // the same poses, pose axis last
+  q_major = q.data();
+  q_last = qT.data();
+  Problem P{};
+  P.B = 1; P.K = K; P.n = n; P.q = q.data(); P.dh = dh.data(); P.rev = rev.data(); P.base = base.data();
+  P.tool = tool.data(); P.mdh = mdh != 0;
+  int all = 1;
+#ifdef _OPENMP
+  all = omp_get_max_threads();
+#endif
+  printf("{\"lanes\": %d, \"threads\": %d}\n", HW, all);
+#ifndef NO_PHASES
+  if (!P.mdh) {
+    for (int last = 0; last < 2; ++last) {
+      layout(P, last != 0);
+#ifdef _OPENMP
+      omp_set_num_threads(1);
+#endif
+      const char *lay = last ? "pose-last" : "pose-major";
+      char name[64];
+      auto run = [&](int s, auto f) {
+        auto t = passes(repeats, f);
+        snprintf(name, sizeof name, "stage %d %s", s, lay);
+        print_runs(name, t, double(K));
+      };
+      run(1, [&] { stages<1>(P, T.data()); });
+      run(2, [&] { stages<2>(P, T.data()); });
+      run(3, [&] { stages<3>(P, T.data()); });
+      run(4, [&] { stages<4>(P, T.data()); });
+    }
+  }
+#endif
+  for (int th : {1, all}) {
+#ifdef _OPENMP
+    omp_set_num_threads(th);
+#endif
+    char name[64];
+    for (int last = 0; last < 2; ++last) {
+      if (!layout(P, last != 0) && last) continue;
+      auto t = passes(repeats, [&] { fk_kernel(P, last ? T2.data() : T.data()); });
+      snprintf(name, sizeof name, "FK %s, %d thread(s)", last ? "pose-last" : "pose-major", th);
+      print_runs(name, t, double(K));
+    }
+    layout(P, false);
+    auto t = passes(repeats, [&] { jac_kernel(P, 6, J.data(), T.data()); });
+    snprintf(name, sizeof name, "Jacobian, %d thread(s)", th);
+    print_runs(name, t, double(K));
+    if (all == 1) break;
+  }
+  bool agree = true;  // the layouts' end poses, entry by entry (when this version has both)
+  if (layout(P, true)) {
+    fk_kernel(P, T2.data());
+    layout(P, false);
+    fk_kernel(P, T.data());
+    for (int64_t k = 0; k < K; ++k)
+      for (int e = 0; e < 16; ++e) agree = agree && T[16 * k + e] == T2[e * K + k];
+  }
+  printf("{\"layouts_agree\": %s}\n", agree ? "true" : "false");
+  for (int th : {1, all}) printf("{\"fma_flops\": %.6e, \"threads\": %d}\n", fma_rate(th, 20000000), th);
+}
+"""
+
+
+def source_file(spec: str, tmp: str) -> str:
+    if os.path.isfile(spec):
+        return os.path.abspath(spec)
+    p = subprocess.run(["git", "-C", ROOT, "show", f"{spec}:jaxcal/_native/chain.cc"], capture_output=True, text=True)
+    if p.returncode != 0:
+        raise SystemExit(f"{spec}: neither a file nor a git revision with jaxcal/_native/chain.cc ({p.stderr.strip()})")
+    path = os.path.join(tmp, "chain.cc")
+    with open(path, "w") as f:
+        f.write(p.stdout)
+    return path
+
+
+def build(source: str, tmp: str, phases: bool) -> str:
+    import jax
+    from jaxcal import _native
+    cxx = os.environ.get("CXX") or shutil.which("c++") or shutil.which("g++")
+    flags = [f for f in _native._FLAGS if f not in ("-shared", "-fPIC")]
+    flags += os.environ.get("JAXCAL_NATIVE_FLAGS", "").split()
+    src, exe = os.path.join(tmp, "harness.cc"), os.path.join(tmp, "harness")
+    with open(src, "w") as f:
+        f.write(HARNESS.replace("SOURCE", json.dumps(source)))
+    extra = [] if phases else ["-DNO_PHASES"]
+    for omp in (["-fopenmp"], []):
+        p = subprocess.run([cxx, *flags, *omp, *extra, f"-I{jax.ffi.include_dir()}", src, "-o", exe],
+                           capture_output=True, text=True)
+        if p.returncode == 0:
+            return exe
+    raise SystemExit(f"building the harness failed: {p.stderr[-1500:]}")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--poses", type=int, default=10_000)
+    ap.add_argument("--repeats", type=int, default=300)
+    ap.add_argument("--source", help="another chain.cc (file or git revision): whole-kernel rows only")
+    ap.add_argument("--robot", default="paper-6r")
+    ap.add_argument("--peak", type=float, help="the float64 peak in GFLOP/s (default: measure DGEMM)")
+    args = ap.parse_args()
+    sys.path.insert(0, HERE)
+    import numpy as np
+    import jaxcal
+    from jaxcal import _native
+    from _util import machine
+    from bench_roofline import cpu_peak, hand_flops
+
+    print("machine:", machine())
+    robot = jaxcal.preset(args.robot)
+    n = robot.n_joints
+    peak = args.peak * 1e9 if args.peak else max(v for k, v in cpu_peak().items() if k.endswith("dgemm_flops"))
+    with tempfile.TemporaryDirectory() as tmp:
+        source = source_file(args.source, tmp) if args.source else str(_native.SOURCE)
+        exe = build(source, tmp, phases=args.source is None)
+        values = np.concatenate([np.ravel(robot.dh), np.ravel(robot.revolute_mask), np.ravel(robot.base),
+                                 np.ravel(robot.tool)])
+        stdin = f"{n} {int(robot.convention == 'mdh')} " + " ".join(repr(float(v)) for v in values)
+        p = subprocess.run([exe, str(args.poses), str(args.repeats)], input=stdin, capture_output=True, text=True)
+    if p.returncode != 0:
+        raise SystemExit(f"harness failed ({p.returncode}): {p.stderr[-1500:]}")
+    rows = [json.loads(line) for line in p.stdout.splitlines() if line.startswith("{")]
+    info = rows[0]
+    mhz = [float(line.split(":")[1]) for line in open("/proc/cpuinfo") if line.startswith("cpu MHz")] \
+        if os.path.exists("/proc/cpuinfo") else []
+    ghz = mhz[0] / 1e3 if mhz else float("nan")
+    fma = {r["threads"]: r["fma_flops"] for r in rows if "fma_flops" in r}
+    agree = next(r["layouts_agree"] for r in rows if "layouts_agree" in r)
+    if not agree:
+        raise SystemExit("the pose-major and pose-last FK kernels disagree")
+    flops = hand_flops(n)
+    print(f"kernel: {args.source or source}; {args.robot} ({n} joints), {args.poses:,} poses per pass, {args.repeats} passes; "
+          f"vectors of {info['lanes']} doubles, {info['threads']} threads")
+    print(f"peak float64: DGEMM {peak / 1e9:.1f} GFLOP/s (the reference below); FMA loop "
+          f"{fma.get(1, float('nan')) / 1e9:.1f} GFLOP/s on 1 thread, {fma.get(info['threads'], float('nan')) / 1e9:.1f} "
+          f"on {info['threads']}; cycles at {ghz:.2f} GHz (the reference clock)")
+    by = {r["name"]: r for r in rows if "name" in r}
+    for lay in ("pose-major", "pose-last"):
+        st = [by.get(f"stage {s} {lay}") for s in (1, 2, 3, 4)]
+        if None in st:
+            continue
+        med = [s["median"] for s in st]
+        parts = [("joint values", med[0]), ("sincos", med[1] - med[0]), ("chain", med[2] - med[1]),
+                 ("tool + store", med[3] - med[2])]
+        print(f"FK phases, {lay}, 1 thread (ns | cycles per pose): "
+              + ", ".join(f"{k} {v * 1e9:.2f} | {v * ghz * 1e9:.1f}" for k, v in parts)
+              + f"; whole block {med[3] * 1e9:.2f} | {med[3] * ghz * 1e9:.1f}")
+    for name, r in by.items():
+        if name.startswith("stage"):
+            continue
+        op = "FK" if name.startswith("FK") else "Jacobian"
+        th = int(name.rsplit(", ", 1)[1].split()[0])
+        rate = flops[op] / r["median"]  # against the peak of as many cores as threads
+        print(f"{name:28s} median {r['median'] * 1e9:7.2f} ns/pose (min {r['min'] * 1e9:.2f}, max {r['max'] * 1e9:.2f})"
+              f" = {r['median'] * ghz * 1e9 * th:6.1f} cycles per pose per thread; {1e-6 / r['median']:6.1f} M poses/s; "
+              f"{rate / 1e9:5.1f} GFLOP/s = {rate / (peak * th / info['threads']):6.1%} of the DGEMM peak of {th} core(s)"
+              f" ({rate / fma[th]:.1%} of the FMA loop's)")
+
+
+if __name__ == "__main__":
+    main()
