@@ -18,15 +18,32 @@ KEEP_HEAP = ("GLIBC_TUNABLES=glibc.malloc.trim_threshold=536870912:glibc.malloc.
 """glibc keeps freed memory (up to 512 MB) in the process and maps nothing below 32 MB apart. By
 default it returns the top of its heap to Linux when enough is free, and XLA's next output buffer
 of that size is faulted in again page by page: FK on 10^4 poses per call (1.3 MB out) then ran
-in 0.12-0.16 ms with 36-70 minor page faults and 70-110 us of system time per call, against
-0.067-0.075 ms and none with this setting (2026-11-23, getrusage per call; which calls fault
-depends on the heap's history, so a long process drifts between the two)."""
+in 0.17-0.21 ms with 95-127 minor page faults and 155-185 us of system time per call, against
+0.069-0.073 ms and none in the same process at other times, and none with this setting
+(2026-11-23, getrusage per call; which calls fault depends on the heap's history)."""
 
-SYNC = "jax_cpu_enable_async_dispatch=False"
-"""JAX runs a computation in the calling thread instead of handing it to a worker thread (a JAX
-config update; no environment variable reads it). After large computations in the same process,
-each FK call of 10^4 poses here took 2 context switches and 25-45 us of system time, 0.16 ms
-instead of 0.07 (getrusage per call, 2026-11-23); with this setting it did not."""
+
+def kernel_source(spec: str, tmp: str, root: str) -> str:
+    """The ``chain.cc`` of a kernel version: a file path as is, or a git revision of the checkout
+    at ``root``, whose ``jaxcal/_native/`` sources (``chain.cc`` and the headers it includes since
+    2026-11-23) are written to a folder of their own under ``tmp``."""
+    import subprocess
+    if os.path.isfile(spec):
+        return os.path.abspath(spec)
+    ls = subprocess.run(["git", "-C", root, "ls-tree", "--name-only", spec, "jaxcal/_native/"], capture_output=True,
+                        text=True)
+    names = [n for n in ls.stdout.split() if n.endswith((".cc", ".h"))]
+    if ls.returncode or "jaxcal/_native/chain.cc" not in names:
+        raise SystemExit(f"{spec!r} is neither a file nor a git revision with jaxcal/_native/chain.cc "
+                         f"({ls.stderr.strip()[:200]})")
+    folder = os.path.join(tmp, spec.replace("/", "_"))
+    os.makedirs(folder, exist_ok=True)
+    for name in names:
+        text = subprocess.run(["git", "-C", root, "show", f"{spec}:{name}"], capture_output=True, text=True,
+                              check=True).stdout
+        with open(os.path.join(folder, os.path.basename(name)), "w") as f:
+            f.write(text)
+    return os.path.join(folder, "chain.cc")
 
 
 def cpu_model() -> str:

@@ -24,7 +24,7 @@ import subprocess
 import sys
 import tempfile
 
-from _util import machine
+from _util import kernel_source, machine
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -55,21 +55,6 @@ print(json.dumps(out))
 """
 
 
-def source_of(spec: str, tmp: str) -> str:
-    """A file path as is; anything else is a git revision whose chain.cc is written to tmp."""
-    if os.path.isfile(spec):
-        return os.path.abspath(spec)
-    p = subprocess.run(["git", "-C", ROOT, "show", f"{spec}:jaxcal/_native/chain.cc"], capture_output=True, text=True)
-    if p.returncode:
-        raise SystemExit(f"{spec!r} is neither a file nor a git revision with jaxcal/_native/chain.cc "
-                         f"({p.stderr.strip()[:200]})")
-    text = p.stdout
-    path = os.path.join(tmp, f"chain-{spec.replace('/', '_')}.cc")
-    with open(path, "w") as f:
-        f.write(text)
-    return path
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("versions", nargs="+",
@@ -79,7 +64,7 @@ def main():
     args = ap.parse_args()
     print("machine:", machine())
     with tempfile.TemporaryDirectory() as tmp:
-        srcs = [(source_of(spec, tmp), flags) for spec, _, flags in (v.partition("@") for v in args.versions)]
+        srcs = [(kernel_source(spec, tmp, ROOT), flags) for spec, _, flags in (v.partition("@") for v in args.versions)]
         got = {v: [] for v in args.versions}
         for _ in range(args.rounds):
             for v, (src, flags) in zip(args.versions, srcs):

@@ -70,6 +70,14 @@ void print_runs(const char *name, std::vector<double> &t, double per) {
          t.front() / per, t.back() / per);
 }
 
+void set_threads(int th) {  // the kernel's own pool since 2026-11-23, OpenMP before
+#ifdef HAS_POOL
+  max_threads.store(th == 1 ? 1 : 0);
+#elif defined(_OPENMP)
+  omp_set_num_threads(th);
+#endif
+}
+
 template <class F> std::vector<double> passes(int repeats, F f) {
   f();
   std::vector<double> t;
@@ -143,7 +151,9 @@ int main(int argc, char **argv) {
   P.B = 1; P.K = K; P.n = n; P.q = q.data(); P.dh = dh.data(); P.rev = rev.data(); P.base = base.data();
   P.tool = tool.data(); P.mdh = mdh != 0;
   int all = 1;
-#ifdef _OPENMP
+#ifdef HAS_POOL
+  all = int(Workers::get().size()) + 1;
+#elif defined(_OPENMP)
   all = omp_get_max_threads();
 #endif
   printf("{\"lanes\": %d, \"threads\": %d}\n", HW, all);
@@ -151,9 +161,7 @@ int main(int argc, char **argv) {
   if (!P.mdh) {
     for (int last = 0; last < 2; ++last) {
       layout(P, last != 0);
-#ifdef _OPENMP
-      omp_set_num_threads(1);
-#endif
+      set_threads(1);
       const char *lay = last ? "pose-last" : "pose-major";
       char name[64];
       auto run = [&](int s, auto f) {
@@ -169,9 +177,7 @@ int main(int argc, char **argv) {
   }
 #endif
   for (int th : {1, all}) {
-#ifdef _OPENMP
-    omp_set_num_threads(th);
-#endif
+    set_threads(th);
     char name[64];
     for (int last = 0; last < 2; ++last) {
       if (!layout(P, last != 0) && last) continue;
@@ -199,18 +205,6 @@ int main(int argc, char **argv) {
 """
 
 
-def source_file(spec: str, tmp: str) -> str:
-    if os.path.isfile(spec):
-        return os.path.abspath(spec)
-    p = subprocess.run(["git", "-C", ROOT, "show", f"{spec}:jaxcal/_native/chain.cc"], capture_output=True, text=True)
-    if p.returncode != 0:
-        raise SystemExit(f"{spec}: neither a file nor a git revision with jaxcal/_native/chain.cc ({p.stderr.strip()})")
-    path = os.path.join(tmp, "chain.cc")
-    with open(path, "w") as f:
-        f.write(p.stdout)
-    return path
-
-
 def build(source: str, tmp: str, phases: bool) -> str:
     import jax
     from jaxcal import _native
@@ -221,6 +215,8 @@ def build(source: str, tmp: str, phases: bool) -> str:
     with open(src, "w") as f:
         f.write(HARNESS.replace("SOURCE", json.dumps(source)))
     extra = [] if phases else ["-DNO_PHASES"]
+    if "class Workers" in open(source).read():
+        extra.append("-DHAS_POOL")
     for omp in (["-fopenmp"], []):
         p = subprocess.run([cxx, *flags, *omp, *extra, f"-I{jax.ffi.include_dir()}", src, "-o", exe],
                            capture_output=True, text=True)
@@ -241,7 +237,7 @@ def main():
     import numpy as np
     import jaxcal
     from jaxcal import _native
-    from _util import machine
+    from _util import kernel_source, machine
     from bench_roofline import cpu_peak, hand_flops
 
     print("machine:", machine())
@@ -249,7 +245,7 @@ def main():
     n = robot.n_joints
     peak = args.peak * 1e9 if args.peak else max(v for k, v in cpu_peak().items() if k.endswith("dgemm_flops"))
     with tempfile.TemporaryDirectory() as tmp:
-        source = source_file(args.source, tmp) if args.source else str(_native.SOURCE)
+        source = kernel_source(args.source, tmp, ROOT) if args.source else str(_native.SOURCE)
         exe = build(source, tmp, phases=args.source is None)
         values = np.concatenate([np.ravel(robot.dh), np.ravel(robot.revolute_mask), np.ravel(robot.base),
                                  np.ravel(robot.tool)])

@@ -209,7 +209,7 @@ def compulsory_bytes(n: int) -> dict:
 
 
 from _roofline_variants import NATIVE, NATIVE_LAST, POSE_LAST, PURE, SMALL, variants  # noqa: E402
-from _util import HUGETLB, KEEP_HEAP, SYNC  # noqa: E402
+from _util import HUGETLB, KEEP_HEAP  # noqa: E402
 
 
 def native_row(f, x, poses, repeats):
@@ -307,22 +307,16 @@ def main():
         "--xla_cpu_enable_fast_math=true", "--xla_cpu_use_thunk_runtime=false"],
         help='XLA_FLAGS settings, each timed with pure JAX in a fresh process; from the command line one per '
              'run, as --flags="--xla_..." (argparse takes a bare "--xla_..." for an option); --flags alone for none')
-    ap.add_argument("--envs", nargs="*", default=[KEEP_HEAP, f"{KEEP_HEAP} {SYNC}"],
-                    help="runtime settings, each timed with the native kernels (their rows and --sweep) in a fresh "
-                         "process: environment variables (e.g. " + HUGETLB + ") and jax_* config updates, space "
-                         "separated; default: _util.KEEP_HEAP, glibc keeping freed memory, alone and with "
-                         "_util.SYNC; --envs alone for none")
+    ap.add_argument("--envs", nargs="*", default=[KEEP_HEAP],
+                    help="environment settings (e.g. " + HUGETLB + "; several in one, space separated), each timed "
+                         "with the native kernels (their rows and --sweep) in a fresh process; default: "
+                         "_util.KEEP_HEAP, glibc keeping freed memory; --envs alone for none")
     ap.add_argument("--sweep", type=int, nargs="*", default=[1_000, 3_000, 10_000, 30_000, 100_000],
                     help="poses per call at which the native kernels are also timed (--sweep alone for none)")
     ap.add_argument("--json")
     ap.add_argument("--_child", nargs="*", help=argparse.SUPPRESS)
-    ap.add_argument("--_jax", nargs="*", default=[], help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._child is not None:
-        import jax
-        for setting in args._jax:
-            name, value = setting.split("=", 1)
-            jax.config.update(name, {"True": True, "False": False}.get(value, value))
         print(json.dumps(measure(args.poses, args.repeats, only=set(args._child), sweep=args.sweep)))
         return
 
@@ -399,15 +393,11 @@ def main():
     # each setting in a fresh process: XLA flags with the pure-JAX path, environment settings
     # (read by glibc at process start) with the native kernel
     settings = [(f"XLA_FLAGS={f!r}", {"XLA_FLAGS": f}, PURE) for f in args.flags]
-    settings = [(label, env, [], names) for label, env, names in settings]
-    for e in args.envs:
-        tokens = e.split()
-        settings.append((e, dict(t.split("=", 1) for t in tokens if not t.startswith("jax_")),
-                         [t for t in tokens if t.startswith("jax_")], [NATIVE, NATIVE_LAST]))
-    for label, extra, jax_config, names in settings:
+    settings += [(e, dict(t.split("=", 1) for t in e.split()), [NATIVE, NATIVE_LAST]) for e in args.envs]
+    for label, extra, names in settings:
         p = subprocess.run([sys.executable, __file__, "--_child", *([names] if isinstance(names, str) else names),
                             "--poses", str(args.poses), "--repeats", str(args.repeats), "--sweep",
-                            *map(str, args.sweep if names != PURE else []), "--_jax", *jax_config],
+                            *map(str, args.sweep if names != PURE else [])],
                            env=dict(os.environ, **extra), capture_output=True, text=True)
         if p.returncode != 0:
             msg = (p.stderr.strip().splitlines() or ["?"])[-1][:160]

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs every benchmark and keeps its output in docs/bench/ (the numbers in benchmarks/README.md).
 # From the repository root, venv active; pybotics in its own venv at .venv-pybotics (see
-# bench_vs_pybotics.py). About 30 minutes on a 2-core CPU; run it on an otherwise idle machine.
+# bench_vs_pybotics.py). About 15 minutes on a 2-core CPU; run it on an otherwise idle machine.
 set -euo pipefail
 cd "$(dirname "$0")"
 out=../docs/bench
@@ -14,5 +14,10 @@ run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/pyt
 run roofline bench_roofline.py --repeats 15 --json "$out/roofline.json"
 run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"
-# the kernel before / after the register-resident chain of c2113e9 (both as shipped, 512-bit vectors)
-run kernel_ab bench_kernel_ab.py --rounds 5 --repeats 61 1de7fc5 c2113e9
+# the kernel before / after the sincos table, register transposes and stores of 7722516, through JAX
+run kernel_ab bench_kernel_ab.py --rounds 5 --repeats 61 d5c4b6b 7722516
+# the kernel alone (no JAX): its phases, and the one before 7722516; both again built without AVX-512
+run kernel_phases bench_kernel_phases.py --repeats 300
+run kernel_phases_d5c4b6b bench_kernel_phases.py --repeats 300 --source d5c4b6b
+JAXCAL_NATIVE_FLAGS=-mno-avx512f run kernel_phases_avx2 bench_kernel_phases.py --repeats 100
+JAXCAL_NATIVE_FLAGS=-mno-avx512f run kernel_phases_avx2_d5c4b6b bench_kernel_phases.py --repeats 100 --source d5c4b6b

@@ -232,9 +232,9 @@ def fk_pose_last(robot: Robot, q: Float[Array, "n *b"]) -> Float[Array, "4 4 *b"
 
     For throughput (Monte Carlo, workspace sampling, joint trajectories kept per joint): the
     native kernel reads each joint's values and writes each pose entry as contiguous runs, with
-    no transposes in or out, and runs FK ~1.2x faster than :func:`fk` on the same poses
-    (``benchmarks/bench_roofline.py``). Transposing a pose-major array to call this costs more
-    than it saves."""
+    no transposes in or out, and runs FK 1.1-1.2x faster than :func:`fk` on the same poses
+    (``benchmarks/bench_roofline.py``, ``bench_kernel_phases.py``). Transposing a pose-major
+    array to call this costs more than it saves."""
     return _fk_pose_last(robot, check_q(robot, q, joint_axis=0))
 
 

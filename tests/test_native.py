@@ -235,8 +235,9 @@ def test_kernel_sincos_matches_numpy():
                     reason="the default build already is the path without AVX-512")
 def test_build_without_avx512_matches(tmp_path):
     """The kernel's paths for CPUs without AVX-512 (4 lanes, jaxcal.trig's sincos, 4 x 4 stores),
-    built here with JAXCAL_NATIVE_FLAGS=-mno-avx512f into an empty cache: FK both layouts and the
-    Jacobian against the pure-JAX reference, and its sincos to 2.3e-16."""
+    built here with JAXCAL_NATIVE_FLAGS=-mno-avx512f into an empty cache, run on one thread
+    (JAXCAL_NATIVE_THREADS=1): FK both layouts and the Jacobian against the pure-JAX reference,
+    and its sincos to 2.3e-16."""
     code = textwrap.dedent("""
         import sys, numpy as np, jaxcal
         from jaxcal.error_model import jacobian_and_fk
@@ -254,7 +255,8 @@ def test_build_without_avx512_matches(tmp_path):
                   tool=random_transform(rng))
     q, x = rng.uniform(-3, 3, (203, 7)), rng.uniform(-1e4, 1e4, 20_000)
     np.savez(tmp_path / "in.npz", dh=robot.dh, types=np.array(types), base=robot.base, tool=robot.tool, q=q, x=x)
-    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "cache"), JAXCAL_NATIVE_FLAGS="-mno-avx512f")
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "cache"), JAXCAL_NATIVE_FLAGS="-mno-avx512f",
+               JAXCAL_NATIVE_THREADS="1")  # and no worker threads: every block on the calling thread
     p = subprocess.run([sys.executable, "-c", code, str(tmp_path / "in.npz"), str(tmp_path / "out.npz")], env=env,
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr[-2000:]
@@ -266,3 +268,26 @@ def test_build_without_avx512_matches(tmp_path):
     assert_allclose(np.moveaxis(out["TL"], -1, 0), T_ref, rtol=0, atol=ATOL)
     assert np.abs(out["S"][:, 0, 0] - np.cos(x)).max() <= 2.3e-16
     assert np.abs(out["S"][:, 1, 0] - np.sin(x)).max() <= 2.3e-16
+
+
+def test_concurrent_calls_from_threads():
+    """Calls from several Python threads at once (each publishes a job to the kernel's worker
+    pool; a job may get the workers or run on its caller alone): every result is the one the same
+    call gives alone, and the pose-last and Jacobian kernels share the pool too."""
+    from concurrent.futures import ThreadPoolExecutor
+    robot = _robot("sdh", ("R", "P", "R", "R", "R", "R"), 8)
+    qs = [np.random.default_rng(40 + i).uniform(-3, 3, (3000 + 61 * i, 6)) for i in range(8)]
+    fk_j = jax.jit(lambda q: fk(robot, q))
+    last_j = jax.jit(lambda q: fk_pose_last(robot, q.T))
+    jac_j = jax.jit(lambda q: jacobian_and_fk(robot, q)[0])
+    fns = (fk_j, last_j, jac_j)
+    want = [[np.asarray(f(q)) for f in fns] for q in qs]
+
+    def work(i):
+        return [[np.asarray(f(qs[i])) for f in fns] for _ in range(5)]
+
+    with ThreadPoolExecutor(4) as ex:
+        for i, results in enumerate(ex.map(work, range(len(qs)))):
+            for got in results:
+                for g, w in zip(got, want[i]):
+                    assert_array_equal(g, w)

@@ -2,11 +2,13 @@
 called from JAX through the XLA FFI (``jax.ffi.ffi_call``).
 
 On first use the kernel is compiled with the system C++ compiler (``$CXX`` or ``c++``,
-``-O3 -march=native``, 512-bit vectors where the CPU has them, OpenMP when available) against
+``-O3 -march=native``, 512-bit vectors where the CPU has them, ``-fopenmp`` when the compiler
+takes it, for the ``omp simd`` hints: the kernel's threads are its own, see ``chain.cc``) against
 the FFI headers shipped in jaxlib, and cached in ``$XDG_CACHE_HOME/jaxcal`` (default
-``~/.cache/jaxcal``), keyed by the source, the flags, the jax version and the CPU. That takes 3–4 s once per machine.
+``~/.cache/jaxcal``), keyed by the sources (``chain.cc`` and the headers beside it), the flags, the jax version and the CPU. That takes 3–4 s once per machine.
 ``JAXCAL_NATIVE_FLAGS`` in the environment appends compiler flags (e.g. ``-mno-avx512f``, which the
-tests use to check the kernel's paths for CPUs without AVX-512). When it cannot be
+tests use to check the kernel's paths for CPUs without AVX-512); ``JAXCAL_NATIVE_THREADS=N``
+caps the threads a call uses (default: one per core), read when the kernel first runs. When it cannot be
 built (no compiler, no headers), when the default JAX backend is not the CPU, or with
 ``JAXCAL_NATIVE=0`` in the environment, jaxcal uses its pure-JAX implementation
 (:func:`jaxcal.kinematics._fk_xla`, :func:`jaxcal.error_model._columns_xla`), which is also
@@ -67,12 +69,13 @@ def _build() -> Path:
         raise RuntimeError("no C++ compiler found (set CXX)")
     include = jax.ffi.include_dir()
     flags = _FLAGS + os.environ.get("JAXCAL_NATIVE_FLAGS", "").split()
-    key = hashlib.sha256(SOURCE.read_bytes() + repr((flags, cxx, jax.__version__, _cpu_id())).encode()).hexdigest()
+    headers = b"".join(h.read_bytes() for h in sorted(SOURCE.parent.glob("*.h")))  # lanes.h, pool.h, stores.h
+    key = hashlib.sha256(SOURCE.read_bytes() + headers + repr((flags, cxx, jax.__version__, _cpu_id())).encode()).hexdigest()
     lib = _cache_dir() / f"jaxcal-chain-{key[:20]}.so"
     if lib.exists():
         return lib
     errors = []
-    for extra in (["-fopenmp"], []):  # OpenMP when the compiler has it (macOS clang does not)
+    for extra in (["-fopenmp"], []):  # omp simd hints (and older sources' loops, bench_kernel_ab.py); macOS clang lacks it
         tmp = lib.with_suffix(f".{os.getpid()}.tmp")
         cmd = [cxx, *flags, *extra, f"-I{include}", str(SOURCE), "-o", str(tmp)]
         proc = subprocess.run(cmd, capture_output=True, text=True)

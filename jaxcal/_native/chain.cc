@@ -5,8 +5,9 @@
 //
 // Why: XLA CPU materialises every link's 12 entries for all poses between links and computed
 // float64 sin/cos one value at a time; here a block of BLK poses gets all its sincos first, then
-// runs through all links 8 poses at a time with the running transform in registers
-// (benchmarks/bench_roofline.py measures both, benchmarks/bench_kernel_phases.py each phase).
+// runs through all links W poses at a time (8 with AVX-512, else 4) with the running transform in
+// registers (benchmarks/bench_roofline.py measures both, benchmarks/bench_kernel_phases.py each
+// phase). Blocks are spread over the calling thread and the kernel's own workers (pool.h).
 //
 // Layout: q (B, K, n) joint values, B robots (leading batch axes flattened) of K poses each, or
 // pose axis last, q (B, n, K) (JaxcalFkPoseLast); dh (B, n, 4) rows (theta, d, a, alpha); rev
@@ -17,8 +18,9 @@
 // Standard DH link (paper eq. 1): R = [[c, -s ca, s sa], [s, c ca, -c sa], [0, sa, ca]],
 //   t = (a c, a s, d). Modified DH: R = [[c, -s, 0], [s ca, c ca, -sa], [s sa, c sa, ca]],
 //   t = (a, -sa d, ca d).
-// sin/cos of theta: sincos_lanes below (with AVX-512 a table of the multiples of pi/8, otherwise the
-//   polynomials of jaxcal/trig.py).
+// sin/cos of theta: sincos_lanes (lanes.h; with AVX-512 a table of the multiples of pi/8, otherwise
+//   the polynomials of jaxcal/trig.py).
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -27,10 +29,9 @@
 #include <sys/mman.h>
 #endif
 
-#if defined(__AVX__)
-#include <immintrin.h>
-#endif
-
+#include "lanes.h"   // vectors of W lanes, sincos_lanes, transpose8
+#include "pool.h"    // parallel_blocks: the kernel's threads
+#include "stores.h"  // store_tile, store_pose_major, store_pose_last
 #include "xla/ffi/api/ffi.h"
 
 namespace ffi = xla::ffi;
@@ -39,114 +40,6 @@ namespace {
 
 constexpr int BLK = 64;
 constexpr int MAXN = 16;  // joints; longer chains use the pure-JAX path
-
-// W lanes (poses) as one value (GCC/Clang vector extensions): one AVX-512 register of 8, else 4
-// (one AVX register, two NEON ones). With 8 lanes on AVX2 the 12 entries of a running frame took
-// 24 of its 16 registers, and the chain spilled: FK ran 1.5x slower than with 4 (an AVX2 build
-// on an AVX-512 host, benchmarks/bench_kernel_phases.py).
-#if defined(__AVX512F__)
-constexpr int W = 8;
-#else
-constexpr int W = 4;
-#endif
-typedef double vec __attribute__((vector_size(8 * W)));
-typedef uint64_t uvec __attribute__((vector_size(8 * W)));
-inline vec loadv(const double *p) { vec v; __builtin_memcpy(&v, p, sizeof v); return v; }
-inline void storev(double *p, vec v) { __builtin_memcpy(p, &v, sizeof v); }
-
-// sin and cos of 8 angles, |x| <= jaxcal.trig.DOMAIN. Both forms take n = round(x k/pi) by the
-// shifter 1.5 * 2^52 (after the addition the integer n sits in the low bits of t's mantissa, two's
-// complement mod 2^51, so n mod 16 is read off the bits) and r = x - n pi/k in three parts
-// (Cody-Waite with jaxcal/trig.py's split of pi/2, scaled: n P1 and n P2 exact for |n| < 2^20).
-#if defined(__AVX512F__)
-// With AVX-512, k = 8 and a table of the 16 multiples of pi/8: |r| <= pi/16, sin r and cos r by
-// Taylor series to r^11 and r^10 (the first omitted terms, r^13/13! and r^12/12!, at most 1.0e-19
-// and 6.7e-18), then sin x = sin(n pi/8) cos r + cos(n pi/8) sin r and cos x = cos(n pi/8) cos r -
-// sin(n pi/8) sin r, sin(n pi/8) and cos(n pi/8) looked up by n mod 16 with one two-register
-// permute each. About 23 vector operations for 8 sincos, against ~30 for the quadrant form below
-// and ~58 for the Taylor form on |r| <= pi/4 with a floating-point quadrant that both replaced
-// (benchmarks/bench_kernel_phases.py).
-constexpr double SIN16[16] = {0.0, 0.3826834323650898, 0.7071067811865476, 0.9238795325112867, 1.0,
-                              0.9238795325112867, 0.7071067811865476, 0.3826834323650898, 0.0,
-                              -0.3826834323650898, -0.7071067811865476, -0.9238795325112867, -1.0,
-                              -0.9238795325112867, -0.7071067811865476, -0.3826834323650898};
-constexpr double COS16[16] = {1.0, 0.9238795325112867, 0.7071067811865476, 0.3826834323650898, 0.0,
-                              -0.3826834323650898, -0.7071067811865476, -0.9238795325112867, -1.0,
-                              -0.9238795325112867, -0.7071067811865476, -0.3826834323650898, 0.0,
-                              0.3826834323650898, 0.7071067811865476, 0.9238795325112867};
-
-inline vec lookup16(const double *table, uvec k) {  // table[k mod 16] per lane
-  return (vec)_mm512_permutex2var_pd(_mm512_loadu_pd(table), (__m512i)k, _mm512_loadu_pd(table + 8));
-}
-
-inline void sincos_lanes(vec x, vec &s_out, vec &c_out) {
-  const double shifter = 6755399441055744.0;  // 1.5 * 2^52
-  const double p1 = 1.5707963267341256 / 4, p2 = 6.077100506303966e-11 / 4, p3 = 2.0222662487959506e-21 / 4;
-  const vec t = x * 2.5464790894703255 + shifter;  // 8/pi
-  const vec n = t - shifter;
-  const vec r = ((x - n * p1) - n * p2) - n * p3;
-  const vec z = r * r;
-  const vec s = r + (r * z) * (-1.0 / 6 + z * (1.0 / 120 + z * (-1.0 / 5040 + z * (1.0 / 362880
-                + z * (-1.0 / 39916800)))));
-  const vec c = (1.0 - 0.5 * z) + (z * z) * (1.0 / 24 + z * (-1.0 / 720 + z * (1.0 / 40320 + z * (-1.0 / 3628800))));
-  const uvec k = (uvec)t;
-  const vec sn = lookup16(SIN16, k), cn = lookup16(COS16, k);
-  s_out = sn * c + cn * s;
-  c_out = cn * c - sn * s;
-}
-#else
-// Without AVX-512 (no two-register permute; a gather or per-lane loads cost more than they save),
-// k = 2 and jaxcal/trig.py's polynomials on |r| <= pi/4 (fdlibm's minimax, to r^13 and r^14); odd
-// n swaps sin and cos, and the signs are bit 1 of n (sin) and of n + 1 (cos), xor-ed into the sign
-// bit, all as bit operations on the lanes (no vector conditionals, which not every compiler has).
-inline void sincos_lanes(vec x, vec &s_out, vec &c_out) {
-  const double shifter = 6755399441055744.0;  // 1.5 * 2^52
-  const double p1 = 1.5707963267341256, p2 = 6.077100506303966e-11, p3 = 2.0222662487959506e-21;
-  const double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03, S3 = -1.98412698298579493134e-04,
-               S4 = 2.75573137070700676789e-06, S5 = -2.50507602534068634195e-08, S6 = 1.58969099521155010221e-10;
-  const double C1 = 4.16666666666666019037e-02, C2 = -1.38888888888741095749e-03, C3 = 2.48015872894767294178e-05,
-               C4 = -2.75573143513906633035e-07, C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
-  const vec t = x * 0.6366197723675814 + shifter;  // 2/pi
-  const vec n = t - shifter;
-  const vec r = ((x - n * p1) - n * p2) - n * p3;
-  const vec z = r * r;
-  const uvec s = (uvec)(r + (r * z) * (S1 + z * (S2 + z * (S3 + z * (S4 + z * (S5 + z * S6))))));
-  const uvec c = (uvec)((1.0 - 0.5 * z) + (z * z) * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6))))));
-  const uvec k = (uvec)t, odd = -(k & 1), sign = uvec{} + (uint64_t(1) << 63);
-  s_out = (vec)(((s & ~odd) | (c & odd)) ^ ((k << 62) & sign));
-  c_out = (vec)(((c & ~odd) | (s & odd)) ^ (((k + 1) << 62) & sign));
-}
-#endif
-
-inline void sincos1(double x, double *s, double *c) {
-  vec sv, cv;
-  sincos_lanes(vec{} + x, sv, cv);
-  *s = sv[0];
-  *c = cv[0];
-}
-
-#if defined(__AVX512F__)
-// r[i][l] <- r[l][i]: an 8 x 8 transpose in registers (24 shuffles).
-inline void transpose8(__m512d r[8]) {
-  const __m512i i1 = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13), i2 = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
-  const __m512i i3 = _mm512_setr_epi64(0, 1, 2, 3, 8, 9, 10, 11), i4 = _mm512_setr_epi64(4, 5, 6, 7, 12, 13, 14, 15);
-  __m512d t[8], u[8];
-  for (int i = 0; i < 8; i += 2) {
-    t[i] = _mm512_unpacklo_pd(r[i], r[i + 1]);
-    t[i + 1] = _mm512_unpackhi_pd(r[i], r[i + 1]);
-  }
-  for (int h = 0; h < 8; h += 4) {
-    u[h] = _mm512_permutex2var_pd(t[h], i1, t[h + 2]);
-    u[h + 1] = _mm512_permutex2var_pd(t[h + 1], i1, t[h + 3]);
-    u[h + 2] = _mm512_permutex2var_pd(t[h], i2, t[h + 2]);
-    u[h + 3] = _mm512_permutex2var_pd(t[h + 1], i2, t[h + 3]);
-  }
-  for (int j = 0; j < 4; ++j) {
-    r[j] = _mm512_permutex2var_pd(u[j], i3, u[j + 4]);
-    r[j + 4] = _mm512_permutex2var_pd(u[j], i4, u[j + 4]);
-  }
-}
-#endif
 
 struct Problem {
   int64_t B, K, n;
@@ -293,95 +186,6 @@ inline void end_lanes(const double *tool, const vec R[12], vec E[12]) {
   }
 }
 
-// out[b * rows + e] = X[e * S + b] for b < m: a tile written pose-major. With AVX-512, 8 x 8
-// blocks are transposed in registers (the strided gathers of the plain loop cost the Jacobian
-// more than computing it); with AVX (AVX2 machines), 4 x 4 blocks; the rest take the plain loop.
-template <int S = BLK>
-inline void store_tile(int rows, int m, const double *X, double *out) {
-  int b0 = 0;
-#if defined(__AVX512F__)
-  if (rows % 8 == 0) {
-    for (; b0 + 8 <= m; b0 += 8) {
-      for (int e0 = 0; e0 < rows; e0 += 8) {
-        __m512d r[8];
-        for (int i = 0; i < 8; ++i) r[i] = _mm512_loadu_pd(X + (e0 + i) * S + b0);
-        transpose8(r);
-        for (int j = 0; j < 8; ++j) _mm512_storeu_pd(out + (int64_t)(b0 + j) * rows + e0, r[j]);
-      }
-    }
-  }
-#endif
-#if defined(__AVX__)
-  if (rows % 4 == 0) {  // 4 x 4 blocks (AVX2 machines, and AVX-512 ones for the rest)
-    for (; b0 + 4 <= m; b0 += 4) {
-      for (int e0 = 0; e0 < rows; e0 += 4) {
-        const __m256d r0 = _mm256_loadu_pd(X + (e0 + 0) * S + b0), r1 = _mm256_loadu_pd(X + (e0 + 1) * S + b0),
-                      r2 = _mm256_loadu_pd(X + (e0 + 2) * S + b0), r3 = _mm256_loadu_pd(X + (e0 + 3) * S + b0);
-        const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1),
-                      t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-        double *o = out + (int64_t)b0 * rows + e0;
-        _mm256_storeu_pd(o, _mm256_permute2f128_pd(t0, t2, 0x20));
-        _mm256_storeu_pd(o + rows, _mm256_permute2f128_pd(t1, t3, 0x20));
-        _mm256_storeu_pd(o + 2 * rows, _mm256_permute2f128_pd(t0, t2, 0x31));
-        _mm256_storeu_pd(o + 3 * rows, _mm256_permute2f128_pd(t1, t3, 0x31));
-      }
-    }
-  }
-#endif
-  for (int b = b0; b < m; ++b)
-#pragma omp simd
-    for (int e = 0; e < rows; ++e) out[(int64_t)b * rows + e] = X[e * S + b];
-}
-
-// The end poses of lanes 0 .. m-1 (m <= W) written pose-major, 16 doubles each (the last row
-// (0, 0, 0, 1)). With AVX-512 and all 8 lanes, straight from registers: rows 0..7 as one 8 x 8
-// transpose, rows 8..11 as 4 x 8 (eight shuffles for eight poses), the constant quarter of each
-// pose as one 256-bit store (the shuffle port bounds this store); otherwise through a tile.
-inline void store_pose_major(const vec E[12], int m, double *out) {
-#if defined(__AVX512F__)
-  if (m == 8) {
-    __m512d r[8];
-    for (int i = 0; i < 8; ++i) r[i] = (__m512d)E[i];
-    transpose8(r);
-    for (int b = 0; b < 8; ++b) _mm512_storeu_pd(out + 16 * b, r[b]);
-    const __m512i i1 = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11), i2 = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
-    const __m256d last = _mm256_setr_pd(0.0, 0.0, 0.0, 1.0);
-    const __m512d a = (__m512d)E[8], b = (__m512d)E[9], c = (__m512d)E[10], d = (__m512d)E[11];
-    const __m512d t0 = _mm512_unpacklo_pd(a, b), t1 = _mm512_unpackhi_pd(a, b), t2 = _mm512_unpacklo_pd(c, d),
-                  t3 = _mm512_unpackhi_pd(c, d);
-    // u = poses (0, 2), (4, 6), (1, 3), (5, 7) of the eight, rows 8..11 each
-    const __m512d u[4] = {_mm512_permutex2var_pd(t0, i1, t2), _mm512_permutex2var_pd(t0, i2, t2),
-                          _mm512_permutex2var_pd(t1, i1, t3), _mm512_permutex2var_pd(t1, i2, t3)};
-    const int first[4] = {0, 4, 1, 5};
-    for (int h = 0; h < 4; ++h) {
-      double *o = out + 16 * first[h] + 8;
-      _mm256_storeu_pd(o, _mm512_castpd512_pd256(u[h]));
-      _mm256_storeu_pd(o + 32, _mm512_extractf64x4_pd(u[h], 1));
-      _mm256_storeu_pd(o + 4, last);
-      _mm256_storeu_pd(o + 36, last);
-    }
-    return;
-  }
-#endif
-  double X[16][W];
-  for (int e = 0; e < 12; ++e) storev(X[e], E[e]);
-  for (int e = 12; e < 16; ++e) storev(X[e], vec{} + (e == 15 ? 1.0 : 0.0));
-  store_tile<W>(16, m, &X[0][0], out);
-}
-
-// The end poses of lanes 0 .. m-1 (m <= W) with the pose axis last: entry e of lane l at
-// out[e * K + l]. No transpose: plain stores.
-inline void store_pose_last(const vec E[12], int m, int64_t K, double *out) {
-  for (int e = 0; e < 16; ++e) {
-    const vec v = e < 12 ? E[e] : vec{} + (e == 15 ? 1.0 : 0.0);
-    if (m == W) {
-      storev(out + e * K, v);
-    } else {
-      for (int l = 0; l < m; ++l) out[e * K + l] = v[l];
-    }
-  }
-}
-
 // Ask Linux for 2 MiB pages behind a large output buffer. XLA gives every call a fresh buffer,
 // which glibc maps from the kernel beyond 32 MiB; touching it 4 KiB page by page cost the
 // 10^5-pose Jacobian (115 MB) 28,000 page faults per call, ~30 ms against ~4 ms of computing
@@ -429,10 +233,9 @@ inline void fk_block(const Problem &P, int64_t ib, double *T_out) {
 }
 
 void fk_kernel(const Problem &P, double *T_out) {
-#pragma omp parallel for schedule(static)
-  for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
+  parallel_blocks(n_blocks(P), [&](int64_t ib) {
     if (P.mdh) fk_block<true>(P, ib, T_out); else fk_block<false>(P, ib, T_out);
-  }
+  });
 }
 
 // The 4 columns of link i for the 8 poses b0 .. b0+7 of the block, into the tile
@@ -497,10 +300,9 @@ inline void jac_block(const Problem &P, int64_t ib, int rows, double *J_out, dou
 }
 
 void jac_kernel(const Problem &P, int rows, double *J_out, double *T_out) {
-#pragma omp parallel for schedule(static)
-  for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
+  parallel_blocks(n_blocks(P), [&](int64_t ib) {
     if (P.mdh) jac_block<true>(P, ib, rows, J_out, T_out); else jac_block<false>(P, ib, rows, J_out, T_out);
-  }
+  });
 }
 
 ffi::Error make_problem(ffi::Buffer<ffi::F64> &q, ffi::Buffer<ffi::F64> &dh, ffi::Buffer<ffi::F64> &rev,
