@@ -86,5 +86,16 @@ def timed(fn, *args, repeats=7):
     return first, runs
 
 
+def compile_text(first: float, runs) -> str:
+    """Compile time read off a first call: the first call minus the warm median. When the runs
+    spread more than that difference, it is below the timing noise and says so (a negative
+    "compile" was printed until 2026-11-24)."""
+    med = statistics.median(runs)
+    c = first - med
+    if c <= max(runs) - min(runs):
+        return f"first call {first:5.2f} s (compile below the runs' spread, {max(runs) - min(runs):.2f} s)"
+    return f"compile {c:5.2f} s"
+
+
 def summary(runs) -> str:
     return f"median {statistics.median(runs) * 1e3:9.3f} ms  (min {min(runs) * 1e3:.3f}, max {max(runs) * 1e3:.3f})"

@@ -28,7 +28,7 @@ import jaxcal
 from jaxcal.calibrate import calibrate_batch, identify
 from jaxcal.error_model import perturb, pose_error
 from jaxcal.simulate import simulate
-from _util import HUGETLB, machine, summary, timed
+from _util import HUGETLB, compile_text, machine, summary, timed
 
 
 def autodiff_gn(robot, free, m, sp, sr):
@@ -85,10 +85,10 @@ def main():
         steps = out.num_steps.max() if hasattr(out, "num_steps") else int(np.max(out[2]))
         results[name] = med
         if args._child:
-            print(json.dumps({"name": name, "runs": runs, "compile_s": first - med, "faults": faults,
+            print(json.dumps({"name": name, "runs": runs, "first_s": first, "faults": faults,
                               "converged": float(conv)}))
             continue
-        print(f"{name:36s} {summary(runs)}  -> {args.robots / med:8,.0f} robots/s; compile {first - med:5.2f} s;"
+        print(f"{name:36s} {summary(runs)}  -> {args.robots / med:8,.0f} robots/s; {compile_text(first, runs)};"
               f" converged {conv:.0%}, max steps {steps}; {faults:,} page faults/call")
     if args._child:  # only the in-process rows: a child never spawns children
         return
@@ -106,8 +106,8 @@ def main():
             med = statistics.median(r["runs"])
             name = f"{r['name'].split(' (')[0]}, {env}"
             results[name] = med
-            print(f"{name:36s} {summary(r['runs'])}  -> {args.robots / med:8,.0f} robots/s; compile "
-                  f"{r['compile_s']:5.2f} s; converged {r['converged']:.0%}; {r['faults']:,} page faults/call")
+            print(f"{name:36s} {summary(r['runs'])}  -> {args.robots / med:8,.0f} robots/s; "
+                  f"{compile_text(r['first_s'], r['runs'])}; converged {r['converged']:.0%}; {r['faults']:,} page faults/call")
     base = results["baseline gn (autodiff through FK)"]
     for name, med in results.items():
         print(f"speed-up vs baseline: {name:36s} {base / med:5.2f}x")

@@ -37,6 +37,9 @@ ROOT = os.path.dirname(HERE)
 
 HARNESS = r"""
 #include SOURCE
+#if defined(JAXCAL_NATIVE_POOL) && !defined(HAS_POOL)  // the pool's header says so since it has one
+#define HAS_POOL 1
+#endif
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -156,7 +159,13 @@ int main(int argc, char **argv) {
 #elif defined(_OPENMP)
   all = omp_get_max_threads();
 #endif
-  printf("{\"lanes\": %d, \"threads\": %d}\n", HW, all);
+  const char *control = "none";  // what the one-thread rows set: without it they run on every thread
+#ifdef HAS_POOL
+  control = "pool";
+#elif defined(_OPENMP)
+  control = "openmp";
+#endif
+  printf("{\"lanes\": %d, \"threads\": %d, \"control\": \"%s\"}\n", HW, all, control);
 #ifndef NO_PHASES
   if (!P.mdh) {
     for (int last = 0; last < 2; ++last) {
@@ -215,7 +224,9 @@ def build(source: str, tmp: str, phases: bool) -> str:
     with open(src, "w") as f:
         f.write(HARNESS.replace("SOURCE", json.dumps(source)))
     extra = [] if phases else ["-DNO_PHASES"]
-    if "class Workers" in open(source).read():
+    folder = os.path.dirname(source)  # the pool moved from chain.cc into pool.h in 56880a1
+    texts = [open(os.path.join(folder, f)).read() for f in os.listdir(folder) if f.endswith((".cc", ".h"))]
+    if any("class Workers" in t for t in texts):
         extra.append("-DHAS_POOL")
     for omp in (["-fopenmp"], []):
         p = subprocess.run([cxx, *flags, *omp, *extra, f"-I{jax.ffi.include_dir()}", src, "-o", exe],
@@ -264,7 +275,7 @@ def main():
         raise SystemExit("the pose-major and pose-last FK kernels disagree")
     flops = hand_flops(n)
     print(f"kernel: {args.source or source}; {args.robot} ({n} joints), {args.poses:,} poses per pass, {args.repeats} passes; "
-          f"vectors of {info['lanes']} doubles, {info['threads']} threads")
+          f"vectors of {info['lanes']} doubles, {info['threads']} threads (set by {info['control']})")
     print(f"peak float64: DGEMM {peak / 1e9:.1f} GFLOP/s (the reference below); FMA loop "
           f"{fma.get(1, float('nan')) / 1e9:.1f} GFLOP/s on 1 thread, {fma.get(info['threads'], float('nan')) / 1e9:.1f} "
           f"on {info['threads']}; cycles at {ghz:.2f} GHz (the reference clock)")

@@ -61,6 +61,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--poses", type=int, default=100_000)
     ap.add_argument("--numpy-poses", type=int, default=2_000)
+    ap.add_argument("--repeats", type=int, default=51, help="jitted calls timed (7 until 2026-11-24: medians "
+                    "moved 2x between runs on a shared VM)")
     args = ap.parse_args()
     robot = jaxcal.preset("paper-6r")
     rng = np.random.default_rng(0)
@@ -77,7 +79,7 @@ def main():
     print("machine:", machine())
     rows = []
     for name, jfn, nfn in (("FK", fk_jit, np_fk_loop), ("identification Jacobian", jac_jit, np_jac_loop)):
-        first, runs = timed(jfn, robot, Q)
+        first, runs = timed(jfn, robot, Q, repeats=args.repeats)
         nruns = []
         for _ in range(3):
             t0 = time.perf_counter()

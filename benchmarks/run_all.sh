@@ -14,9 +14,9 @@ run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/pyt
 run roofline bench_roofline.py --repeats 15 --json "$out/roofline.json"
 run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"
-# the kernel before / after the sincos table, register transposes and stores of 7722516, through JAX
-run kernel_ab bench_kernel_ab.py --rounds 5 --repeats 61 d5c4b6b 7722516
-# the kernel alone (no JAX): its phases, and the one before 7722516; both again built without AVX-512
+# the kernel before / after this change (d5c4b6b: OpenMP, Taylor sincos; 56880a1: sincos table, register transposes and stores, its own threads), through JAX
+run kernel_ab bench_kernel_ab.py --rounds 5 --repeats 61 d5c4b6b 56880a1
+# the kernel alone (no JAX): its phases, and the one of d5c4b6b; both again built without AVX-512
 run kernel_phases bench_kernel_phases.py --repeats 300
 run kernel_phases_d5c4b6b bench_kernel_phases.py --repeats 300 --source d5c4b6b
 JAXCAL_NATIVE_FLAGS=-mno-avx512f run kernel_phases_avx2 bench_kernel_phases.py --repeats 100
