@@ -12,6 +12,15 @@ and the ratio against the first version (the baseline).
 
 A version may end in ``@FLAG,FLAG``: flags appended to the shipped ones (``jaxcal._native._FLAGS``
 of this checkout, whatever the revision), so a later flag overrides an earlier one.
+
+Each round also counts its minor page faults per call: through JAX, a process's output buffers
+are either reused or fresh memory on every call (glibc returned them to Linux), and which one
+depends on the heap's history, not on the kernel (the 10^4-pose Jacobian took 0.19-0.24 ms in
+the first state and 0.3-0.85 ms in the second, for d5c4b6b's kernel and 56880a1's alike,
+2026-11-24). ``--keep-heap`` runs every child with ``_util.KEEP_HEAP`` (glibc keeps freed
+memory) to compare kernels without that state; ``--env NAME=VALUE`` sets any other variable:
+
+    python benchmarks/bench_kernel_ab.py d5c4b6b HEAD --keep-heap
 """
 
 from __future__ import annotations
@@ -24,13 +33,13 @@ import subprocess
 import sys
 import tempfile
 
-from _util import kernel_source, machine
+from _util import KEEP_HEAP, kernel_source, machine
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
 CHILD = r"""
-import json, statistics, sys
+import json, resource, statistics, sys
 from pathlib import Path
 import numpy as np
 import jax
@@ -49,8 +58,10 @@ for K in (10_000, 100_000):
     Q = jax.numpy.asarray(np.random.default_rng(0).uniform(-np.pi, np.pi, (K, 6)))
     for op, f in (("FK", jax.jit(lambda q: jaxcal.fk(robot, q))),
                   ("Jacobian", jax.jit(lambda q: jaxcal.error_model.identification_jacobian(robot, q)))):
+        f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
         _, runs = timed(f, Q, repeats=int(sys.argv[2]))
-        out[f"{op}, {K:,} poses/call"] = [statistics.median(runs), min(runs)]
+        faults = (resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0) / (len(runs) + 1)
+        out[f"{op}, {K:,} poses/call"] = [statistics.median(runs), min(runs), faults]
 print(json.dumps(out))
 """
 
@@ -61,7 +72,13 @@ def main():
                     help="git revisions or chain.cc files, each optionally @FLAG,FLAG; the first is the baseline")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeats", type=int, default=21)
+    ap.add_argument("--env", action="append", default=[], metavar="NAME=VALUE",
+                    help="set in every child process (e.g. _util.KEEP_HEAP: glibc keeping freed memory)")
+    ap.add_argument("--keep-heap", action="store_true", help="--env " + KEEP_HEAP)
     args = ap.parse_args()
+    if args.keep_heap:
+        args.env.append(KEEP_HEAP)
+    env = dict(os.environ, **dict(e.split("=", 1) for e in args.env))
     print("machine:", machine())
     with tempfile.TemporaryDirectory() as tmp:
         srcs = [(kernel_source(spec, tmp, ROOT), flags) for spec, _, flags in (v.partition("@") for v in args.versions)]
@@ -69,19 +86,22 @@ def main():
         for _ in range(args.rounds):
             for v, (src, flags) in zip(args.versions, srcs):
                 p = subprocess.run([sys.executable, "-c", CHILD, src, str(args.repeats), HERE, flags],
-                                   capture_output=True, text=True)
+                                   capture_output=True, text=True, env=env)
                 if p.returncode:
                     raise SystemExit(f"{v}: {p.stderr.strip()[-2000:]}")
                 got[v].append(json.loads(p.stdout.strip().splitlines()[-1]))
     base = args.versions[0]
-    print(f"{args.rounds} rounds of fresh processes, {args.repeats} calls each; ms per call: median of the "
-          f"rounds' medians [each round's median] (min of all calls); ratio = baseline / version")
+    print(f"{args.rounds} rounds of fresh processes, {args.repeats} calls each{''.join(' ' + e for e in args.env)}; "
+          f"ms per call: median of the rounds' medians [each round's median (its minor page faults per call)] "
+          f"(min of all calls); ratio = baseline / version. A round whose output buffers are fresh memory on "
+          f"every call (glibc returned them; faults in the hundreds) is the allocator's state, not the kernel's")
     for key in got[base][0]:
         ref = statistics.median(r[key][0] for r in got[base])
         for v in args.versions:
             meds = [r[key][0] for r in got[v]]
             med = statistics.median(meds)
-            print(f"{key:28s} {v:>36s}  {med * 1e3:8.3f} ms [{', '.join(f'{m * 1e3:.3f}' for m in meds)}]"
+            rounds = ', '.join(f'{r[key][0] * 1e3:.3f} ({r[key][2]:.0f})' for r in got[v])
+            print(f"{key:28s} {v:>36s}  {med * 1e3:8.3f} ms [{rounds}]"
                   f" (min {min(r[key][1] for r in got[v]) * 1e3:.3f})  x{ref / med:5.2f}")
 
 

@@ -302,7 +302,7 @@ inline void jac_block(const Problem &P, int64_t ib, int rows, double *J_out, dou
 void jac_kernel(const Problem &P, int rows, double *J_out, double *T_out) {
   parallel_blocks(n_blocks(P), [&](int64_t ib) {
     if (P.mdh) jac_block<true>(P, ib, rows, J_out, T_out); else jac_block<false>(P, ib, rows, J_out, T_out);
-  });
+  }, /*chunks_per_thread=*/2);
 }
 
 ffi::Error make_problem(ffi::Buffer<ffi::F64> &q, ffi::Buffer<ffi::F64> &dh, ffi::Buffer<ffi::F64> &rev,

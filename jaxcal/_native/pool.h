@@ -117,9 +117,15 @@ class Workers {
   unsigned threads_ = 0;
 };
 
-// body(ib) for every block ib < nb, on the calling thread and the workers.
+// body(ib) for every block ib < nb, on the calling thread and the workers, in about
+// chunks_per_thread chunks per thread. More chunks let a thread that finishes early take more of
+// the others' work; fewer keep each thread's writes to its own part of the output. FK takes 8.
+// The Jacobian takes 2: with 8, a 10^5-pose Jacobian (a fresh 115 MB output on every call, 1,050
+// page faults per call) ran at 7-17 ms per call, some processes twice as slow as others, and at
+// 7.3-8.3 ms with 2 or 1 (13 fresh processes each; benchmarks/bench_kernel_ab.py --keep-heap,
+// 2026-11-24); FK and the 10^4-pose Jacobian did not move beyond noise.
 template <class Body>
-void parallel_blocks(int64_t nb, const Body &body) {
+void parallel_blocks(int64_t nb, const Body &body, int64_t chunks_per_thread = 8) {
   Workers &w = Workers::get();
   const int64_t threads = std::min(w.size() + 1, nb);
   if (threads < 2 || max_threads.load(std::memory_order_relaxed) == 1) {
@@ -135,7 +141,7 @@ void parallel_blocks(int64_t nb, const Body &body) {
   auto job = std::make_shared<BodyJob>();
   job->body = &body;
   job->nb_ = nb;
-  job->per = std::max<int64_t>(1, nb / (8 * threads));  // ~8 chunks per thread
+  job->per = std::max<int64_t>(1, nb / (chunks_per_thread * threads));
   job->chunks = (nb + job->per - 1) / job->per;
   job->ranges = static_cast<int>(threads);
   for (int k = 0; k < job->ranges; ++k) {  // range k: chunks [chunks k / ranges, chunks (k + 1) / ranges)
