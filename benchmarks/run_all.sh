@@ -14,10 +14,11 @@ run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/pyt
 run roofline bench_roofline.py --repeats 15 --json "$out/roofline.json"
 run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"
-# the kernel before / after this change (d5c4b6b: OpenMP, Taylor sincos; 56880a1: sincos table, register transposes and stores, its own threads), through JAX
-run kernel_ab bench_kernel_ab.py --rounds 5 --repeats 61 d5c4b6b 56880a1
+# the kernel through JAX: d5c4b6b (OpenMP, Taylor sincos), 56880a1 (sincos table, register transposes and stores,
+# its own threads), 71795e0 (the Jacobian in 2 chunks per thread)
+run kernel_ab bench_kernel_ab.py --rounds 7 --repeats 61 d5c4b6b 56880a1 71795e0
 # the same with glibc keeping freed memory: no process in the state whose output buffers are fresh memory each call
-run kernel_ab_keep_heap bench_kernel_ab.py --rounds 7 --repeats 61 d5c4b6b 56880a1 --keep-heap
+run kernel_ab_keep_heap bench_kernel_ab.py --rounds 11 --repeats 61 d5c4b6b 56880a1 71795e0 --keep-heap
 # the kernel alone (no JAX): its phases, and the one of d5c4b6b; both again built without AVX-512
 run kernel_phases bench_kernel_phases.py --repeats 300
 run kernel_phases_d5c4b6b bench_kernel_phases.py --repeats 300 --source d5c4b6b
