@@ -15,9 +15,9 @@ of this checkout, whatever the revision), so a later flag overrides an earlier o
 
 Each round also counts its minor page faults per call: through JAX, a process's output buffers
 are either reused or fresh memory on every call (glibc returned them to Linux), and which one
-depends on the heap's history, not on the kernel (the 10^4-pose Jacobian took 0.19-0.24 ms in
-the first state and 0.3-0.85 ms in the second, for d5c4b6b's kernel and 56880a1's alike,
-2026-11-24). ``--keep-heap`` runs every child with ``_util.KEEP_HEAP`` (glibc keeps freed
+depends on the heap's history, not on the kernel (the 10^4-pose Jacobian took 0.19-0.23 ms in
+rounds with 28-135 faults per call and 0.39-0.90 ms in rounds with 161-424, for d5c4b6b's,
+56880a1's and 71795e0's kernels alike; docs/bench/kernel_ab.txt, 2026-11-24). ``--keep-heap`` runs every child with ``_util.KEEP_HEAP`` (glibc keeps freed
 memory) to compare kernels without that state; ``--env NAME=VALUE`` sets any other variable:
 
     python benchmarks/bench_kernel_ab.py d5c4b6b HEAD --keep-heap

@@ -37,9 +37,6 @@ ROOT = os.path.dirname(HERE)
 
 HARNESS = r"""
 #include SOURCE
-#if defined(JAXCAL_NATIVE_POOL) && !defined(HAS_POOL)  // the pool's header says so since it has one
-#define HAS_POOL 1
-#endif
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -224,7 +221,8 @@ def build(source: str, tmp: str, phases: bool) -> str:
     with open(src, "w") as f:
         f.write(HARNESS.replace("SOURCE", json.dumps(source)))
     extra = [] if phases else ["-DNO_PHASES"]
-    folder = os.path.dirname(source)  # the pool moved from chain.cc into pool.h in 56880a1
+    # the kernel's own pool (HAS_POOL: the one-thread rows set it), in chain.cc or, since 56880a1, in pool.h
+    folder = os.path.dirname(source)
     texts = [open(os.path.join(folder, f)).read() for f in os.listdir(folder) if f.endswith((".cc", ".h"))]
     if any("class Workers" in t for t in texts):
         extra.append("-DHAS_POOL")

@@ -1,7 +1,6 @@
 // The worker threads of the kernels of chain.cc: blocks of poses split over the calling thread
 // and a pool of its own.
 #pragma once
-#define JAXCAL_NATIVE_POOL 1  // benchmarks/bench_kernel_phases.py's harness looks for it
 
 #include <algorithm>
 #include <atomic>
