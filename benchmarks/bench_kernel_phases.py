@@ -8,7 +8,9 @@
   those of the kernel (8 with AVX-512, else 4).
 * **Whole kernels**, on one thread and on every core: FK in both layouts and the identification
   Jacobian (6 rows), ns per pose, the hand-counted FLOP rate (``bench_roofline.hand_flops``) and
-  its fraction of the float64 peak.
+  its fraction of the float64 peak. Then FK and the Jacobian again over passes of only
+  ``--cache-poses`` poses (default 512) on one thread, so that the outputs stay in the core's
+  L2 (the Jacobian's 0.6 MB): the kernel's own rate, with the memory behind the cache taken out.
 * **Peak**: measured DGEMM (``bench_roofline.cpu_peak``, the reference of ``bench_roofline.py``)
   and a loop of independent fused multiply-adds on the kernel's vectors (the FMA units' own
   rate, usually above DGEMM's).
@@ -18,7 +20,8 @@ Medians with min/max over ``--repeats`` passes; cycles are at the reference cloc
 builds another version of the kernel (a file or a git revision) for the whole-kernel rows only
 (its internals may differ).
 
-    python benchmarks/bench_kernel_phases.py [--poses 10000] [--repeats 300] [--source REV|FILE]
+    python benchmarks/bench_kernel_phases.py [--poses 10000] [--repeats 300] [--cache-poses 512]
+        [--source REV|FILE]
 """
 
 from __future__ import annotations
@@ -111,6 +114,33 @@ template <int STAGE> __attribute__((noinline)) void stages(const Problem &P, dou
     asm volatile("" : : "r"(&blk), "r"(&L) : "memory");
   }
 }
+// The Jacobian (6 rows, SDH): STAGE 1: frames, end poses and their store (the chain with every
+// frame kept); 2: + the columns into the block's tile; 3: the whole block (+ the tile's
+// transposed store into J).
+double Jsink[6 * 4 * MAXN * 8];
+template <int STAGE> __attribute__((noinline)) void jac_stages(const Problem &P, double *J, double *T) {
+  static Frame F[MAXN + 1];
+  double pe[3][BLK];
+  const int64_t m = 4 * P.n;
+  for (int64_t ib = 0; ib < n_blocks(P); ++ib) {
+    if (STAGE == 3) {
+      jac_block<false>(P, ib, 6, J, T);
+      continue;
+    }
+    Block blk;
+    Links L;
+    block_init(P, ib, blk);
+    link_values(P, blk, L);
+    end_poses<false>(P, blk, L, F, [&](const vec *E, int g, int mg) {
+      store_pose_major(E, mg, T + 16 * (blk.r * P.K + blk.k0 + g));
+      for (int r = 0; r < 3; ++r) storev(&pe[r][g], E[4 * r + 3]);
+    });
+    if (STAGE >= 2)
+      for (int b0 = 0; b0 < blk.m; b0 += 8)
+        for (int64_t i = 0; i < P.n; ++i) link_columns<6>(m, i, F[i], F[i + 1], pe, b0, Jsink);
+    asm volatile("" : : "r"(&blk), "r"(&L), "r"(F), "r"(pe) : "memory");
+  }
+}
 #endif
 
 double fma_rate(int threads, long iters) {
@@ -197,6 +227,35 @@ int main(int argc, char **argv) {
     print_runs(name, t, double(K));
     if (all == 1) break;
   }
+  // The same kernels over passes of the first Ks poses only, on one thread: outputs that stay in
+  // the core's L2 (the Jacobian's 1,152 bytes per pose of 6 rows: 512 poses = 0.6 MB), so what
+  // is left is the kernel's own work, not the memory behind it. Pose-major only (a pose-last
+  // pass reads the joint values with the stride of all K poses).
+  const int64_t Ks = argc > 3 ? atol(argv[3]) : 0;
+  if (Ks > 0 && Ks < K) {
+    set_threads(1);
+    layout(P, false);
+    Problem S = P;
+    S.K = Ks;
+    const int rs = int(std::min<int64_t>(int64_t(repeats) * (K / Ks), 100000));
+    char name[96];
+    auto t = passes(rs, [&] { fk_kernel(S, T.data()); });
+    snprintf(name, sizeof name, "FK pose-major (%lld poses per pass), 1 thread(s)", (long long)Ks);
+    print_runs(name, t, double(Ks));
+    t = passes(rs, [&] { jac_kernel(S, 6, J.data(), T.data()); });
+    snprintf(name, sizeof name, "Jacobian (%lld poses per pass), 1 thread(s)", (long long)Ks);
+    print_runs(name, t, double(Ks));
+#ifndef NO_PHASES
+    if (!S.mdh) {
+      t = passes(rs, [&] { jac_stages<1>(S, J.data(), T.data()); });
+      print_runs("jstage 1", t, double(Ks));
+      t = passes(rs, [&] { jac_stages<2>(S, J.data(), T.data()); });
+      print_runs("jstage 2", t, double(Ks));
+      t = passes(rs, [&] { jac_stages<3>(S, J.data(), T.data()); });
+      print_runs("jstage 3", t, double(Ks));
+    }
+#endif
+  }
   bool agree = true;  // the layouts' end poses, entry by entry (when this version has both)
   if (layout(P, true)) {
     fk_kernel(P, T2.data());
@@ -239,6 +298,8 @@ def main():
     ap.add_argument("--poses", type=int, default=10_000)
     ap.add_argument("--repeats", type=int, default=300)
     ap.add_argument("--source", help="another chain.cc (file or git revision): whole-kernel rows only")
+    ap.add_argument("--cache-poses", type=int, default=512,
+                    help="also time passes of this many poses on one thread, outputs in L2 (0: not)")
     ap.add_argument("--robot", default="paper-6r")
     ap.add_argument("--peak", type=float, help="the float64 peak in GFLOP/s (default: measure DGEMM)")
     args = ap.parse_args()
@@ -259,7 +320,8 @@ def main():
         values = np.concatenate([np.ravel(robot.dh), np.ravel(robot.revolute_mask), np.ravel(robot.base),
                                  np.ravel(robot.tool)])
         stdin = f"{n} {int(robot.convention == 'mdh')} " + " ".join(repr(float(v)) for v in values)
-        p = subprocess.run([exe, str(args.poses), str(args.repeats)], input=stdin, capture_output=True, text=True)
+        p = subprocess.run([exe, str(args.poses), str(args.repeats), str(args.cache_poses)], input=stdin,
+                           capture_output=True, text=True)
     if p.returncode != 0:
         raise SystemExit(f"harness failed ({p.returncode}): {p.stderr[-1500:]}")
     rows = [json.loads(line) for line in p.stdout.splitlines() if line.startswith("{")]
@@ -288,8 +350,15 @@ def main():
         print(f"FK phases, {lay}, 1 thread (ns | cycles per pose): "
               + ", ".join(f"{k} {v * 1e9:.2f} | {v * ghz * 1e9:.1f}" for k, v in parts)
               + f"; whole block {med[3] * 1e9:.2f} | {med[3] * ghz * 1e9:.1f}")
+    js = [by.get(f"jstage {s}") for s in (1, 2, 3)]
+    if None not in js:
+        med = [s["median"] for s in js]
+        parts = [("frames and end poses", med[0]), ("columns", med[1] - med[0]), ("transposed store of J", med[2] - med[1])]
+        print(f"Jacobian phases, {args.cache_poses} poses per pass (outputs in L2), 1 thread (ns | cycles per pose): "
+              + ", ".join(f"{k} {v * 1e9:.2f} | {v * ghz * 1e9:.1f}" for k, v in parts)
+              + f"; whole block {med[2] * 1e9:.2f} | {med[2] * ghz * 1e9:.1f}")
     for name, r in by.items():
-        if name.startswith("stage"):
+        if name.startswith(("stage", "jstage")):
             continue
         op = "FK" if name.startswith("FK") else "Jacobian"
         th = int(name.rsplit(", ", 1)[1].split()[0])

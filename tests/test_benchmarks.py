@@ -58,7 +58,7 @@ def test_bench_kernel_phases_runs():
     same poses, and prints every phase and every whole-kernel row; the phases add up to the
     whole block."""
     p = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_kernel_phases.py"), "--poses", "640",
-                        "--repeats", "3", "--peak", "100"], capture_output=True, text=True, timeout=300, cwd=ROOT)
+                        "--repeats", "3", "--cache-poses", "128", "--peak", "100"], capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert p.returncode == 0, p.stderr[-2000:]
     lines = p.stdout.splitlines()
     # the one-thread rows must run on one thread: the harness sets the kernel's own pool (it ran on
@@ -70,5 +70,12 @@ def test_bench_kernel_phases_runs():
         parts = [float(x.split(" | ")[0].split()[-1]) for x in line.split(": ", 1)[1].split("; ")[0].split(", ")]
         whole = float(line.split("whole block ")[1].split(" | ")[0])
         assert abs(sum(parts) - whole) < 0.02 + 1e-3 * whole
+    # the Jacobian's phases over the small (in-cache) passes add up to its whole block
+    jph = [line for line in lines if line.startswith("Jacobian phases, 128 poses per pass")]
+    assert len(jph) == 1 and "transposed store of J" in jph[0], p.stdout[-1500:]
+    parts = [float(x.split(" | ")[0].split()[-1]) for x in jph[0].split(": ", 1)[1].split("; ")[0].split(", ")]
+    whole = float(jph[0].split("whole block ")[1].split(" | ")[0])
+    assert len(parts) == 3 and abs(sum(parts) - whole) < 0.02 + 1e-3 * whole
     names = [line.split(" median")[0].strip() for line in lines if " ns/pose " in line]
-    assert {"FK pose-major, 1 thread(s)", "FK pose-last, 1 thread(s)", "Jacobian, 1 thread(s)"} <= set(names)
+    assert {"FK pose-major, 1 thread(s)", "FK pose-last, 1 thread(s)", "Jacobian, 1 thread(s)",
+            "FK pose-major (128 poses per pass), 1 thread(s)", "Jacobian (128 poses per pass), 1 thread(s)"} <= set(names)
