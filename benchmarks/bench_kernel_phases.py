@@ -299,7 +299,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=300)
     ap.add_argument("--source", help="another chain.cc (file or git revision): whole-kernel rows only")
     ap.add_argument("--cache-poses", type=int, default=512,
-                    help="also time passes of this many poses on one thread, outputs in L2 (0: not)")
+                    help="also time passes of this many poses on one thread, small enough for L2 (0: not)")
     ap.add_argument("--robot", default="paper-6r")
     ap.add_argument("--peak", type=float, help="the float64 peak in GFLOP/s (default: measure DGEMM)")
     args = ap.parse_args()
@@ -354,7 +354,9 @@ def main():
     if None not in js:
         med = [s["median"] for s in js]
         parts = [("frames and end poses", med[0]), ("columns", med[1] - med[0]), ("transposed store of J", med[2] - med[1])]
-        print(f"Jacobian phases, {args.cache_poses} poses per pass (outputs in L2), 1 thread (ns | cycles per pose): "
+        out_mb = args.cache_poses * (6 * 4 * n + 16) * 8 / 1e6  # J and T: what has to fit in the core's L2
+        print(f"Jacobian phases, {args.cache_poses} poses per pass ({out_mb:.2f} MB of output), 1 thread "
+              f"(ns | cycles per pose): "
               + ", ".join(f"{k} {v * 1e9:.2f} | {v * ghz * 1e9:.1f}" for k, v in parts)
               + f"; whole block {med[2] * 1e9:.2f} | {med[2] * ghz * 1e9:.1f}")
     for name, r in by.items():
