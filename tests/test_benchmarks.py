@@ -55,8 +55,9 @@ def test_bench_kernel_ab_runs_and_names_bad_versions():
 @pytest.mark.skipif(not _native.available(), reason="native kernel not in use")
 def test_bench_kernel_phases_runs():
     """The harness builds against the kernel's source, checks that both FK layouts write the
-    same poses, and prints every phase and every whole-kernel row; the phases add up to the
-    whole block."""
+    same poses, and prints every phase and every whole-kernel row, the small (in-cache) passes
+    included. (The phases are differences of cumulative stages, so they add up to the whole block
+    by construction: nothing to assert there.)"""
     p = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_kernel_phases.py"), "--poses", "640",
                         "--repeats", "3", "--cache-poses", "128", "--peak", "100"], capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert p.returncode == 0, p.stderr[-2000:]
@@ -66,16 +67,9 @@ def test_bench_kernel_phases_runs():
     assert any(line.startswith("kernel: ") and "(set by pool)" in line for line in lines), p.stdout[:600]
     phases = [line for line in lines if line.startswith("FK phases")]
     assert len(phases) == 2 and all("sincos" in line and "chain" in line for line in phases)
-    for line in phases:
-        parts = [float(x.split(" | ")[0].split()[-1]) for x in line.split(": ", 1)[1].split("; ")[0].split(", ")]
-        whole = float(line.split("whole block ")[1].split(" | ")[0])
-        assert abs(sum(parts) - whole) < 0.02 + 1e-3 * whole
-    # the Jacobian's phases over the small (in-cache) passes add up to its whole block
+    # the Jacobian's phases, over the small passes
     jph = [line for line in lines if line.startswith("Jacobian phases, 128 poses per pass")]
-    assert len(jph) == 1 and "transposed store of J" in jph[0], p.stdout[-1500:]
-    parts = [float(x.split(" | ")[0].split()[-1]) for x in jph[0].split(": ", 1)[1].split("; ")[0].split(", ")]
-    whole = float(jph[0].split("whole block ")[1].split(" | ")[0])
-    assert len(parts) == 3 and abs(sum(parts) - whole) < 0.02 + 1e-3 * whole
+    assert len(jph) == 1 and all(k in jph[0] for k in ("frames and end poses", "columns", "transposed store of J"))
     names = [line.split(" median")[0].strip() for line in lines if " ns/pose " in line]
     assert {"FK pose-major, 1 thread(s)", "FK pose-last, 1 thread(s)", "Jacobian, 1 thread(s)",
             "FK pose-major (128 poses per pass), 1 thread(s)", "Jacobian (128 poses per pass), 1 thread(s)"} <= set(names)
