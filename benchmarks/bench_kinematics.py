@@ -1,22 +1,25 @@
-"""Poses/second of forward kinematics and the identification Jacobian: jitted + batched JAX
-against a plain NumPy loop over poses, in the same run.
+"""Poses per second of forward kinematics and the identification Jacobian: jaxcal (jitted, batched
+over poses) against a plain NumPy loop over poses, timed in the same run.
 
-    python benchmarks/bench_kinematics.py [--poses 100000]
+    python benchmarks/bench_kinematics.py [--poses 1000 100000] [--numpy-poses 2000] [--repeats 21]
+
+jaxcal is timed inside ``jax.jit`` (as the solvers call it) at each batch size; the NumPy loop
+(one pose at a time, 4x4 products) at ``--numpy-poses``, its rate does not depend on the batch.
+Both are checked to agree before anything is timed.
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _util import compile_text, print_machine, summary, timed
 
 import jaxcal
-from jaxcal import error_model as E
-from _util import machine, summary, timed
+from jaxcal.error_model import identification_jacobian
 
 
 def np_link(th, d, a, al):
@@ -35,7 +38,8 @@ def np_fk_loop(dh, Q):
 
 
 def np_jac_loop(dh, Q):
-    """Geometric identification Jacobian (position + rotation rows), one pose at a time."""
+    """Identification Jacobian (position then rotation rows, SDH columns theta, d, a, alpha per
+    joint), one pose at a time."""
     n = len(dh)
     out = np.empty((len(Q), 6, 4 * n))
     for k, q in enumerate(Q):
@@ -44,12 +48,15 @@ def np_jac_loop(dh, Q):
             T = T @ np_link(th + qi, d, a, al)
             frames.append(T)
         p_end = T[:3, 3]
-        for i, ((th, d, a, al), F) in enumerate(zip(dh, frames)):
+        for i, ((_, _, a, al), F) in enumerate(zip(dh, frames)):
             R, p = F[:3, :3], F[:3, 3]
             ca, sa = np.cos(al), np.sin(al)
-            local = [(np.array([0, a * ca, -a * sa]), np.array([0, sa, ca])),
-                     (np.array([0, sa, ca]), np.zeros(3)), (np.array([1.0, 0, 0]), np.zeros(3)),
-                     (np.zeros(3), np.array([1.0, 0, 0]))]
+            local = [
+                (np.array([0, a * ca, -a * sa]), np.array([0, sa, ca])),
+                (np.array([0, sa, ca]), np.zeros(3)),
+                (np.array([1.0, 0, 0]), np.zeros(3)),
+                (np.zeros(3), np.array([1.0, 0, 0])),
+            ]
             for j, (v, w) in enumerate(local):
                 ws = R @ w
                 out[k, :3, 4 * i + j] = R @ v + np.cross(ws, p_end - p)
@@ -59,38 +66,40 @@ def np_jac_loop(dh, Q):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--poses", type=int, default=100_000)
-    ap.add_argument("--numpy-poses", type=int, default=2_000)
-    ap.add_argument("--repeats", type=int, default=51, help="jitted calls timed (7 until 2026-11-24: medians "
-                    "moved 2x between runs on a shared VM)")
+    ap.add_argument("--poses", type=int, nargs="+", default=[1000, 100_000], help="batch sizes of the jaxcal calls")
+    ap.add_argument("--numpy-poses", type=int, default=2000)
+    ap.add_argument("--repeats", type=int, default=21)
     args = ap.parse_args()
     robot = jaxcal.preset("paper-6r")
-    rng = np.random.default_rng(0)
-    Q = jnp.asarray(rng.uniform(-np.pi, np.pi, (args.poses, 6)))
-    Qn = np.asarray(Q[: args.numpy_poses])
     dh = np.asarray(robot.dh)
+    rng = np.random.default_rng(0)
+    Q = rng.uniform(-np.pi, np.pi, (max(args.poses + [args.numpy_poses]), 6))
 
-    fk_jit = jax.jit(jaxcal.fk)
-    jac_jit = jax.jit(E.identification_jacobian)
-    # the NumPy reference must agree with jaxcal before we time anything
-    assert np.allclose(np_fk_loop(dh, Qn[:50]), np.asarray(fk_jit(robot, Q[:50])), atol=1e-9)
-    assert np.allclose(np_jac_loop(dh, Qn[:50]), np.asarray(jac_jit(robot, Q[:50])), atol=1e-9)
+    ops = {
+        "FK": (jax.jit(jaxcal.fk), np_fk_loop),
+        "identification Jacobian": (jax.jit(identification_jacobian), np_jac_loop),
+    }
+    for name, (jfn, nfn) in ops.items():  # the baseline must agree with jaxcal before anything is timed
+        if not np.allclose(nfn(dh, Q[:50]), np.asarray(jfn(robot, jnp.asarray(Q[:50]))), atol=1e-9):
+            raise SystemExit(f"{name}: the NumPy loop and jaxcal disagree")
 
-    print("machine:", machine())
-    rows = []
-    for name, jfn, nfn in (("FK", fk_jit, np_fk_loop), ("identification Jacobian", jac_jit, np_jac_loop)):
-        first, runs = timed(jfn, robot, Q, repeats=args.repeats)
-        nruns = []
-        for _ in range(3):
-            t0 = time.perf_counter()
-            nfn(dh, Qn)
-            nruns.append(time.perf_counter() - t0)
-        jax_pps = args.poses / statistics.median(runs)
+    print_machine()
+    print(
+        f"paper-6r (SDH, 6R); jaxcal: jax.jit of the public function, {args.repeats} warm calls per size; "
+        f"NumPy: a loop over {args.numpy_poses} poses, 3 calls"
+    )
+    for name, (jfn, nfn) in ops.items():
+        _, nruns = timed(nfn, dh, Q[: args.numpy_poses], repeats=3)
         np_pps = args.numpy_poses / statistics.median(nruns)
-        print(f"{name:24s} jax jit  {args.poses} poses: {summary(runs)}  compile+first {first:.3f} s")
-        print(f"{name:24s} numpy loop {args.numpy_poses} poses: {summary(nruns)}")
-        print(f"{name:24s} poses/s: jax {jax_pps:,.0f}  numpy {np_pps:,.0f}  ratio {jax_pps / np_pps:,.0f}x")
-        rows.append((name, jax_pps, np_pps))
+        print(f"\n{name}\n  numpy loop   {args.numpy_poses:>7d} poses: {summary(nruns)}  -> {np_pps:14,.0f} poses/s")
+        for K in args.poses:
+            q = jnp.asarray(Q[:K])
+            first, runs = timed(jfn, robot, q, repeats=args.repeats)
+            pps = K / statistics.median(runs)
+            print(
+                f"  jaxcal jit   {K:>7d} poses: {summary(runs)}  -> {pps:14,.0f} poses/s  "
+                f"{pps / np_pps:8,.0f}x numpy; {compile_text(first, runs)}"
+            )
 
 
 if __name__ == "__main__":

@@ -1,20 +1,18 @@
-"""Cost curves (issue 7.2): time vs number of poses (one robot) and vs number of robots in one
-vmapped batch (100 poses each), for FK, the identification Jacobian, one-shot least squares,
-Gauss–Newton and robust elimination, on the paper's arm (full-pose data, 0.02 mm / 2e-5 rad
-noise). Writes a log-log plot and the numbers, and prints the fitted exponent ``b`` of
-``time ~ size^b`` over the largest three sizes (where fixed per-call overhead no longer
-dominates) and over the whole range.
+"""Cost curves: time vs the number of poses (one robot) and vs the number of robots in one batch
+(100 poses each), for FK, the identification Jacobian, one-shot least squares, Gauss–Newton and
+robust elimination on the paper's arm (full-pose data, 0.02 mm / 2e-5 rad noise). Prints the
+exponent ``b`` of ``time ~ size^b`` over the largest three sizes (past the fixed per-call cost)
+and over the whole range; writes the points to ``scaling.json`` and a log-log plot to
+``scaling.png`` in ``--out`` (``run_all.sh`` keeps the printed table as ``scaling.txt`` there).
 
-    python benchmarks/bench_scaling.py [--max-poses 100000] [--max-robots 10000]
-        [--out docs/bench]   # writes scaling.json, scaling.png
+    python benchmarks/bench_scaling.py [--max-poses 10000] [--max-robots 1000] [--out docs/bench]
 
-The solvers are timed through the public :func:`jaxcal.calibrate_batch` (input checks, the
-solve, residual/outlier report; the identifiability analysis is computed once beforehand
-and passed in). Elimination runs on its own pair designs (``10 P`` poses for ``P`` pairs per
-step), sized to the same pose counts. Each point: first call (compile + run), then the median
-of warm repeats (3 to 21: as many as fit in 0.25 s, 3 at least, 1 when a warm call takes over 2 s;
-until 2026-11-24 always 3, and FK's exponents moved 0.5-0.85 between runs); compile = first call minus
-the warm median.
+FK and the Jacobian are vmapped over perturbed robots (one robot for the poses sweep), as a
+batched solve calls them. The solvers run through :func:`jaxcal.calibrate_batch` (input checks,
+the solve, the outlier report; the identifiability analysis is done once beforehand and passed
+in). Elimination runs on its own pair design, sized to about the same pose count. Each point:
+the first call (compile + run) apart, then the median of warm calls (as many as fit in 0.25 s,
+3 to 21; one when a call takes over 2 s).
 """
 
 from __future__ import annotations
@@ -23,59 +21,62 @@ import argparse
 import json
 import os
 import statistics
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _util import compile_s, machine, print_machine, timed
 
 import jaxcal
-from jaxcal import design
-from jaxcal import simulate as S
-from jaxcal.calibrate import calibrate_batch, identify
+from jaxcal.calibration import identify
 from jaxcal.error_model import identification_jacobian, perturb
-from _util import block, machine
+from jaxcal.simulation import sample_poses
+from jaxcal.solvers import design_poses
 
 SP, SR = 0.02, 2e-5
 OPS = ("FK", "Jacobian", "one-shot LS", "GN", "elimination")
 
 
-def time_point(fn):
-    t0 = time.perf_counter()
-    block(fn())
-    first = time.perf_counter() - t0
-    runs = []
-    while len(runs) < 21:  # 3 warm runs at least, more while they add up to under 0.25 s
-        t0 = time.perf_counter()
-        block(fn())
-        runs.append(time.perf_counter() - t0)
-        if runs[0] > 2.0 or (len(runs) >= 3 and sum(runs) > 0.25):  # one warm run is enough above 2 s
-            break
-    med = statistics.median(runs)
-    return {"median_s": med, "min_s": min(runs), "max_s": max(runs), "compile_s": max(first - med, 0.0),
-            "repeats": len(runs)}
-
-
 def workloads(robot, R, K, seed):
-    """Callables for every op on R robots x K poses (R = 1: a single data set)."""
-    m = 4 * robot.n_joints
-    pairs = max(K // (2 * (robot.n_joints - 1)), 1)
-    q_el = np.asarray(design.design_poses(jax.random.PRNGKey(seed), robot, n_pairs=pairs, n_abs=0))
-    q_uni = np.asarray(S.sample_poses(jax.random.PRNGKey(seed + 1), robot, (K,)))
-    sim = S.simulate(robot, n_robots=R, q=q_uni, seed=seed, sigma_pos=SP, sigma_rot=SR, n_val=1)
-    sim_el = S.simulate(robot, n_robots=R, q=q_el, x_true=sim.x_true, seed=seed + 2, sigma_pos=SP, sigma_rot=SR,
-                        n_val=1)
-    ident = identify(robot, q_uni)
+    """A callable per op on R robots x K poses, and the elimination design's pose count."""
+    n = robot.n_joints
+    pairs = max(K // (2 * (n - 1)), 1)
+    q_el = np.asarray(design_poses(jax.random.PRNGKey(seed), robot, n_pairs=pairs, n_abs=0))
+    q_uni = np.asarray(sample_poses(jax.random.PRNGKey(seed + 1), robot, (K,)))
+    sim = jaxcal.simulate(robot, n_robots=R, q=q_uni, n_val=1, seed=seed, sigma_pos=SP, sigma_rot=SR)
+    sim_el = jaxcal.simulate(
+        robot, n_robots=R, q=q_el, x_true=sim.x_true, n_val=1, seed=seed + 2, sigma_pos=SP, sigma_rot=SR
+    )
+    ident = identify(robot, q_uni, estimate_base=False, estimate_tool=False)
     X = jnp.asarray(sim.x_true)
-    Q = jnp.broadcast_to(jnp.asarray(q_uni), (R, K, robot.n_joints))
+    Q = jnp.broadcast_to(jnp.asarray(q_uni), (R, K, n))
     fk_b = jax.jit(jax.vmap(lambda x, q: jaxcal.fk(perturb(robot, x), q)))
     jac_b = jax.jit(jax.vmap(lambda x, q: identification_jacobian(perturb(robot, x), q)))
-    cal = lambda method, s: (lambda: calibrate_batch(robot, s.q, s.measured, method=method, sigma_pos_mm=SP,
-                                                     sigma_rot_rad=SR, ident=None if method == "elimination"
-                                                     else ident).x)
-    assert X.shape == (R, m)
-    return {"FK": lambda: fk_b(X, Q), "Jacobian": lambda: jac_b(X, Q), "one-shot LS": cal("linear", sim),
-            "GN": cal("gn", sim), "elimination": cal("elimination", sim_el)}, q_el.shape[0]
+
+    def cal(method, s):
+        # elimination builds its own plan from the design; the least-squares methods take the analysis
+        kw = {} if method == "elimination" else {"ident": ident}
+        return lambda: (
+            jaxcal.calibrate_batch(
+                robot,
+                s.q,
+                s.measured,
+                method=method,
+                sigma_pos_mm=SP,
+                sigma_rot_rad=SR,
+                estimate_base=False,
+                estimate_tool=False,
+                **kw,
+            ).x
+        )
+
+    return {
+        "FK": lambda: fk_b(X, Q),
+        "Jacobian": lambda: jac_b(X, Q),
+        "one-shot LS": cal("linear", sim),
+        "GN": cal("gn", sim),
+        "elimination": cal("elimination", sim_el),
+    }, q_el.shape[0]
 
 
 def exponent(sizes, times, last=3):
@@ -83,58 +84,78 @@ def exponent(sizes, times, last=3):
     return float(np.polyfit(x[-last:], y[-last:], 1)[0]), float(np.polyfit(x, y, 1)[0])
 
 
-def sweep(robot, label, sizes, make, seed):
+def sweep(label, sizes, make):
     res = {op: [] for op in OPS}
     for s in sizes:
         fns, k_el = make(s)
         for op in OPS:
-            r = time_point(fns[op])
-            r["size"] = s
+            first, runs = timed(fns[op], repeats=21, budget_s=0.25)
+            med = statistics.median(runs)
+            r = {
+                "size": s,
+                "median_s": med,
+                "min_s": min(runs),
+                "max_s": max(runs),
+                "repeats": len(runs),
+                "compile_s": compile_s(first, runs),
+            }
             if op == "elimination":
                 r["design_poses"] = k_el
             res[op].append(r)
-            print(f"{label} {s:>7d} {op:12s} median {r['median_s'] * 1e3:11.3f} ms (min {r['min_s'] * 1e3:.3f}, "
-                  f"max {r['max_s'] * 1e3:.3f}, n={r['repeats']})  compile {r['compile_s']:6.2f} s", flush=True)
+            print(
+                f"{label} {s:>7d} {op:12s} median {med * 1e3:11.3f} ms (min {r['min_s'] * 1e3:.3f}, "
+                f"max {r['max_s'] * 1e3:.3f}, n={r['repeats']})  compile {r['compile_s']:6.2f} s",
+                flush=True,
+            )
     return res
 
 
 def plot(results, path):
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for ax, (key, xlabel) in zip(axes, (("poses", "poses (one robot)"), ("robots", "robots in one batch (100 poses each)"))):
+    for ax, (key, xlabel) in zip(
+        axes, (("poses", "poses (one robot)"), ("robots", "robots in one batch (100 poses each)"))
+    ):
         for op in OPS:
             pts = results[key]["points"][op]
-            sizes = [p["size"] for p in pts]
-            ax.loglog(sizes, [p["median_s"] for p in pts], "o-", label=f"{op} (b = {results[key]['exponent'][op]['last3']:.2f})")
+            ax.loglog(
+                [p["size"] for p in pts],
+                [p["median_s"] for p in pts],
+                "o-",
+                label=f"{op} (b = {results[key]['exponent'][op]['last3']:.2f})",
+            )
         ax.set_xlabel(xlabel)
         ax.set_ylabel("warm median time (s)")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle(f"jaxcal cost curves, paper arm, {results['machine']['cores']}-core {results['machine']['platform']}"
-                 f" (jax {results['machine']['jax']}); b: exponent over the largest 3 sizes")
+    m = results["machine"]
+    fig.suptitle(
+        f"jaxcal cost curves, paper arm, {m['cores']}-core {m['platform']} (jax {m['jax']}); "
+        f"b: exponent over the largest 3 sizes"
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--max-poses", type=int, default=100_000)
-    ap.add_argument("--max-robots", type=int, default=10_000)
+    ap.add_argument("--max-poses", type=int, default=10_000)
+    ap.add_argument("--max-robots", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="docs/bench")
     args = ap.parse_args()
     robot = jaxcal.preset("paper-6r")
-    print("machine:", machine())
-    decades = lambda top: [10 ** e for e in range(1, 7) if 10 ** e <= top]
-    pose_sizes = decades(args.max_poses)
-    robot_sizes = [1] + decades(args.max_robots)
+    print_machine()
+    decades = lambda top: [10**e for e in range(1, 7) if 10**e <= top]
     results = {"machine": machine(), "arm": "paper-6r", "noise": [SP, SR]}
-    results["poses"] = {"points": sweep(robot, "poses ", pose_sizes, lambda K: workloads(robot, 1, K, args.seed),
-                                        args.seed)}
-    results["robots"] = {"points": sweep(robot, "robots", robot_sizes, lambda R: workloads(robot, R, 100, args.seed),
-                                         args.seed)}
+    results["poses"] = {"points": sweep("poses ", decades(args.max_poses), lambda K: workloads(robot, 1, K, args.seed))}
+    results["robots"] = {
+        "points": sweep("robots", [1] + decades(args.max_robots), lambda R: workloads(robot, R, 100, args.seed))
+    }
     print("\nexponent b of time ~ size^b (largest 3 sizes | whole range)")
     for key in ("poses", "robots"):
         results[key]["exponent"] = {}

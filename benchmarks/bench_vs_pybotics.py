@@ -42,11 +42,21 @@ def cold_start(problem: str) -> None:
     """Child-process mode: time ``import jaxcal`` and the first calibrate call."""
     t0 = time.perf_counter()
     import numpy as np
+
     import jaxcal
+
     t1 = time.perf_counter()
     p = np.load(problem)
-    res = jaxcal.calibrate(jaxcal.preset("panda"), p["q"], p["measured"], position_only=True, method="gn",
-                           sigma_pos_mm=float(p["noise_mm"]))
+    res = jaxcal.calibrate(
+        jaxcal.preset("panda"),
+        p["q"],
+        p["measured"],
+        position_only=True,
+        method="gn",
+        sigma_pos_mm=float(p["noise_mm"]),
+        estimate_base=False,
+        estimate_tool=False,
+    )
     t2 = time.perf_counter()
     print(json.dumps({"import_s": t1 - t0, "first_call_s": t2 - t1, "converged": res.converged}))
 
@@ -54,15 +64,16 @@ def cold_start(problem: str) -> None:
 def make_problem(n_poses, n_val, noise, seed):
     import jax
     import numpy as np
+
     import jaxcal
-    from jaxcal.calibrate import identify
-    from jaxcal.simulate import error_scales, sample_poses, simulate
+    from jaxcal.calibration import identify
+    from jaxcal.simulation import error_scales, sample_poses, simulate
 
     robot = jaxcal.preset("panda")
     kq, kv, kx = jax.random.split(jax.random.PRNGKey(seed), 3)
     q = np.asarray(sample_poses(kq, robot, (n_poses,)))
     q_val = np.asarray(sample_poses(kv, robot, (n_val,)))
-    free = np.asarray(identify(robot, q, position_only=True).base)
+    free = np.asarray(identify(robot, q, n_points=1, estimate_base=False, estimate_tool=False).base)
     x_true = np.zeros(4 * robot.n_joints)
     x_true[free] = (error_scales(robot) * np.asarray(jax.random.normal(kx, x_true.shape)))[free]
     sim = simulate(robot, n_poses=n_poses, n_val=n_val, seed=seed, sigma_pos=noise, x_true=x_true, q=q, q_val=q_val)
@@ -76,16 +87,25 @@ def pyb_index(j: int) -> int:
 
 def run_pybotics(python, robot, free, sim, noise, repeats, tmp):
     import numpy as np
+
     dh = np.asarray(robot.dh)
     mdh = dh[:, [3, 2, 0, 1]]
     mask = np.zeros(dh.size, bool)
     mask[[pyb_index(j) for j in free]] = True
     prob = os.path.join(tmp, "pyb_problem.npz")
-    np.savez(prob, mdh=mdh, tool=np.asarray(robot.tool), base=np.asarray(robot.base), q=sim.q[0],
-             positions=sim.measured[0, :, :3, 3], mask=mask, q_val=sim.q_val[0], q_check=sim.q_val[0, :20])
+    np.savez(
+        prob,
+        mdh=mdh,
+        tool=np.asarray(robot.tool),
+        base=np.asarray(robot.base),
+        q=sim.q[0],
+        positions=sim.measured[0, :, :3, 3],
+        mask=mask,
+        q_val=sim.q_val[0],
+        q_check=sim.q_val[0, :20],
+    )
     out = os.path.join(tmp, "pyb_result.json")
-    subprocess.run([python, os.path.join(HERE, "pybotics_worker.py"), prob, out, "--repeats", str(repeats)],
-                   check=True)
+    subprocess.run([python, os.path.join(HERE, "pybotics_worker.py"), prob, out, "--repeats", str(repeats)], check=True)
     with open(out) as f:
         r = json.load(f)
     # pybotics' fitted parameter errors back in jaxcal's layout
@@ -100,6 +120,7 @@ def scipy_fd_standin(robot, free, sim, noise, repeats):
     import jax.numpy as jnp
     import numpy as np
     import scipy.optimize
+
     import jaxcal
     from jaxcal.error_model import perturb
 
@@ -120,8 +141,13 @@ def scipy_fd_standin(robot, free, sim, noise, repeats):
         times.append(time.perf_counter() - t0)
     x = np.zeros(4 * robot.n_joints)
     x[free] = r.x
-    return {"times_s": times, "median_s": statistics.median(times), "nfev": int(r.nfev),
-            "success": bool(r.success), "x_fit": x}
+    return {
+        "times_s": times,
+        "median_s": statistics.median(times),
+        "nfev": int(r.nfev),
+        "success": bool(r.success),
+        "x_fit": x,
+    }
 
 
 def main():
@@ -140,9 +166,10 @@ def main():
         return cold_start(args._cold)
 
     import numpy as np
+    from _util import machine, summary, timed
+
     import jaxcal
     from jaxcal.error_model import perturb
-    from _util import machine, summary, timed
 
     robot, free, sim = make_problem(args.poses, args.val, args.noise_mm, args.seed)
     x_true = sim.x_true[0]
@@ -150,23 +177,42 @@ def main():
 
     def accuracy(x):
         val = np.asarray(jaxcal.fk(perturb(robot, np.asarray(x)), sim.q_val[0]))[:, :3, 3]
-        return (float(np.sqrt(np.mean(np.sum((val - truth_val) ** 2, -1)))),
-                float(np.sqrt(np.mean((np.asarray(x)[free] - x_true[free]) ** 2))))
+        return (
+            float(np.sqrt(np.mean(np.sum((val - truth_val) ** 2, -1)))),
+            float(np.sqrt(np.mean((np.asarray(x)[free] - x_true[free]) ** 2))),
+        )
 
     print("machine:", machine())
-    print(f"panda (MDH, 7R), {args.poses} poses, position-only, noise {args.noise_mm} mm, "
-          f"{len(free)} parameters (jaxcal's identifiable set, same mask in every tool)")
+    print(
+        f"panda (MDH, 7R), {args.poses} poses, position-only, noise {args.noise_mm} mm, "
+        f"{len(free)} parameters (jaxcal's identifiable set, same mask in every tool)"
+    )
     rows = {}
 
     # jaxcal: warm runs of the public calibrate(), and a cold process
-    call = lambda: jaxcal.calibrate(robot, sim.q[0], sim.measured[0], position_only=True, method="gn",
-                                    sigma_pos_mm=args.noise_mm)
+    call = lambda: jaxcal.calibrate(
+        robot,
+        sim.q[0],
+        sim.measured[0],
+        position_only=True,
+        method="gn",
+        sigma_pos_mm=args.noise_mm,
+        estimate_base=False,
+        estimate_tool=False,
+    )
     first, runs = timed(call, repeats=args.repeats)
     res = call()
-    rows["jaxcal gn (calibrate)"] = {"median_s": statistics.median(runs), "times_s": runs, "x_fit": res.x,
-                                     "success": res.converged, "steps": res.num_steps}
-    print(f"jaxcal gn warm        {summary(runs)}  first call in this process {first:.2f} s; "
-          f"converged {res.converged} in {res.num_steps} steps")
+    rows["jaxcal gn (calibrate)"] = {
+        "median_s": statistics.median(runs),
+        "times_s": runs,
+        "x_fit": res.x,
+        "success": res.converged,
+        "steps": res.num_steps,
+    }
+    print(
+        f"jaxcal gn warm        {summary(runs)}  first call in this process {first:.2f} s; "
+        f"converged {res.converged} in {res.num_steps} steps"
+    )
 
     with tempfile.TemporaryDirectory() as tmp:
         prob = os.path.join(tmp, "jaxcal_problem.npz")
@@ -176,8 +222,10 @@ def main():
         cold_wall = time.perf_counter() - t0
         cold = json.loads(out.stdout.strip().splitlines()[-1])
         cold["process_wall_s"] = cold_wall
-        print(f"jaxcal gn cold        import {cold['import_s']:.2f} s + first calibrate {cold['first_call_s']:.2f} s "
-              f"(whole process {cold_wall:.2f} s)")
+        print(
+            f"jaxcal gn cold        import {cold['import_s']:.2f} s + first calibrate {cold['first_call_s']:.2f} s "
+            f"(whole process {cold_wall:.2f} s)"
+        )
 
         sc = scipy_fd_standin(robot, free, sim, args.noise_mm, args.pybotics_repeats)
         rows["scipy least_squares FD on jaxcal residual"] = sc
@@ -191,11 +239,15 @@ def main():
             if fk_gap > 1e-6:
                 raise SystemExit(f"pybotics and jaxcal FK disagree by {fk_gap} mm: not the same robot")
             rows["pybotics (least_squares FD)"] = pyb
-            print(f"pybotics              {summary(pyb['times_s'])}  nfev {pyb['nfev']}  {pyb['message']} "
-                  f"(FK agrees with jaxcal to {fk_gap:.1e} mm; versions {pyb['versions']})")
+            print(
+                f"pybotics              {summary(pyb['times_s'])}  nfev {pyb['nfev']}  {pyb['message']} "
+                f"(FK agrees with jaxcal to {fk_gap:.1e} mm; versions {pyb['versions']})"
+            )
         else:
-            print(f"pybotics not found at {args.pybotics_python}: only the scipy finite-difference stand-in is "
-                  "compared (see the module docstring to install pybotics in its own venv)")
+            print(
+                f"pybotics not found at {args.pybotics_python}: only the scipy finite-difference stand-in is "
+                "compared (see the module docstring to install pybotics in its own venv)"
+            )
 
     base = rows["jaxcal gn (calibrate)"]["median_s"]
     print(f"\n{'tool':44s} {'median s':>10s} {'ratio':>9s} {'val RMS mm':>11s} {'param RMS':>10s} converged")
@@ -204,13 +256,32 @@ def main():
         val_rms, par_rms = accuracy(r["x_fit"])
         ratio = r["median_s"] / base
         print(f"{name:44s} {r['median_s']:10.4f} {ratio:8.1f}x {val_rms:11.5f} {par_rms:10.2e} {r['success']}")
-        summary_rows.append({"tool": name, "median_s": r["median_s"], "min_s": min(r["times_s"]),
-                             "max_s": max(r["times_s"]), "slowdown_vs_jaxcal": ratio, "val_rms_mm": val_rms,
-                             "param_rms": par_rms, "converged": bool(r["success"])})
+        summary_rows.append(
+            {
+                "tool": name,
+                "median_s": r["median_s"],
+                "min_s": min(r["times_s"]),
+                "max_s": max(r["times_s"]),
+                "slowdown_vs_jaxcal": ratio,
+                "val_rms_mm": val_rms,
+                "param_rms": par_rms,
+                "converged": bool(r["success"]),
+            }
+        )
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"machine": machine(), "poses": args.poses, "noise_mm": args.noise_mm, "n_params": len(free),
-                       "cold": cold, "rows": summary_rows}, f, indent=1)
+            json.dump(
+                {
+                    "machine": machine(),
+                    "poses": args.poses,
+                    "noise_mm": args.noise_mm,
+                    "n_params": len(free),
+                    "cold": cold,
+                    "rows": summary_rows,
+                },
+                f,
+                indent=1,
+            )
 
 
 if __name__ == "__main__":

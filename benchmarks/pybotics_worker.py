@@ -50,20 +50,32 @@ def main():
     for _ in range(args.repeats):
         handler = OptimizationHandler(robot=build_robot(p), kinematic_chain_mask=list(mask))
         t0 = time.perf_counter()
-        res = scipy.optimize.least_squares(fun=optimize_accuracy, x0=handler.generate_optimization_vector(),
-                                           args=(handler, q, pos))
+        res = scipy.optimize.least_squares(
+            fun=optimize_accuracy, x0=handler.generate_optimization_vector(), args=(handler, q, pos)
+        )
         times.append(time.perf_counter() - t0)
     handler.apply_optimization_vector(res.x)
     fitted = handler.robot
     val = np.array([fitted.fk(qk)[:3, 3] for qk in p["q_val"]])
     train_err = compute_absolute_errors(qs=q, positions=pos, robot=fitted)
     out = {
-        "times_s": times, "median_s": statistics.median(times), "nfev": int(res.nfev), "status": int(res.status),
-        "success": bool(res.success), "message": str(res.message), "x": res.x.tolist(),
-        "mdh_fitted": fitted.kinematic_chain.matrix.tolist(), "val_positions": val.tolist(),
-        "train_rms_mm": float(np.sqrt(np.mean(train_err ** 2))), "fk_nominal_check": fk_nominal.tolist(),
-        "versions": {"pybotics": importlib.metadata.version("pybotics"), "numpy": np.__version__,
-                     "scipy": scipy.__version__, "python": platform.python_version()},
+        "times_s": times,
+        "median_s": statistics.median(times),
+        "nfev": int(res.nfev),
+        "status": int(res.status),
+        "success": bool(res.success),
+        "message": str(res.message),
+        "x": res.x.tolist(),
+        "mdh_fitted": fitted.kinematic_chain.matrix.tolist(),
+        "val_positions": val.tolist(),
+        "train_rms_mm": float(np.sqrt(np.mean(train_err**2))),
+        "fk_nominal_check": fk_nominal.tolist(),
+        "versions": {
+            "pybotics": importlib.metadata.version("pybotics"),
+            "numpy": np.__version__,
+            "scipy": scipy.__version__,
+            "python": platform.python_version(),
+        },
     }
     with open(args.result, "w") as f:
         json.dump(out, f)
