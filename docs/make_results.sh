@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates every result the README quotes (run from the repository root, venv active).
+# Regenerates every result the docs quote, then their tables (repository root, venv active).
 set -euo pipefail
 jaxcal reproduce --out docs/reproduce/noise-free
 jaxcal reproduce --noise-mm 0.02 --noise-rad 2e-5 --out docs/reproduce/noisy
@@ -16,3 +16,4 @@ COLUMNS=120 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.
 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model auto \
     --json docs/franka/report_camera_auto.json
 python docs/franka_fold_seeds.py docs/franka/fold_seeds.json
+python docs/tables.py --write

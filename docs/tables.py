@@ -1,0 +1,133 @@
+"""Print the tables of the docs from the result files that ``docs/make_results.sh`` writes, and
+with ``--write`` put them into the docs pages between ``<!-- table:NAME -->`` and
+``<!-- /table -->``, so every number in the docs comes from a command in the repository.
+
+Usage (repository root, venv active): python docs/tables.py [--write]
+"""
+
+import json
+import re
+import sys
+from pathlib import Path
+
+D = Path(__file__).resolve().parent
+
+
+def load(rel):
+    return json.loads((D / rel).read_text())
+
+
+def machine(m: dict) -> str:
+    return f"{m['cores']} cores {m['cpu']} ({m['device']}), jax {m['jax']}"
+
+
+def g(v):
+    return f"{v:.3g}"
+
+
+def reproduction() -> str:
+    nf, ny = load("reproduce/noise-free/summary.json"), load("reproduce/noisy/summary.json")
+    methods = [
+        ("linear", "one-shot LS"),
+        ("gn", "Gauss–Newton"),
+        ("elimination", "elimination (robust)"),
+        ("elimination-literal", "elimination (literal)"),
+    ]
+    rows = ["| | nominal | " + " | ".join(t for _, t in methods) + " |", "|---" * (len(methods) + 2) + "|"]
+    for lab, s in (("noise-free", nf), (f"{ny['noise']['sigma_pos_mm']} mm / {ny['noise']['sigma_rot_rad']} rad", ny)):
+        rows.append(
+            f"| {lab}: inspection RMS (mm) | {g(s['inspection_rms_mm']['nominal'])} | "
+            + " | ".join(g(s["inspection_rms_mm"][m]) for m, _ in methods)
+            + " |"
+        )
+        rows.append(
+            f"| {lab}: max parameter error | | " + " | ".join(g(s["max_param_error"][m]) for m, _ in methods) + " |"
+        )
+    rows.append(
+        "| time per calibration, median (ms) | | "
+        + " | ".join(f"{ny['time_s'][m] * 1e3:.2f}" for m, _ in methods)
+        + " |"
+    )
+    rows.append("| compile time (s) | | " + " | ".join(f"{ny['compile_s'][m]:.1f}" for m, _ in methods) + " |")
+    rows.append("")
+    rows.append(
+        f"{nf['n_calibration_poses']} calibration poses, {nf['n_inspection_poses']} inspection poses; "
+        f"machine: {machine(ny['machine'])}."
+    )
+    return "\n".join(rows)
+
+
+def montecarlo() -> str:
+    mc = load("montecarlo/gn_1000.json")
+    return "\n".join(
+        [
+            "| robots | poses | robots/s | compile (s) | converged | CRLB efficiency (mean) | validation RMS (mm) |",
+            "|---|---|---|---|---|---|---|",
+            f"| {mc['n_robots']} | {mc['n_poses']} | {mc['robots_per_second']:,.0f} | {mc['compile_seconds']:.1f} | "
+            f"{mc['converged_fraction']:.3f} | {mc['crlb_efficiency_mean']:.3f} | {mc['validation_pos_rms_mm']:.4f} |",
+            "",
+            f"machine: {machine(mc['machine'])}.",
+        ]
+    )
+
+
+FRANKA = [
+    ("report.json", "calibrated, no camera model"),
+    ("report_depth_scale.json", "`--camera-model depth`"),
+    ("report_camera_linear.json", "`--camera-model linear`"),
+    ("report_camera_quadratic.json", "`--camera-model quadratic`"),
+    ("report_camera_auto.json", "`--camera-model auto` (camera model chosen by cross-validation too)"),
+]
+
+
+def franka() -> str:
+    reps = [(load(f"franka/{f}"), lab) for f, lab in FRANKA]
+    r0 = reps[0][0]
+    rows = [
+        "| model | chosen set | train RMS (mm) | held-out RMS (mm) | held-out max (mm) | held-out rotation RMS (deg) |",
+        "|---|---|---|---|---|---|",
+        f"| frames only (nominal DH) | | {r0['frames_only_train_rms_mm']:.2f} | "
+        f"{r0['frames_only_heldout_rms_mm']:.3f} | "
+        f"{r0['frames_only_heldout_max_mm']:.2f} | {r0['frames_only_heldout_rot_rms_deg']:.2f} |",
+    ]
+    for r, lab in reps:
+        rows.append(
+            f"| {lab} | {r['choice']} | {r['train_rms_mm']:.2f} | {r['heldout_rms_mm']:.3f} | "
+            f"{r['heldout_max_mm']:.2f} | {r['heldout_rot_rms_deg']:.2f} |"
+        )
+    return "\n".join(rows)
+
+
+def fold_seeds() -> str:
+    fs = load("franka/fold_seeds.json")
+    rows = ["| camera model | held-out RMS median (mm) | min | max |", "|---|---|---|---|"]
+    for cam, r in fs.items():
+        rows.append(f"| {cam} | {r['median_mm']:.3f} | {r['min_mm']:.3f} | {r['max_mm']:.3f} |")
+    return "\n".join(rows)
+
+
+TABLES = {"reproduction": reproduction, "montecarlo": montecarlo, "franka": franka, "fold_seeds": fold_seeds}
+PAGES = ("reproduction.md", "franka.md")
+
+
+def main() -> None:
+    made = {name: f() for name, f in TABLES.items()}
+    if "--write" not in sys.argv[1:]:
+        for name, text in made.items():
+            print(f"## {name}\n\n{text}\n")
+        return
+    for page in PAGES:
+        path = D / page
+        text = path.read_text()
+        for name, table in made.items():
+            text = re.sub(
+                rf"(<!-- table:{name} -->\n).*?(<!-- /table -->)",
+                lambda m, t=table: m.group(1) + t + "\n" + m.group(2),
+                text,
+                flags=re.S,
+            )
+        path.write_text(text)
+
+
+if __name__ == "__main__":
+    main()
