@@ -1,25 +1,37 @@
-"""jaxcal: calibration of the Denavit-Hartenberg parameters of serial robot arms, in JAX.
+"""jaxcal: geometric calibration of serial robot arms, in JAX (float64, jit, vmap).
 
-Importing jaxcal enables float64 in JAX (``jax_enable_x64``); see :mod:`jaxcal._config`.
-Units inside jaxcal: millimetres and radians.
+Importing jaxcal enables float64 in JAX (``jax_enable_x64``). Units inside jaxcal: millimetres
+and radians; files are read and written in their own units.
 """
 
 from . import _config  # noqa: F401  (enables float64 first)
-from . import derivatives, design, error_model, identifiability, kinematics, lie, measurements, presets, simulate
-from .calibrate import BatchResult, CalibrationResult, calibrate, calibrate_batch
-from .errors import DataError, JaxcalError, PrecisionError, RobotFileError
-from .kinematics import fk, fk_frames, fk_pose_last, to_mdh, to_sdh
-from ._native import status as native_status
-from .presets import preset
-from .robot import Robot
-from .measurements import Measurements, UnitWarning, read_measurements, write_measurements
-from .robot_io import load_robot, save_robot
+from .calibration import BatchResult as BatchResult
+from .calibration import CalibrationResult as CalibrationResult
+from .calibration import DataCalibration as DataCalibration
+from .calibration import Options as Options
+from .calibration import calibrate as calibrate
+from .calibration import calibrate_batch as calibrate_batch
+from .calibration import calibrate_data as calibrate_data
+from .compensation import Compensation as Compensation
+from .compensation import compensate as compensate
+from .errors import DataError as DataError
+from .errors import ImplausibleFitError as ImplausibleFitError
+from .errors import JaxcalError as JaxcalError
+from .errors import PrecisionError as PrecisionError
+from .errors import RobotFileError as RobotFileError
+from .kinematics import fk as fk
+from .kinematics import fk_frames as fk_frames
+from .kinematics import to_mdh as to_mdh
+from .kinematics import to_sdh as to_sdh
+from .measurements import Measurements as Measurements
+from .measurements import read_measurements as read_measurements
+from .measurements import write_measurements as write_measurements
+from .model import Layout as Layout
+from .model import Model as Model
+from .robot import Robot as Robot
+from .robot import load_robot as load_robot
+from .robot import preset as preset
+from .robot import save_robot as save_robot
+from .simulation import simulate as simulate
 
-__all__ = [
-    "BatchResult", "CalibrationResult", "Measurements", "UnitWarning", "calibrate", "calibrate_batch",
-    "identifiability", "measurements", "read_measurements", "simulate", "write_measurements",
-    "DataError", "JaxcalError", "PrecisionError", "RobotFileError", "Robot",
-    "derivatives", "error_model", "fk", "fk_frames", "fk_pose_last", "kinematics", "lie", "load_robot", "native_status",
-    "preset", "presets", "save_robot", "to_mdh", "to_sdh",
-]
-__version__ = "0.1.0"
+__version__ = "0.2.0"

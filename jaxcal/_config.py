@@ -41,9 +41,7 @@ def as_f64(x, name: str = "array") -> jax.Array:
         return x.astype(jnp.float64)
     arr = np.asarray(x)
     if arr.dtype == object or not (
-        np.issubdtype(arr.dtype, np.floating)
-        or np.issubdtype(arr.dtype, np.integer)
-        or arr.dtype == np.bool_
+        np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer) or arr.dtype == np.bool_
     ):
         raise DataError(f"{name}: expected real numbers, got dtype {arr.dtype}")
     return jnp.asarray(arr, dtype=jnp.float64)

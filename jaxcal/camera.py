@@ -74,7 +74,7 @@ def param_names(model: str) -> list[str]:
     _check(model)
     names = ["camera_depth_scale", "camera_anisotropy"] + [f"camera_A_{a}{b}" for a, b in _OFF]
     names += [f"camera_Q_{a}_{f}" for a in _AXES for f in _FEATURES]
-    return names[:n_params(model)]
+    return names[: n_params(model)]
 
 
 def basis(model: str) -> np.ndarray:
@@ -85,7 +85,7 @@ def basis(model: str) -> np.ndarray:
     E[1, 0, 0], E[1, 1, 1] = 1.0, -1.0
     for k, (a, b) in enumerate(_OFF):
         E[2 + k, _AXES.index(a), _AXES.index(b)] = 1.0
-    return E[:min(n_params(model), _N_LINEAR)]
+    return E[: min(n_params(model), _N_LINEAR)]
 
 
 def check_target_in_front(measured: Float[np.ndarray, "k 4 4"], what: str = "quadratic", rows=None) -> None:
@@ -96,9 +96,11 @@ def check_target_in_front(measured: Float[np.ndarray, "k 4 4"], what: str = "qua
     z = -np.einsum("ki,ki->k", measured[:, :3, 2], measured[:, :3, 3])
     bad = np.flatnonzero(~(z > 1e-6 * np.abs(measured[:, :3, 3]).max(initial=1.0)))
     if bad.size:
-        raise DataError(f"the camera model {what} needs the target in front of the camera (z > 0 in the camera's "
-                        f"axes); pose {bad[0]}{'' if rows is None else f' (data row {rows[bad[0]]})'} has z = "
-                        f"{z[bad[0]]:.3g} mm ({bad.size} such poses)")
+        raise DataError(
+            f"the camera model {what} needs the target in front of the camera (z > 0 in the camera's "
+            f"axes); pose {bad[0]}{'' if rows is None else f' (data row {rows[bad[0]]})'} has z = "
+            f"{z[bad[0]]:.3g} mm ({bad.size} such poses)"
+        )
 
 
 def _features(t):
@@ -108,9 +110,9 @@ def _features(t):
     u, v = x / z, y / z
     h = jnp.stack([x * u, y * v, x * v], -1)
     zero = jnp.zeros_like(u)
-    dh = jnp.stack([jnp.stack([2 * u, zero, -u * u], -1),
-                    jnp.stack([zero, 2 * v, -v * v], -1),
-                    jnp.stack([v, u, -u * v], -1)], -2)
+    dh = jnp.stack(
+        [jnp.stack([2 * u, zero, -u * u], -1), jnp.stack([zero, 2 * v, -v * v], -1), jnp.stack([v, u, -u * v], -1)], -2
+    )
     return h, dh
 
 
@@ -123,20 +125,20 @@ def _correction(model: str, c, t):
     A = jnp.einsum("m,mij->ij", c[:_N_LINEAR], E)
     G = jnp.einsum("ij,...j->...i", A, t)
     DG = jnp.broadcast_to(A, t.shape + (3,))
-    dc = jnp.einsum("mjk,...k->...jm", E, t)                             # (..., 3, m_lin)
+    dc = jnp.einsum("mjk,...k->...jm", E, t)  # (..., 3, m_lin)
     if model == "quadratic":
         Q = c[_N_LINEAR:].reshape(3, 3)
         h, dh = _features(t)
         G = G + jnp.einsum("ij,...j->...i", Q, h)
         DG = DG + jnp.einsum("ij,...jk->...ik", Q, dh)
-        dq = jnp.eye(3)[:, :, None] * h[..., None, None, :]               # (..., 3, axis, feature)
+        dq = jnp.eye(3)[:, :, None] * h[..., None, None, :]  # (..., 3, axis, feature)
         dc = jnp.concatenate([dc, dq.reshape(dq.shape[:-2] + (9,))], -1)
     return G, DG, dc
 
 
 def _target_in_camera(T):
     R, p = T[..., :3, :3], T[..., :3, 3]
-    return R, p, -jnp.einsum("...ji,...j->...i", R, p)               # t = -R^T p
+    return R, p, -jnp.einsum("...ji,...j->...i", R, p)  # t = -R^T p
 
 
 def apply_camera(T: Float[Array, "*b 4 4"], c: Float[Array, " m"], model: str) -> Float[Array, "*b 4 4"]:
@@ -151,8 +153,9 @@ def apply_camera(T: Float[Array, "*b 4 4"], c: Float[Array, " m"], model: str) -
     return T.at[..., :3, 3].add(-jnp.einsum("...ij,...j->...i", R, G))
 
 
-def camera_jacobian(J: Float[Array, "*b 6 p"], T: Float[Array, "*b 4 4"], c: Float[Array, " m"],
-                    model: str) -> Float[Array, "*b 6 p+m"]:
+def camera_jacobian(
+    J: Float[Array, "*b 6 p"], T: Float[Array, "*b 4 4"], c: Float[Array, " m"], model: str
+) -> Float[Array, "*b 6 p+m"]:
     """Rows of the identification Jacobian ``J`` (derivatives of the modelled pose ``T``: position
     ``dp`` and spatial rotation ``w``, ``dR = [w] R``) turned into derivatives of
     :func:`apply_camera` ``(T, c)``, plus one column per unknown ``d p'/d c_k = -R dG/dc_k``.
@@ -165,11 +168,11 @@ def camera_jacobian(J: Float[Array, "*b 6 p"], T: Float[Array, "*b 4 4"], c: Flo
         return J
     R, p, t = _target_in_camera(T)
     G, DG, dc = _correction(model, c, t)
-    cols = -R @ dc                                                        # (..., 3, m)
+    cols = -R @ dc  # (..., 3, m)
     dp, w = J[..., :3, :], J[..., 3:, :]
-    v = -jnp.einsum("...ij,...j->...i", R, G)                             # -R G
-    cross = lambda a, b: jnp.cross(a, b, axisa=-2, axisb=-2, axisc=-2)    # column-wise
-    M = jnp.einsum("...ij,...jk,...lk->...il", R, DG, R)                  # R DG R^T
+    v = -jnp.einsum("...ij,...j->...i", R, G)  # -R G
+    cross = lambda a, b: jnp.cross(a, b, axisa=-2, axisb=-2, axisc=-2)  # column-wise
+    M = jnp.einsum("...ij,...jk,...lk->...il", R, DG, R)  # R DG R^T
     dp2 = dp + cross(w, v[..., :, None]) + M @ (dp - cross(w, p[..., :, None]))
     cols = jnp.concatenate([cols, jnp.zeros_like(cols)], -2)
     return jnp.concatenate([jnp.concatenate([dp2, w], -2), cols], -1)

@@ -1,17 +1,19 @@
-"""Compensation: joint commands that make the *calibrated* model reach given targets.
+r"""Compensation: joint commands that make the *calibrated* model reach given targets.
 
-Levenberg–Marquardt inverse kinematics, one small linear solve per pose and step, in a
-``lax.while_loop``; jit-compiled (``eqx.filter_jit``) and vmapped over poses. Each step solves
+Inverse kinematics on the one engine (:func:`jaxcal.solvers.least_squares`, optimistix
+Gauss–Newton), vmapped over targets: per target it minimises
 
-$(N + \\mu (\\mathrm{diag}(N) + \\lambda I))\\,\\Delta q = J^T W e,\\quad N = J^T W J,\\quad
-e = \\text{pose\\_error}(T_{target}, T(q))$
+$$|W\,e(q)|^2 + \lambda\,|q - q_0|^2,\qquad e = \text{pose\_error}(T_{target}, T(q))$$
 
-and is accepted only if it lowers the error (then ``mu /= 3``, else ``mu *= 4``).
+with the analytic joint Jacobian (the joint columns of eq. 10), ``W`` weighting rotation rows by
+``rot_weight_mm`` mm per rad (a lever arm), and a light pull ``lambda`` (``damping``) toward the
+starting command ``q_0``, which keeps a redundant arm, or a position-only target, near the
+nominal command instead of anywhere on its self-motion, and keeps every step well posed.
 
-with ``J`` the analytic joint Jacobian (the ``theta`` / ``d`` columns of the identification
-Jacobian) and ``W`` weighting rotation rows by ``rot_weight_mm`` mm per rad (a lever arm). The
-damping keeps a redundant arm (7 joints for a 6-D target) close to its start, the nominal
-command. Targets may be positions only (3 rows) or full poses.
+A command is then put on the branch of its starting command (revolute joints within pi of it:
+no whole-turn jumps) and checked against the robot's joint limits. A target is reached
+(``converged``) when the solver met its tolerances and the residual is below ``tol_mm``; a
+command outside the limits is flagged (``within_limits``), never silently written.
 """
 
 from __future__ import annotations
@@ -24,103 +26,161 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._config import as_f64
-from .error_model import identification_jacobian, pose_error
+from .error_model import point_jacobian, pose_error
 from .errors import DataError
 from .kinematics import fk
-from .measurements import (ANGLE_UNITS, LENGTH_UNITS, POSITION_COLUMNS, QUAT_COLUMNS, _JOINT_RE, _names, check_column_names,
-                           _parse_rows, _unit, open_table)
+from .lie import so3_right_jacobian_inv
+from .measurements import (
+    ANGLE_UNITS,
+    LENGTH_UNITS,
+    joint_columns,
+    measurement_columns,
+    parse_rows,
+    quaternions_to_rotations,
+    read_table,
+    require_rows,
+    unit_scale,
+)
 from .robot import Robot
+from .solvers import least_squares
+
+LIMIT_TOL = 1e-9
+"""Slack (rad or mm) of the joint-limit check, for commands that land on a limit."""
 
 
 @dataclasses.dataclass(frozen=True)
 class Compensation:
     """What :func:`compensate` returns (one entry per target)."""
 
-    q: np.ndarray                 # (K, n) compensated joint commands (rad; mm for prismatic)
-    pos_residual_mm: np.ndarray   # (K,) |p_target - p_calibrated(q)|
-    rot_residual_deg: np.ndarray  # (K,) rotation angle of the remaining error (0 if position only)
-    converged: np.ndarray         # (K,) bool
-    steps: np.ndarray             # (K,)
+    q: np.ndarray
+    """``(K, n)`` compensated joint commands (rad; mm for prismatic joints)."""
+    pos_residual_mm: np.ndarray
+    """``(K,)`` ``|p_target - p_calibrated(q)|``."""
+    rot_residual_deg: np.ndarray
+    """``(K,)`` rotation angle of the remaining error (0 for position targets)."""
+    converged: np.ndarray
+    """``(K,)`` the target is reached (solver tolerances met and residual below ``tol_mm``)."""
+    within_limits: np.ndarray
+    """``(K,)`` every joint of the command is within the robot's joint limits."""
+    steps: np.ndarray
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Reached and within the limits: the commands that may be sent to the robot."""
+        return self.converged & self.within_limits
+
+
+def _wrap(d):
+    """Angle differences into (-pi, pi]."""
+    return d - 2 * jnp.pi * jnp.ceil((d - jnp.pi) / (2 * jnp.pi))
 
 
 @eqx.filter_jit
-def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight: float, damping: float, max_steps: int,
-        tol_mm: float):
+def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight, damping, max_steps: int):
     rows = 3 if position_only else 6
+    n = robot.n_joints
     cols = jnp.asarray([4 * i + (0 if t == "R" else 1) for i, t in enumerate(robot.joint_types)])
     w = jnp.asarray([1.0, 1.0, 1.0] + [rot_weight] * 3)[:rows]
+    sd = jnp.sqrt(damping)
 
-    def err(q, T):
-        return pose_error(T, fk(robot, q))[:rows] * w
+    def rj(q, args):
+        T_target, q_start = args
+        P, W, T = point_jacobian(robot, q[None], jnp.zeros((1, 3)))
+        e = pose_error(T_target, T[0])
+        Jp, Jw = P[0, 0][:, cols], W[0][:, cols]
+        rot = so3_right_jacobian_inv(e[3:]) @ Jw
+        J = -jnp.concatenate([Jp, rot])[:rows] * w[:, None]
+        r = jnp.concatenate([e[:rows] * w, sd * (q - q_start)])
+        return r, jnp.concatenate([J, sd * jnp.eye(n)])
 
-    def one(T, q0):
-        def body(c):
-            q, mu, i, _ = c
-            e = err(q, T)
-            J = identification_jacobian(robot, q)[:rows][:, cols] * w[:, None]
-            N = J.T @ J
-            dq = jnp.linalg.solve(N + mu * (jnp.diag(jnp.diag(N)) + damping * jnp.eye(N.shape[0])), J.T @ e)
-            e_new = err(q + dq, T)
-            accept = jnp.sum(e_new ** 2) < jnp.sum(e ** 2)
-            q = jnp.where(accept, q + dq, q)
-            mu = jnp.where(accept, mu / 3.0, mu * 4.0)
-            return q, mu, i + 1, jnp.max(jnp.abs(err(q, T))) < tol_mm
-
-        def cond(c):
-            return (c[2] < max_steps) & ~c[3] & (c[1] < 1e12)
-
-        init = (q0, jnp.asarray(1e-3), jnp.asarray(0), jnp.max(jnp.abs(err(q0, T))) < tol_mm)
-        q, _, steps, done = jax.lax.while_loop(cond, body, init)
+    def one(T, q_start):
+        q, ok, steps = least_squares(
+            rj, q_start, (T, q_start), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10
+        )
+        rev = jnp.asarray([t == "R" for t in robot.joint_types])
+        q = jnp.where(rev, q_start + _wrap(q - q_start), q)  # the branch of the starting command
         e = pose_error(T, fk(robot, q))
-        return q, jnp.linalg.norm(e[:3]), jnp.linalg.norm(e[3:]), done & jnp.all(jnp.isfinite(q)), steps
+        return q, jnp.linalg.norm(e[:3]), jnp.linalg.norm(e[3:]), ok, steps
 
     return jax.vmap(one)(targets, q0)
 
 
-def compensate(calibrated: Robot, targets, q_start, *, position_only: bool = False, rot_weight_mm: float = 1000.0,
-               damping: float = 1e-6, max_steps: int = 50, tol_mm: float = 1e-7) -> Compensation:
+def compensate(
+    calibrated: Robot,
+    targets,
+    q_start,
+    *,
+    position_only: bool = False,
+    rot_weight_mm: float = 1000.0,
+    damping: float = 1e-6,
+    max_steps: int = 100,
+    tol_mm: float = 1e-6,
+) -> Compensation:
     """Joint commands ``q`` with ``fk(calibrated, q) ~ targets``, starting from ``q_start``.
 
-    **Arguments**: ``targets`` ``(K, 4, 4)`` (mm; only the position is used with
-    ``position_only``); ``q_start`` ``(K, n)``, e.g. the nominal commands; ``rot_weight_mm``
-    mm per rad of rotation error; ``damping`` the Levenberg term (mm^2); convergence when every
-    weighted residual row is below ``tol_mm``.
+    **Arguments**: ``targets`` ``(K, 4, 4)`` in the calibrated model's frame (mm; only the
+    position is used with ``position_only``); ``q_start`` ``(K, n)``, e.g. the nominal
+    commands; ``rot_weight_mm`` mm per rad of rotation error; ``damping`` the pull toward
+    ``q_start`` (mm^2 per rad^2); a target counts as reached when its position residual is below
+    ``tol_mm`` and its rotation residual below ``tol_mm / rot_weight_mm``.
 
-    **Returns** a :class:`Compensation` (residuals and a converged flag per pose; never raises
-    for a pose that did not converge).
+    **Returns** a :class:`Compensation` (residuals, ``converged`` and ``within_limits`` per
+    target; never raises for a target that was not reached).
     """
-    targets = as_f64(targets, "targets")
-    q_start = as_f64(q_start, "q_start")
+    targets = np.array(as_f64(targets, "targets"))
+    q_start = np.array(as_f64(q_start, "q_start"))
     if q_start.ndim != 2 or q_start.shape[1] != calibrated.n_joints:
-        raise DataError(f"q_start must have shape (K, {calibrated.n_joints}), got {q_start.shape}")
+        raise DataError(f"q_start must have shape (K, {calibrated.n_joints}), got {q_start.shape}", option="q_start")
     if targets.shape != (q_start.shape[0], 4, 4):
-        raise DataError(f"targets must have shape ({q_start.shape[0]}, 4, 4), got {targets.shape}")
+        raise DataError(f"targets must have shape ({q_start.shape[0]}, 4, 4), got {targets.shape}", option="targets")
     for name, a in (("targets", targets), ("q_start", q_start)):
-        bad = ~np.isfinite(np.asarray(a))
+        bad = ~np.isfinite(a)
         if bad.any():
-            raise DataError(f"{name}: non-finite value at index {tuple(int(i) for i in np.argwhere(bad)[0])}")
+            raise DataError(
+                f"{name}: non-finite value at index {tuple(int(i) for i in np.argwhere(bad)[0])}", option=name
+            )
     if not position_only:
-        R = np.asarray(targets)[:, :3, :3]
+        R = targets[:, :3, :3]
         err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max((1, 2))
         bad = (err > 1e-6) | (np.linalg.det(R) < 0)
         if bad.any():
-            raise DataError(f"targets[{int(np.argmax(bad))}]: rotation is not a proper rotation matrix; "
-                            "use position_only=True for position targets")
+            raise DataError(
+                f"targets[{int(np.argmax(bad))}]: rotation is not a proper rotation matrix; "
+                "use position_only=True for position targets",
+                option="targets",
+            )
     for name, v in (("rot_weight_mm", rot_weight_mm), ("damping", damping), ("tol_mm", tol_mm)):
         if not (np.isfinite(v) and v > 0):
-            raise DataError(f"{name} must be a finite positive number, got {v!r}")
+            raise DataError(f"{name} must be a finite positive number, got {v!r}", option=name)
     if int(max_steps) < 1:
-        raise DataError(f"max_steps must be >= 1, got {max_steps!r}")
-    q, ep, er, ok, steps = _ik(calibrated, targets, q_start, bool(position_only), float(rot_weight_mm),
-                               float(damping), int(max_steps), float(tol_mm))
-    return Compensation(q=np.asarray(q), pos_residual_mm=np.asarray(ep),
-                        rot_residual_deg=np.degrees(np.asarray(er)) * (not position_only),
-                        converged=np.asarray(ok), steps=np.asarray(steps))
+        raise DataError(f"max_steps must be >= 1, got {max_steps!r}", option="max_steps")
+    q, ep, er, ok, steps = _ik(
+        calibrated.stripped(),
+        jnp.asarray(targets),
+        jnp.asarray(q_start),
+        bool(position_only),
+        float(rot_weight_mm),
+        float(damping),
+        int(max_steps),
+    )
+    q, ep, er = np.asarray(q), np.asarray(ep), np.asarray(er) * (not position_only)
+    reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
+    lim = np.asarray(calibrated.q_limits)
+    inside = np.all((q >= lim[:, 0] - LIMIT_TOL) & (q <= lim[:, 1] + LIMIT_TOL), axis=-1)
+    return Compensation(
+        q=q,
+        pos_residual_mm=ep,
+        rot_residual_deg=np.degrees(er),
+        converged=reached,
+        within_limits=inside,
+        steps=np.asarray(steps),
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class Targets:
-    """A targets file: ``q`` (nominal commands, or None), ``poses`` (or None), ``position_only``."""
+    """A targets file: nominal commands ``q`` (or None), target ``poses`` (or None), whether the
+    targets are positions only, and the data rows."""
 
     q: np.ndarray | None
     poses: np.ndarray | None
@@ -129,66 +189,58 @@ class Targets:
 
 
 def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Targets:
-    """Read a targets CSV: ``x, y, z`` [``qw, qx, qy, qz``] target poses and/or ``q1..qN``
-    nominal joint commands (both: the commands are the starting point; commands only: the
-    targets are where the nominal model puts them). Errors name the row and column."""
-    lu, _ = _unit(length_unit, LENGTH_UNITS, "length_unit", "mm")
-    au, _ = _unit(angle_unit, ANGLE_UNITS, "angle_unit", "rad")
-    path, src, records, header = open_table(
-        path, f"expected a header with q1..q{robot.n_joints} and/or x, y, z")
+    """Read a targets CSV: ``x, y, z`` [``qw, qx, qy, qz``] target poses and/or joint columns
+    (``q1..qN`` or the joint names) with the nominal commands (both: the commands are the
+    starting point; commands only: the targets are where the nominal model puts them). Units
+    follow the robot file unless given. Errors name the row and column."""
+    lu, _ = unit_scale(length_unit, LENGTH_UNITS, "length_unit", robot.units[0])
+    au, _ = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", robot.units[1])
     n = robot.n_joints
     expected = f"expected x, y, z [qw, qx, qy, qz] and/or q1..q{n}"
-    seen = check_column_names(header, src, expected)
-    joints = sorted(int(_JOINT_RE.fullmatch(c).group(1)) for c in header if _JOINT_RE.fullmatch(c))
-    if joints and joints != list(range(1, n + 1)):
-        raise DataError(f"{src}: joint columns {_names(f'q{j}' for j in joints)} do not match the robot's "
-                        f"{n} joints (q1..q{n})")
-    pos = [c for c in POSITION_COLUMNS if c in seen]
-    if pos and len(pos) < 3:
-        raise DataError(f"{src}: missing column(s) {_names(c for c in POSITION_COLUMNS if c not in seen)}; {expected}")
-    quat = [c for c in QUAT_COLUMNS if c in seen]
-    if quat and (len(quat) < 4 or not pos):
-        raise DataError(f"{src}: quaternion columns need all of qw, qx, qy, qz and x, y, z; {expected}")
-    if not pos and not joints:
+    src, header, records = read_table(path, expected)
+    jcols = joint_columns(header, robot, src, required=False)
+    points, quat = measurement_columns(header, src, required=False)
+    if len(points) > 1:
+        raise DataError(f"{src}: targets are one point (x, y, z) per row, the file has {len(points)}")
+    if not points and not jcols:
         raise DataError(f"{src}: no target columns; {expected}")
-    if len(records) == 1:
-        raise DataError(f"{src}: header only, no data rows")
-    values, rows, lines = _parse_rows(records[1:], header, src)
+    pcols = points[0] if points else []
+    require_rows(records, src)
+    values, rows, lines = parse_rows(records, header, (jcols or []) + pcols + (quat or []), src)
     q = None
-    if joints:
-        scale = np.array([lu if t == "P" else au for t in robot.joint_types])
-        q = values[:, [seen[f"q{j}"] for j in range(1, n + 1)]] * scale
+    if jcols:
+        q = values[:, :n] * np.array([lu if t == "P" else au for t in robot.joint_types])
     poses = None
-    if pos:
+    if points:
+        k = n if jcols else 0
         poses = np.broadcast_to(np.eye(4), (len(values), 4, 4)).copy()
-        poses[:, :3, 3] = values[:, [seen[c] for c in POSITION_COLUMNS]] * lu
+        poses[:, :3, 3] = values[:, k : k + 3] * lu
         if quat:
-            from scipy.spatial.transform import Rotation
-
-            qq = values[:, [seen[c] for c in QUAT_COLUMNS]]
-            norm = np.linalg.norm(qq, axis=1)
-            bad = np.flatnonzero(np.abs(norm - 1.0) > 1e-3)
-            if bad.size:
-                k = bad[0]
-                raise DataError(f"{src}: row {rows[k]} (line {lines[k]}): quaternion (qw, qx, qy, qz) has norm "
-                                f"{norm[k]:.6g}, not 1")
-            qq = qq / norm[:, None]
-            poses[:, :3, :3] = Rotation.from_quat(qq[:, [1, 2, 3, 0]]).as_matrix()
-    return Targets(q=q, poses=poses, position_only=bool(pos) and not quat if pos else False, rows=rows)
+            poses[:, :3, :3] = quaternions_to_rotations(values[:, k + 3 :], rows, lines, src)
+    return Targets(q=q, poses=poses, position_only=bool(points) and not quat, rows=rows)
 
 
 def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | None = None, **kw):
     """Resolve a :class:`Targets` file into ``(target poses, start q)`` and compensate.
 
-    Commands only: targets are ``fk(nominal, q)`` (full poses; ``nominal`` required). Poses
-    without commands: the start is the middle of the joint limits."""
+    Commands only: the targets are where the nominal robot puts its tool, ``fk(nominal, q)``, in
+    the nominal robot's base frame; they are moved into the calibrated model's frame by its own
+    base (``calibrated.base @ nominal.base^-1``), so an estimated measurement frame carries
+    them along. Poses are taken in the calibrated model's frame. Without commands, the start is
+    the middle of the joint limits."""
     if targets.poses is None:
         if nominal is None:
-            raise DataError("targets given as joint commands only: the nominal robot is needed (--nominal) "
-                            "to know where they were meant to go")
+            raise DataError(
+                "targets given as joint commands only: the nominal robot is needed (nominal) to know "
+                "where they were meant to go",
+                option="nominal",
+            )
         if nominal.n_joints != calibrated.n_joints:
-            raise DataError(f"nominal robot has {nominal.n_joints} joints, calibrated {calibrated.n_joints}")
-        poses = np.asarray(fk(nominal, jnp.asarray(targets.q)))
+            raise DataError(
+                f"nominal robot has {nominal.n_joints} joints, calibrated {calibrated.n_joints}", option="nominal"
+            )
+        frame = np.asarray(calibrated.base) @ np.linalg.inv(np.asarray(nominal.base))
+        poses = frame @ np.asarray(fk(nominal, jnp.asarray(targets.q)))
         position_only = False
     else:
         poses, position_only = targets.poses, targets.position_only

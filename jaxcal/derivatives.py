@@ -157,7 +157,15 @@ def omega_twist_entries(convention: str, c, s, d, a, alpha) -> list:
     zero = [0.0, 0.0, 0.0]
     if convention == "sdh":
         ca, sa = jnp.cos(alpha), jnp.sin(alpha)
-        return [([0.0, a * ca, -a * sa], [0.0, sa, ca]), ([0.0, sa, ca], zero),
-                ([1.0, 0.0, 0.0], zero), (zero, [1.0, 0.0, 0.0])]
-    return [(zero, [0.0, 0.0, 1.0]), ([0.0, 0.0, 1.0], zero),
-            ([c, -s, 0.0], zero), ([-d * s, -d * c, 0.0], [c, -s, 0.0])]
+        return [
+            ([0.0, a * ca, -a * sa], [0.0, sa, ca]),
+            ([0.0, sa, ca], zero),
+            ([1.0, 0.0, 0.0], zero),
+            (zero, [1.0, 0.0, 0.0]),
+        ]
+    return [
+        (zero, [0.0, 0.0, 1.0]),
+        ([0.0, 0.0, 1.0], zero),
+        ([c, -s, 0.0], zero),
+        ([-d * s, -d * c, 0.0], [c, -s, 0.0]),
+    ]

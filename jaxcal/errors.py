@@ -2,7 +2,15 @@
 
 
 class JaxcalError(Exception):
-    """Base class of every error jaxcal raises on purpose."""
+    """Base class of every error jaxcal raises on purpose.
+
+    ``option`` names the argument the message is about (``"folds"``, ``"length_unit"``), so a
+    front end can say it in its own words (the CLI prints ``--folds``).
+    """
+
+    def __init__(self, message: str, *, option: str | None = None):
+        super().__init__(message)
+        self.option = option
 
 
 class DataError(JaxcalError, ValueError):
@@ -10,8 +18,14 @@ class DataError(JaxcalError, ValueError):
 
 
 class RobotFileError(JaxcalError, ValueError):
-    """A robot description (TOML or constructor arguments) is malformed."""
+    """A robot description (TOML, URDF or constructor arguments) is malformed."""
 
 
 class PrecisionError(JaxcalError, RuntimeError):
     """float64 is not available (``jax_enable_x64`` was switched off)."""
+
+
+class ImplausibleFitError(JaxcalError, ValueError):
+    """A fit converged but is not a calibration: its residuals or parameter changes are
+    implausible for the robot, usually because of a mistake in the input (units, column
+    order, quaternion order). The message names the evidence and the likely causes."""

@@ -30,7 +30,6 @@ import dataclasses
 import warnings
 
 import numpy as np
-import scipy.linalg
 
 from .errors import DataError
 
@@ -76,16 +75,20 @@ class Identifiability:
         (whose estimates absorb it), or linearly dependent on the base set."""
         m = len(self.names)
         out = {}
-        for k, j in enumerate(self.fixed):
+        for j in self.fixed:
             name = self.names[j]
             if name in self.unidentifiable:
-                out[name] = ("no effect on the measurements over this pose set (zero column of the "
-                             "identification Jacobian: e.g. a joint that never moves, or too few distinct poses)")
+                out[name] = (
+                    "no effect on the measurements over this pose set (zero column of the "
+                    "identification Jacobian: e.g. a joint that never moves, or too few distinct poses)"
+                )
                 continue
             absorbers = [self.names[b] for i, b in enumerate(self.base) if abs(self.combination_matrix[i, j]) > 1e-6]
             if absorbers:
-                out[name] = (f"not separable from {', '.join(absorbers)} on this pose set (rank {self.rank} of {m}); "
-                             f"held at 0, its effect is absorbed by their estimates")
+                out[name] = (
+                    f"not separable from {', '.join(absorbers)} on this pose set (rank {self.rank} of {m}); "
+                    f"held at 0, its effect is absorbed by their estimates"
+                )
             else:
                 out[name] = f"linearly dependent on the base set (rank {self.rank} of {m}); held at 0"
         return out
@@ -94,14 +97,18 @@ class Identifiability:
         """Multi-line, human-readable summary."""
         m = len(self.names)
         absorbed = [self.names[i] for i in self.fixed if self.names[i] not in self.unidentifiable]
-        lines = [f"rank {self.rank} of {m} ({m - self.rank} deficient)",
-                 f"fixed (held at 0): {', '.join(self.fixed_names) or 'none'}",
-                 f"  unidentifiable (no effect): {', '.join(self.unidentifiable) or 'none'}",
-                 f"  absorbed by base parameters: {', '.join(absorbed) or 'none'}"]
+        lines = [
+            f"rank {self.rank} of {m} ({m - self.rank} deficient)",
+            f"fixed (held at 0): {', '.join(self.fixed_names) or 'none'}",
+            f"  unidentifiable (no effect): {', '.join(self.unidentifiable) or 'none'}",
+            f"  absorbed by base parameters: {', '.join(absorbed) or 'none'}",
+        ]
         lines += ["base parameters that estimate combinations:"]
         lines += [f"  {c}" for c in self.combinations] or ["  none"]
-        lines += [f"condition number (scaled base-set Jacobian): {self.condition_number:.4g}",
-                  "observability: " + ", ".join(f"{k} = {v:.4g}" for k, v in self.indices.items())]
+        lines += [
+            f"condition number (scaled base-set Jacobian): {self.condition_number:.4g}",
+            "observability: " + ", ".join(f"{k} = {v:.4g}" for k, v in self.indices.items()),
+        ]
         return "\n".join(lines)
 
 
@@ -127,7 +134,7 @@ def _term(c: float, name: str) -> str:
     return f"{sign} {name}" if mag == "1" else f"{sign} {mag} {name}"
 
 
-def analyze(J, names, *, rtol: float = 1e-8, col_scale=None) -> Identifiability:
+def analyze(J, names, *, rtol: float = 1e-8, col_scale=None, priority=None) -> Identifiability:
     """Rank, base set and observability of an identification Jacobian.
 
     **Arguments**
@@ -138,6 +145,9 @@ def analyze(J, names, *, rtol: float = 1e-8, col_scale=None) -> Identifiability:
     * `rtol`: relative threshold on singular values (`s > rtol * s_max` counts).
     * `col_scale`: optional positive `(m,)` typical magnitude of each parameter (mm, rad): the
       analysis is done on `J * col_scale`. Default: `1 / ||J[:, j]||` (unit-norm columns).
+    * `priority`: the order in which columns are offered to the base set (default: column
+      order). Of interchangeable parameters the one offered first is kept: a calibration offers
+      the base and tool frames first, so the frames keep what belongs to them (a gauge).
 
     A column is *unidentifiable* (numerically zero) when its scaled norm is at most
     `rtol` times the largest scaled column norm, taking unscaled columns when `col_scale` is
@@ -162,24 +172,36 @@ def analyze(J, names, *, rtol: float = 1e-8, col_scale=None) -> Identifiability:
         zero = sn <= rtol * sn.max()
     Js = J * scale
     Js[:, zero] = 0.0  # numerically zero columns: exactly zero, so they never look like noise rank
+    if Js.shape[0] > Js.shape[1]:
+        # J = Q R with Q orthonormal: R has J's singular values and the same linear relations
+        # between columns (ranks of column subsets, least-squares combinations), in m rows
+        Js = np.linalg.qr(Js, mode="r")
     sv = np.linalg.svd(Js, compute_uv=False)
     thr = rtol * sv[0] if sv[0] > 0 else np.inf
     rank = int(np.sum(sv > thr))
 
+    order = list(range(m)) if priority is None else [int(j) for j in priority]
+    if sorted(order) != list(range(m)):
+        raise DataError(f"priority must be a permutation of the {m} columns")
     kept: list[int] = []
-    for j in range(m):
+    for j in order:
         if len(kept) == rank:
             break
         if not zero[j] and _n_above(Js[:, kept + [j]], thr) == len(kept) + 1:
             kept.append(j)
     if len(kept) < rank:  # borderline spectrum: top up with pivoted QR of what the kept set misses
-        warnings.warn(f"greedy base set has {len(kept)} columns for numerical rank {rank}; "
-                      "topped up by pivoted QR (singular values near the threshold)", stacklevel=2)
-        rest = [j for j in range(m) if j not in kept and not zero[j]]
-        Q = np.linalg.qr(Js[:, kept])[0] if kept else np.zeros((rows, 0))
+        warnings.warn(
+            f"greedy base set has {len(kept)} columns for numerical rank {rank}; "
+            "topped up by pivoted QR (singular values near the threshold)",
+            stacklevel=2,
+        )
+        rest = [j for j in order if j not in kept and not zero[j]]
+        Q = np.linalg.qr(Js[:, kept])[0] if kept else np.zeros((Js.shape[0], 0))
         resid = Js[:, rest] - Q @ (Q.T @ Js[:, rest])
+        import scipy.linalg
+
         piv = scipy.linalg.qr(resid, mode="r", pivoting=True)[1]
-        kept += [rest[p] for p in piv[:rank - len(kept)]]
+        kept += [rest[p] for p in piv[: rank - len(kept)]]
     base = tuple(sorted(kept))
     fixed = tuple(j for j in range(m) if j not in base)
     b, f = list(base), list(fixed)
@@ -201,15 +223,28 @@ def analyze(J, names, *, rtol: float = 1e-8, col_scale=None) -> Identifiability:
     s = np.linalg.svd(Js[:, b], compute_uv=False) if b else np.zeros(0)
     if len(s) and s[-1] > 0:
         cond = float(s[0] / s[-1])
-        indices = {"O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(rows)), "O2": float(s[-1] / s[0]),
-                   "O3": float(s[-1]), "O4": float(s[-1] ** 2 / s[0]), "O5": float(1.0 / np.sum(1.0 / s))}
+        indices = {
+            "O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(rows)),
+            "O2": float(s[-1] / s[0]),
+            "O3": float(s[-1]),
+            "O4": float(s[-1] ** 2 / s[0]),
+            "O5": float(1.0 / np.sum(1.0 / s)),
+        }
     else:
         cond, indices = float("inf"), {k: 0.0 for k in ("O1", "O2", "O3", "O4", "O5")}
     sv.flags.writeable = False
-    return Identifiability(names=names, rank=rank, base=base, fixed=fixed,
-                           unidentifiable=tuple(names[j] for j in range(m) if zero[j]),
-                           combinations=tuple(combos), combination_matrix=C, singular_values=sv,
-                           condition_number=cond, indices=indices)
+    return Identifiability(
+        names=names,
+        rank=rank,
+        base=base,
+        fixed=fixed,
+        unidentifiable=tuple(names[j] for j in range(m) if zero[j]),
+        combinations=tuple(combos),
+        combination_matrix=C,
+        singular_values=sv,
+        condition_number=cond,
+        indices=indices,
+    )
 
 
 def _row_sigma(J3, rows: int, row_sigma) -> np.ndarray:
@@ -258,8 +293,9 @@ def base_covariance(Jb) -> np.ndarray:
     return (cov + np.swapaxes(cov, -1, -2)) / 2
 
 
-def row_sigmas(n_poses: int, *, position_only: bool = False, sigma_pos_mm: float,
-               sigma_rot_rad: float | None = None) -> np.ndarray:
+def row_sigmas(
+    n_poses: int, *, position_only: bool = False, sigma_pos_mm: float, sigma_rot_rad: float | None = None
+) -> np.ndarray:
     """Per-row noise standard deviations in the row order of `identification_jacobian`:
     `[sp, sp, sp, sr, sr, sr]` per pose (`[sp, sp, sp]` if `position_only`), flattened to
     `(n_poses * (3 | 6),)`."""

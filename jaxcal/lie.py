@@ -1,25 +1,34 @@
-"""Small SE(3)/SO(3) helpers on 4x4 homogeneous matrices, built on :mod:`jaxlie`.
+"""SO(3)/SE(3) helpers on rotation matrices and 4x4 homogeneous transforms.
 
-Twists are ordered ``[v, w]`` (translation, then rotation), like jaxlie's. Every function
-broadcasts over leading axes.
+Twists are ordered ``[v, w]`` (translation, then rotation). Every function broadcasts over
+leading axes. The rotation maps used inside fits (:func:`so3_exp`, :func:`so3_log`, the SO(3)
+Jacobians) are closed forms written here rather than taken from jaxlie: they are a handful of
+operations each, which keeps the compiled calibration small, and they accept NumPy arrays too
+(evaluated by NumPy, nothing compiled). jaxlie serves the file-format conversions (roll-pitch-yaw,
+quaternions) and the SE(3) exponential.
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import jaxlie
+import numpy as np
 from jaxtyping import Array, Float
+
+
+def _xp(a):
+    return np if isinstance(a, (np.ndarray, np.generic)) else jnp
 
 
 def skew(w: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
     """``skew(w) @ x == cross(w, x)``."""
-    z = jnp.zeros_like(w[..., 0])
-    return jnp.stack(
+    xp = _xp(w)
+    z = xp.zeros_like(w[..., 0])
+    return xp.stack(
         [
-            jnp.stack([z, -w[..., 2], w[..., 1]], -1),
-            jnp.stack([w[..., 2], z, -w[..., 0]], -1),
-            jnp.stack([-w[..., 1], w[..., 0], z], -1),
+            xp.stack([z, -w[..., 2], w[..., 1]], -1),
+            xp.stack([w[..., 2], z, -w[..., 0]], -1),
+            xp.stack([-w[..., 1], w[..., 0], z], -1),
         ],
         -2,
     )
@@ -61,18 +70,93 @@ def adjoint(T: Float[Array, "*b 4 4"]) -> Float[Array, "*b 6 6"]:
     return jnp.concatenate([top, jnp.concatenate([z, R], -1)], -2)
 
 
-def se3_exp(xi: Float[Array, "*b 6"]) -> Float[Array, "*b 4 4"]:
-    """Exponential map of a ``[v, w]`` twist."""
-    return jaxlie.SE3.exp(xi).as_matrix()
+def _series(t2, big, coeffs, where_small):
+    """``big`` where the angle is not small, else the Taylor series ``sum c_k t2^k``."""
+    xp = _xp(t2)
+    small = coeffs[0] + t2 * (coeffs[1] + t2 * coeffs[2])
+    return xp.where(where_small, small, big)
+
+
+def _angle(w):
+    xp = _xp(w)
+    t2 = xp.sum(w * w, -1)
+    small = t2 < 1e-6
+    t = xp.sqrt(xp.where(small, 1.0, t2))
+    return xp, t2, t, small
+
+
+def so3_exp(w: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
+    """Rotation matrix of a rotation vector (Rodrigues)."""
+    xp, t2, t, small = _angle(w)
+    a = _series(t2, xp.sin(t) / t, (1.0, -1 / 6, 1 / 120), small)
+    b = _series(t2, 2 * xp.sin(t / 2) ** 2 / (t * t), (0.5, -1 / 24, 1 / 720), small)
+    K = skew(w)
+    return xp.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def so3_left_jacobian(w: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
+    """``exp(w + d) = exp(J_l(w) d) exp(w)`` to first order; ``J_r(w) = J_l(w)^T``."""
+    xp, t2, t, small = _angle(w)
+    b = _series(t2, 2 * xp.sin(t / 2) ** 2 / (t * t), (0.5, -1 / 24, 1 / 720), small)
+    c = _series(t2, (t - xp.sin(t)) / (t * t * t), (1 / 6, -1 / 120, 1 / 5040), small)
+    K = skew(w)
+    return xp.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
 
 
 def so3_log(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 3"]:
-    """Rotation vector of a rotation matrix (differentiable at the identity)."""
-    return jaxlie.SO3.from_matrix(R).log()
+    """Rotation vector of a rotation matrix, accurate at every angle: from the antisymmetric part
+    (``sin(angle) axis``) and the trace, and near half a turn, where that part vanishes, the
+    axis from the symmetric part."""
+    xp = _xp(R)
+    s = 0.5 * xp.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    c = 0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0)
+    ss = xp.sum(s * s, -1)
+    pos = ss > 0
+    sn = xp.where(pos, xp.sqrt(xp.where(pos, ss, 1.0)), 0.0)  # every branch kept finite, for derivatives
+    theta = xp.arctan2(sn, c)
+    near_zero = ss < 1e-14
+    generic = xp.where(near_zero, 1.0 + theta * theta / 6.0, theta / xp.where(near_zero, 1.0, sn))[..., None] * s
+    # near pi: (R + R^T)/2 - c I = (1 - c) a a^T; its largest diagonal entry gives a stable column
+    near_pi = c < -0.99
+    e0 = xp.asarray([[2.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    cp = xp.where(near_pi, c, -1.0)
+    B = xp.where(near_pi[..., None, None], 0.5 * (R + xp.swapaxes(R, -1, -2)) - cp[..., None, None] * xp.eye(3), e0)
+    d = xp.stack([B[..., 0, 0], B[..., 1, 1], B[..., 2, 2]], -1)
+    pick = (xp.arange(3) == xp.argmax(d, -1)[..., None]).astype(R.dtype)
+    col = xp.sum(B * pick[..., None, :], -1)
+    dk = xp.sum(d * pick, -1, keepdims=True)
+    a = col / xp.sqrt(dk * (1.0 - cp[..., None]))
+    a = xp.where(xp.sum(a * s, -1, keepdims=True) < 0, -a, a)
+    return xp.where(near_pi[..., None], theta[..., None] * a, generic)
+
+
+def so3_right_jacobian_inv(phi: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
+    """Inverse right Jacobian of SO(3): ``log(exp(phi) exp(d)) = phi + Jr^-1(phi) d + O(d^2)``.
+
+    ``Jr^-1 = I + K/2 + c K^2`` with ``K = skew(phi)``, ``c = 1/t^2 - (1 + cos t)/(2 t sin t)``
+    (``t = |phi|``), and the series ``c = 1/12 + t^2/720`` near ``t = 0``.
+    """
+    xp = _xp(phi)
+    t2 = xp.sum(phi * phi, -1)
+    small = t2 < 1e-8
+    t = xp.sqrt(xp.where(small, 1.0, t2))
+    c_big = 1.0 / (t * t) - (1.0 + xp.cos(t)) / (2.0 * t * xp.sin(t))
+    c = xp.where(small, 1.0 / 12.0 + t2 / 720.0, c_big)
+    K = skew(phi)
+    return xp.eye(3) + 0.5 * K + c[..., None, None] * (K @ K)
+
+
+def se3_exp(xi: Float[Array, "*b 6"]) -> Float[Array, "*b 4 4"]:
+    """Exponential map of a ``[v, w]`` twist."""
+    import jaxlie  # imported when needed: it is slow to import and off the hot path
+
+    return jaxlie.SE3.exp(xi).as_matrix()
 
 
 def rpy_to_matrix(rpy: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
     """Roll-pitch-yaw about fixed axes x, y, z: ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    import jaxlie  # imported when needed: it is slow to import and off the hot path
+
     rpy = jnp.asarray(rpy)
     fn = lambda r: jaxlie.SO3.from_rpy_radians(r[0], r[1], r[2]).as_matrix()
     for _ in range(rpy.ndim - 1):
@@ -82,9 +166,10 @@ def rpy_to_matrix(rpy: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
 
 def matrix_to_rpy(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 3"]:
     """Inverse of :func:`rpy_to_matrix` (pitch in [-pi/2, pi/2])."""
+    import jaxlie  # imported when needed: it is slow to import and off the hot path
+
     so3 = jaxlie.SO3.from_matrix(R)
-    return jnp.stack([so3.compute_roll_radians(), so3.compute_pitch_radians(),
-                      so3.compute_yaw_radians()], -1)
+    return jnp.stack([so3.compute_roll_radians(), so3.compute_pitch_radians(), so3.compute_yaw_radians()], -1)
 
 
 def xyz_rpy_to_transform(xyz, rpy) -> Float[Array, "4 4"]:
@@ -93,41 +178,22 @@ def xyz_rpy_to_transform(xyz, rpy) -> Float[Array, "4 4"]:
 
 def quat_to_matrix(q_wxyz: Float[Array, "*b 4"]) -> Float[Array, "*b 3 3"]:
     """Unit quaternion, scalar first -> rotation matrix."""
+    import jaxlie  # imported when needed: it is slow to import and off the hot path
+
     return jaxlie.SO3(wxyz=q_wxyz).as_matrix()
 
 
 def matrix_to_quat(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 4"]:
     """Rotation matrix -> unit quaternion, scalar first."""
+    import jaxlie  # imported when needed: it is slow to import and off the hot path
+
     return jaxlie.SO3.from_matrix(R).wxyz
 
 
-def so3_exp_matrix(w: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
-    """Rotation matrix of a rotation vector."""
-    return jaxlie.SO3.exp(w).as_matrix()
-
-
 def compose(A: Float[Array, "*b 4 4"], B: Float[Array, "*b 4 4"]) -> Float[Array, "*b 4 4"]:
-    """``A @ B`` for rigid transforms (bottom rows ``0 0 0 1``), as broadcast multiply-adds.
-
-    On CPU, XLA runs batched 4x4 ``matmul`` as many tiny GEMM calls; this elementwise form
-    fuses into one loop and was 2.6x faster for forward kinematics.
-    """
+    """``A @ B`` for rigid transforms (bottom rows ``0 0 0 1``), as broadcast multiply-adds: on
+    CPU, XLA runs batched 4x4 ``matmul`` as many tiny GEMM calls; this form fuses into one loop."""
     top = (A[..., :3, :3, None] * B[..., None, :3, :]).sum(-2)
     top = top.at[..., :, 3].add(A[..., :3, 3])
     bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0], top.dtype), top.shape[:-2] + (1, 4))
     return jnp.concatenate([top, bottom], -2)
-
-
-def so3_right_jacobian_inv(phi: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
-    """Inverse right Jacobian of SO(3): ``log(exp(phi) exp(d)) = phi + Jr^-1(phi) d + O(d^2)``.
-
-    ``Jr^-1 = I + K/2 + c K^2`` with ``K = skew(phi)``, ``c = 1/t^2 - (1 + cos t)/(2 t sin t)``
-    (``t = |phi|``), and the series ``c = 1/12 + t^2/720`` near ``t = 0``.
-    """
-    t2 = jnp.sum(phi * phi, -1)
-    small = t2 < 1e-8
-    t = jnp.sqrt(jnp.where(small, 1.0, t2))
-    c_big = 1.0 / (t * t) - (1.0 + jnp.cos(t)) / (2.0 * t * jnp.sin(t))
-    c = jnp.where(small, 1.0 / 12.0 + t2 / 720.0, c_big)
-    K = skew(phi)
-    return jnp.eye(3) + 0.5 * K + c[..., None, None] * (K @ K)

@@ -1,4 +1,4 @@
-"""Measurement files (CSV): reading with validation, writing, and point-set registration.
+"""Measurement files (CSV): reading with validation, and writing.
 
 ## File format
 
@@ -6,19 +6,25 @@ One header row, then one row per pose. Columns are matched **by name** (any orde
 
 | columns | meaning |
 |---|---|
-| `q1..qN` | joint values, one column per joint of the robot (all N required) |
+| `q1..qN`, or the robot's joint names | joint values, one column per joint (all required) |
 | `x, y, z` | measured position of the tool point |
-| `qw, qx, qy, qz` | optional: measured orientation, unit quaternion, **scalar first** |
+| `x1, y1, z1 ... xM, yM, zM` | instead: M points on the tool (e.g. motion-capture markers) |
+| `qw, qx, qy, qz` | optional with `x, y, z`: measured orientation, unit quaternion, **scalar first** |
 
-Without the quaternion columns the data is *position-only*. Units: lengths in mm and angles in
-rad unless `length_unit="m"` / `angle_unit="deg"` say otherwise; prismatic joints (`"P"`) take
-the length unit. Everything is converted to mm and rad on reading.
+Without the quaternion columns the data are positions. Other columns (timestamps, notes) are
+ignored and listed in :attr:`Measurements.ignored`.
 
-Quaternions whose norm is within `1e-3` of 1 are normalised silently (files written with a
-few decimals are fine); anything further off is refused. Every problem raises
-`jaxcal.DataError` naming the file, the data row (1-based, header not counted; blank lines
-skipped), its line in the file and the column. Implausible units (metres read as mm, degrees
-read as rad, ...) raise a `UnitWarning` with the evidence.
+**Units follow the files**: lengths and angles are read in the robot file's units
+(``robot.units``, e.g. a URDF's metres) unless ``length_unit`` / ``angle_unit`` say otherwise;
+prismatic joints take the length unit. Everything is converted to mm and rad on reading.
+
+Quaternions whose norm is within ``1e-3`` of 1 are normalised silently (files written with a few
+decimals are fine); anything further off is refused. Every problem raises
+:class:`jaxcal.DataError` naming the file, the data row (1-based, header not counted; blank lines
+skipped), its line in the file and the column. Rows in another unit than the rest (metres
+among millimetres, degrees among radians) are refused by row; a whole file in another unit is
+refused by the calibration's unit check (:func:`jaxcal.calibrate`), which compares it with the
+robot.
 """
 
 from __future__ import annotations
@@ -27,24 +33,19 @@ import csv
 import dataclasses
 import math
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from ._io import write_atomic
 from .errors import DataError
+from .robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 
-LENGTH_UNITS = {"mm": 1.0, "m": 1000.0}
-ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
 POSITION_COLUMNS = ("x", "y", "z")
 QUAT_COLUMNS = ("qw", "qx", "qy", "qz")
 QUAT_NORM_TOL = 1e-3
 _JOINT_RE = re.compile(r"q([1-9][0-9]*)")
-
-
-class UnitWarning(UserWarning):
-    """The numbers in a measurement file look like they are in another unit than declared."""
+_POINT_RE = re.compile(r"([xyz])([1-9][0-9]*)")
 
 
 def _frozen(a, dtype=np.float64) -> np.ndarray:
@@ -55,59 +56,89 @@ def _frozen(a, dtype=np.float64) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class Measurements:
-    """Measured poses of a robot, in mm and rad (arrays are read-only copies).
+    """Measured poses or points of a robot, in mm and rad (arrays are read-only copies).
 
-    * `q` — `(K, n)` joint values (rad; mm for prismatic joints).
-    * `poses` — `(K, 4, 4)` measured transforms, mm; rotation is the identity when
-      `position_only`.
-    * `source` — the file name, for messages.
-    * `rows` — `(K,)` the 1-based CSV data-row numbers, kept through `subset` so messages after
-      splitting or k-fold still point at the file.
+    * ``q`` — ``(K, n)`` joint values (rad; mm for prismatic joints).
+    * ``measured`` — ``(K, 4, 4)`` measured tool poses, or ``(K, M, 3)`` measured points.
+    * ``source`` — the file name, for messages.
+    * ``rows`` — ``(K,)`` 1-based CSV data-row numbers, kept through :meth:`subset` so messages
+      after splitting or cross-validation still point at the file.
+    * ``ignored`` — the file's columns that are neither joints nor measurements.
+    * ``units`` — the ``(length, angle)`` units the file was read in.
     """
 
     q: np.ndarray
-    poses: np.ndarray
-    position_only: bool
-    source: str
-    rows: np.ndarray
+    measured: np.ndarray
+    source: str = "arrays"
+    rows: np.ndarray | None = None
+    ignored: tuple[str, ...] = ()
+    units: tuple[str, str] = ("mm", "rad")
 
     def __post_init__(self):
-        q, poses, rows = _frozen(self.q), _frozen(self.poses), _frozen(self.rows, np.int64)
-        if q.ndim != 2 or poses.shape != (q.shape[0], 4, 4) or rows.shape != (q.shape[0],):
-            raise DataError(f"Measurements: inconsistent shapes q {q.shape}, poses {poses.shape}, "
-                            f"rows {rows.shape}; expected (K, n), (K, 4, 4), (K,)")
+        q, meas = _frozen(self.q), _frozen(self.measured)
+        rows = np.arange(1, len(q) + 1) if self.rows is None else self.rows
+        rows = _frozen(rows, np.int64)
+        K = q.shape[0] if q.ndim == 2 else -1
+        ok = (
+            q.ndim == 2
+            and rows.shape == (K,)
+            and (meas.shape == (K, 4, 4) or (meas.ndim == 3 and meas.shape[0] == K and meas.shape[2] == 3))
+        )
+        if not ok:
+            raise DataError(
+                f"Measurements: inconsistent shapes q {q.shape}, measured {meas.shape}, rows {rows.shape}; "
+                f"expected (K, n), (K, 4, 4) or (K, M, 3), (K,)"
+            )
         object.__setattr__(self, "q", q)
-        object.__setattr__(self, "poses", poses)
+        object.__setattr__(self, "measured", meas)
         object.__setattr__(self, "rows", rows)
 
     def __len__(self) -> int:
         return self.q.shape[0]
 
     @property
+    def n_points(self) -> int:
+        """Points per pose, or 0 for poses."""
+        return 0 if self.measured.shape[1:] == (4, 4) else self.measured.shape[1]
+
+    @property
+    def position_only(self) -> bool:
+        return self.n_points > 0
+
+    @property
+    def poses(self) -> np.ndarray:
+        """``(K, 4, 4)`` measured poses; for points, the first point as a translation."""
+        if self.n_points == 0:
+            return self.measured
+        out = np.broadcast_to(np.eye(4), (len(self), 4, 4)).copy()
+        out[:, :3, 3] = self.measured[:, 0]
+        return out
+
+    @property
     def rows_per_pose(self) -> int:
-        """Equations per pose: 3 (position) or 6 (position and orientation)."""
-        return 3 if self.position_only else 6
+        return 6 if self.n_points == 0 else 3 * self.n_points
 
     def subset(self, idx) -> "Measurements":
-        """The poses selected by `idx` (indices, a boolean mask or a slice); rows are kept."""
+        """The poses selected by ``idx`` (indices, a boolean mask or a slice); rows are kept."""
         if not isinstance(idx, slice):
             idx = np.atleast_1d(np.asarray(idx))
-        return dataclasses.replace(self, q=self.q[idx], poses=self.poses[idx], rows=self.rows[idx])
+        return dataclasses.replace(self, q=self.q[idx], measured=self.measured[idx], rows=self.rows[idx])
 
 
 def franka_csv_path() -> Path:
-    """Path of the bundled real data set `jaxcal/data/franka_panda_camera/measurements.csv`.
+    """Path of the bundled real data set ``jaxcal/data/franka_panda_camera/measurements.csv``.
 
     114 poses of a Franka Panda with a flange camera; q in rad, positions in **metres**, so read
-    it with `read_measurements(franka_csv_path(), preset("panda"), length_unit="m")`.
+    it with ``read_measurements(franka_csv_path(), preset("panda"), length_unit="m")``.
     """
     return Path(__file__).resolve().parent / "data" / "franka_panda_camera" / "measurements.csv"
 
 
-def _unit(value, table, what, default):
+def unit_scale(value, table, what: str, default: str) -> tuple[float, str]:
+    """``(scale to mm or rad, name)`` of a unit option; None takes ``default``."""
     value = default if value is None else value
     if value not in table:
-        raise DataError(f"{what} must be one of {', '.join(map(repr, table))}, got {value!r}")
+        raise DataError(f"{what} must be one of {', '.join(map(repr, table))}, got {value!r}", option=what)
     return table[value], value
 
 
@@ -115,53 +146,129 @@ def _names(cols) -> str:
     return ", ".join(repr(c) for c in cols)
 
 
-def check_column_names(header, src, expected) -> dict[str, int]:
-    """Map column name -> index; raise DataError for duplicated or unknown columns (``expected``
-    describes the allowed ones in the message). Shared by the measurement and target readers."""
+def read_table(path, expected: str):
+    """``(source name, header, records)`` of a CSV, records as ``(line, fields)`` with blank lines
+    skipped; :class:`DataError` if the file is missing, unreadable or empty (``expected`` says
+    what the header should hold) or repeats a column name."""
+    path = Path(path)
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            records = [(reader.line_num, [s.strip() for s in rec]) for rec in reader if rec]
+    except FileNotFoundError:
+        raise DataError(f"measurement file not found: {path}") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise DataError(f"{path}: cannot read as a CSV text file: {e}") from None
+    if not records:
+        raise DataError(f"{path}: file is empty; {expected}")
+    header = records[0][1]
     seen: dict[str, int] = {}
     for i, name in enumerate(header):
         if name in seen:
-            raise DataError(f"{src}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1})")
+            raise DataError(f"{path}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1})")
         seen[name] = i
-    unknown = [c for c in header if c not in POSITION_COLUMNS + QUAT_COLUMNS and not _JOINT_RE.fullmatch(c)]
-    if unknown:
-        raise DataError(f"{src}: unknown column(s) {_names(unknown)}; {expected}")
-    return seen
+    return str(path), header, records[1:]
 
 
-def _check_header(header, n, src):
-    """Map column name -> index; raise DataError for duplicated, unknown or missing columns."""
-    expected = f"expected q1..q{n}, x, y, z and optionally qw, qx, qy, qz"
-    seen = check_column_names(header, src, expected)
-    joints = sorted(int(_JOINT_RE.fullmatch(c).group(1)) for c in header if _JOINT_RE.fullmatch(c))
-    if joints != list(range(1, n + 1)):
-        if joints and joints == list(range(1, len(joints) + 1)):
-            raise DataError(f"{src}: robot has {n} joints, file has q1..q{len(joints)}")
-        extra = [f"q{j}" for j in joints if not 1 <= j <= n]
+def require_rows(records, src: str) -> None:
+    if not records:
+        raise DataError(f"{src}: header only, no data rows")
+
+
+def joint_columns(header, robot: Robot, src: str, *, required: bool = True) -> list[str] | None:
+    """The joint columns of a header, in joint order: ``q1..qN`` or the robot's joint names.
+    None when there are none and ``required`` is False."""
+    n = robot.n_joints
+    default = tuple(f"q{j}" for j in range(1, n + 1))
+    named = [] if tuple(robot.joint_names) == default else [c for c in robot.joint_names if c in header]
+    numbered = sorted((int(m.group(1)), c) for c in header if (m := _JOINT_RE.fullmatch(c)))
+    if named and len(named) == n and not (numbered and named != [c for _, c in numbered]):
+        return list(robot.joint_names)
+    if named and numbered and [c for _, c in numbered] != named:
+        raise DataError(
+            f"{src}: joint columns both numbered ({_names(c for _, c in numbered)}) and named "
+            f"({_names(named)}); use one scheme"
+        )
+    if named and len(named) < n:
+        missing = [c for c in robot.joint_names if c not in header]
+        raise DataError(
+            f"{src}: missing joint column(s) {_names(missing)} (the robot's joints are {_names(robot.joint_names)})"
+        )
+    expected = f"expected q1..q{n} or the joint names {_names(robot.joint_names)}"
+    if not numbered:
+        if required:
+            raise DataError(f"{src}: no joint columns; {expected}")
+        return None
+    idx = [j for j, _ in numbered]
+    if idx != list(range(1, n + 1)):
+        if idx == list(range(1, len(idx) + 1)):
+            raise DataError(f"{src}: robot has {n} joints, file has q1..q{len(idx)}")
+        extra = [f"q{j}" for j in idx if not 1 <= j <= n]
         if extra:
             raise DataError(f"{src}: column(s) {_names(extra)} but the robot has {n} joints (q1..q{n})")
-        missing = [f"q{j}" for j in range(1, n + 1) if j not in joints]
+        missing = [f"q{j}" for j in range(1, n + 1) if j not in idx]
         raise DataError(f"{src}: missing column(s) {_names(missing)}; {expected}")
-    missing = [c for c in POSITION_COLUMNS if c not in seen]
-    if missing:
-        raise DataError(f"{src}: missing column(s) {_names(missing)}; {expected}")
-    present = [c for c in QUAT_COLUMNS if c in seen]
-    if present and len(present) < 4:
-        absent = [c for c in QUAT_COLUMNS if c not in seen]
-        raise DataError(f"{src}: only some quaternion columns present ({', '.join(present)}; missing "
-                        f"{', '.join(absent)}); give all of qw, qx, qy, qz or none")
-    return seen, not present
+    return [f"q{j}" for j in range(1, n + 1)]
 
 
-def _parse_rows(records, header, src):
-    """Float matrix of the data records; DataError for ragged rows and bad numbers."""
+def measurement_columns(header, src: str, *, required: bool = True):
+    """``(position columns per point, quaternion columns or None)``: ``x, y, z`` (one point) or
+    ``x1..zM`` (M points), and ``qw, qx, qy, qz`` for full poses."""
+    expected = "expected x, y, z [qw, qx, qy, qz], or x1, y1, z1 ... xM, yM, zM"
+    single = [c for c in POSITION_COLUMNS if c in header]
+    numbered: dict[int, dict[str, str]] = {}
+    for c in header:
+        if m := _POINT_RE.fullmatch(c):
+            numbered.setdefault(int(m.group(2)), {})[m.group(1)] = c
+    quat = [c for c in QUAT_COLUMNS if c in header]
+    if single and numbered:
+        raise DataError(
+            f"{src}: both x, y, z and numbered point columns ({_names(sorted(map(str, numbered)))}); "
+            f"use one scheme; {expected}"
+        )
+    if single:
+        if len(single) < 3:
+            raise DataError(
+                f"{src}: missing column(s) {_names(c for c in POSITION_COLUMNS if c not in header)}; {expected}"
+            )
+        points = [list(POSITION_COLUMNS)]
+    elif numbered:
+        M = max(numbered)
+        for j in range(1, M + 1):
+            have = numbered.get(j, {})
+            if len(have) < 3:
+                missing = [f"{a}{j}" for a in "xyz" if a not in have]
+                raise DataError(f"{src}: point {j}: missing column(s) {_names(missing)}; {expected}")
+        points = [[numbered[j][a] for a in "xyz"] for j in range(1, M + 1)]
+    else:
+        if required:
+            raise DataError(f"{src}: missing column(s) 'x', 'y', 'z'; {expected}")
+        points = []
+    if quat and len(quat) < 4:
+        absent = [c for c in QUAT_COLUMNS if c not in header]
+        raise DataError(
+            f"{src}: only some quaternion columns present ({', '.join(quat)}; missing "
+            f"{', '.join(absent)}); give all of qw, qx, qy, qz or none"
+        )
+    if quat and len(points) != 1:
+        raise DataError(
+            f"{src}: quaternion columns need exactly one point (x, y, z); the file has {len(points)} points"
+        )
+    return points, (list(QUAT_COLUMNS) if quat else None)
+
+
+def parse_rows(records, header, columns, src) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Float matrix of ``columns`` of the data records, with their row and line numbers;
+    :class:`DataError` for ragged rows and bad numbers (other columns are not parsed)."""
+    idx = [header.index(c) for c in columns]
     values, rows, lines = [], [], []
     for k, (line, rec) in enumerate(records, start=1):
         where = f"{src}: row {k} (line {line})"
         if len(rec) != len(header):
             raise DataError(f"{where}: {len(rec)} fields, but the header has {len(header)} columns")
         out = []
-        for name, text in zip(header, rec):
+        for name, i in zip(columns, idx):
+            text = rec[i]
             try:
                 v = float(text)
             except ValueError:
@@ -173,67 +280,44 @@ def _parse_rows(records, header, src):
         values.append(out)
         rows.append(k)
         lines.append(line)
-    return np.array(values, dtype=np.float64), np.array(rows), np.array(lines)
+    return np.array(values, dtype=np.float64).reshape(len(records), len(columns)), np.array(rows), np.array(lines)
 
 
-def _read_records(path: Path):
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            records = []
-            for rec in reader:
-                if rec:  # skip blank lines
-                    records.append((reader.line_num, [s.strip() for s in rec]))
-    except FileNotFoundError:
-        raise DataError(f"measurement file not found: {path}") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as e:
-        raise DataError(f"{path}: cannot read as a CSV text file: {e}") from None
-    return records
+def quaternions_to_rotations(quat, rows, lines, src) -> np.ndarray:
+    """Rotation matrices of scalar-first unit quaternions ``(K, 4)``; near-unit ones normalised,
+    others refused naming the row."""
+    from scipy.spatial.transform import Rotation
+
+    norm = np.linalg.norm(quat, axis=1)
+    bad = np.flatnonzero(np.abs(norm - 1.0) > QUAT_NORM_TOL)
+    if bad.size:
+        k = bad[0]
+        raise DataError(
+            f"{src}: row {rows[k]} (line {lines[k]}): quaternion (qw, qx, qy, qz) has norm "
+            f"{norm[k]:.6g}, not 1 (tolerance {QUAT_NORM_TOL:g}); {bad.size} such row(s)"
+        )
+    quat = quat / norm[:, None]
+    return Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_matrix()
 
 
-def robot_reach(robot) -> float:
-    """A rough reach in mm: sum of |a| and |d| over the DH table plus the tool offset norm."""
-    dh = np.asarray(robot.dh)
-    return float(np.abs(dh[:, 1]).sum() + np.abs(dh[:, 2]).sum() + np.linalg.norm(np.asarray(robot.tool)[:3, 3]))
-
-
-def _unit_warnings(q, pos, robot, lu_name, lu, au_name, rows, src):
-    revolute = np.array([t == "R" for t in robot.joint_types])
-    prismatic_stroke = np.abs(q[:, ~revolute]).max(axis=0).sum() if (~revolute).any() else 0.0
-    reach = robot_reach(robot) + prismatic_stroke
-    span = float(np.ptp(pos, axis=0).max()) if len(pos) > 1 else None
-    hint = "did you mean length_unit='{}' (--length-unit {})?"
-    if span is not None and span < min(5.0, 0.01 * reach):
-        warnings.warn(f"{src}: measured positions span only {span / lu:.3g} {lu_name} (largest x/y/z range) "
-                      f"but the robot's reach is ~{reach:.0f} mm; " + hint.format("m", "m"), UnitWarning,
-                      stacklevel=3)
-    elif span is not None and span > 3.0 * reach:
-        warnings.warn(f"{src}: measured positions span {span / lu:.3g} {lu_name} (largest x/y/z range), "
-                      f"more than 3x the robot's reach (~{reach:.0f} mm); " + hint.format("mm", "mm"),
-                      UnitWarning, stacklevel=3)
-    if au_name == "rad" and revolute.any():
-        qr = np.where(revolute, np.abs(q), 0.0)
-        k, j = np.unravel_index(np.argmax(qr), qr.shape)
-        if qr[k, j] > 2 * math.pi:
-            warnings.warn(f"{src}: joint value {q[k, j]:.6g} at row {rows[k]}, column 'q{j + 1}' exceeds 2*pi "
-                          f"in magnitude with angle_unit='rad'; were the joint angles written in degrees? "
-                          f"did you mean angle_unit='deg' (--angle-unit deg)?", UnitWarning, stacklevel=3)
-
-
-def _mixed_units(q, pos, robot, rows, src):
-    """Raise `DataError` when some rows are in another unit than the rest: a few positions
+def mixed_units(q, pos, robot: Robot, rows, src, joint_cols) -> None:
+    """Raise :class:`DataError` when some rows are in another unit than the rest: a few positions
     ~1000x closer to / farther from the measurement origin than the median row (metres among
     millimetres or the reverse), or a minority of rows with revolute joint values beyond both
     2*pi and the joint limits (degrees among radians)."""
-    r = np.linalg.norm(pos, axis=1)
+    r = np.linalg.norm(pos, axis=-1)
+    if r.ndim > 1:
+        r = r.max(-1)
     med = float(np.median(r))
     if len(r) >= 3 and med > 0:
         odd = np.flatnonzero((r * 100 < med) | (r > 100 * med))
         if 0 < odd.size < len(r) / 2:
             k = odd[0]
-            raise DataError(f"{src}: mixed length units? row {rows[k]}: position norm {r[k]:.4g} mm vs a median "
-                            f"of {med:.4g} mm over all rows ({odd.size} such row(s): "
-                            f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit")
+            raise DataError(
+                f"{src}: mixed length units? row {rows[k]}: position norm {r[k]:.4g} mm vs a median "
+                f"of {med:.4g} mm over all rows ({odd.size} such row(s): "
+                f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit"
+            )
     revolute = np.array([t == "R" for t in robot.joint_types])
     if revolute.any() and len(q) >= 3:
         lim = np.abs(np.asarray(robot.q_limits)).max(axis=1)
@@ -243,120 +327,85 @@ def _mixed_units(q, pos, robot, rows, src):
         if 0 < odd.size < len(q) / 2:
             k = odd[0]
             j = int(np.flatnonzero(over[k])[0])
-            raise DataError(f"{src}: mixed angle units? row {rows[k]}, column 'q{j + 1}': {q[k, j]:.6g} rad is beyond "
-                            f"2*pi and the joint limits while most rows are not ({odd.size} such row(s): "
-                            f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit")
+            raise DataError(
+                f"{src}: mixed angle units? row {rows[k]}, column {joint_cols[j]!r}: {q[k, j]:.6g} rad is "
+                f"beyond 2*pi and the joint limits while most rows are not ({odd.size} such row(s): "
+                f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit"
+            )
 
 
-def open_table(path, expected: str):
-    """``(path, source name, records, header)`` of a CSV; :class:`DataError` if it is empty
-    (``expected`` says what the header should hold)."""
-    path = Path(path)
-    records = _read_records(path)
-    if not records:
-        raise DataError(f"{path}: file is empty; {expected}")
-    return path, str(path), records, records[0][1]
+def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Measurements:
+    """Read a measurement CSV (module docstring) for ``robot``; returns mm and rad.
 
-
-def read_measurements(path, robot, *, length_unit=None, angle_unit=None) -> Measurements:
-    """Read a measurement CSV (see the module docstring) for `robot`; returns mm and rad.
-
-    `length_unit` is `"mm"` (default) or `"m"`, `angle_unit` is `"rad"` (default) or `"deg"`.
-    Raises `DataError` for malformed files and warns `UnitWarning` for implausible units.
+    ``length_unit`` (``"mm"`` or ``"m"``) and ``angle_unit`` (``"rad"`` or ``"deg"``) default to
+    the robot file's units (``robot.units``). Raises :class:`DataError` for malformed files.
     """
-    lu, lu_name = _unit(length_unit, LENGTH_UNITS, "length_unit", "mm")
-    au, au_name = _unit(angle_unit, ANGLE_UNITS, "angle_unit", "rad")
-    path, src, records, header = open_table(path, f"expected a header row q1..q{robot.n_joints},x,y,z[,qw,qx,qy,qz]")
+    lu, lu_name = unit_scale(length_unit, LENGTH_UNITS, "length_unit", robot.units[0])
+    au, au_name = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", robot.units[1])
     n = robot.n_joints
-    cols, position_only = _check_header(header, n, src)
-    if len(records) == 1:
-        raise DataError(f"{src}: header only, no data rows")
-    values, rows, lines = _parse_rows(records[1:], header, src)
+    src, header, records = read_table(path, f"expected a header row q1..q{n},x,y,z[,qw,qx,qy,qz]")
+    jcols = joint_columns(header, robot, src)
+    points, quat = measurement_columns(header, src)
+    pcols = [c for p in points for c in p]
+    used = set(jcols) | set(pcols) | set(quat or [])
+    ignored = tuple(c for c in header if c not in used)
+    require_rows(records, src)
+    values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src)
     scale = np.array([lu if t == "P" else au for t in robot.joint_types])
-    q = values[:, [cols[f"q{j}"] for j in range(1, n + 1)]] * scale
-    pos = values[:, [cols[c] for c in POSITION_COLUMNS]] * lu
-    poses = np.broadcast_to(np.eye(4), (len(values), 4, 4)).copy()
-    poses[:, :3, 3] = pos
-    if not position_only:
-        quat = values[:, [cols[c] for c in QUAT_COLUMNS]]
-        norm = np.linalg.norm(quat, axis=1)
-        bad = np.flatnonzero(np.abs(norm - 1.0) > QUAT_NORM_TOL)
-        if bad.size:
-            k = bad[0]
-            raise DataError(f"{src}: row {rows[k]} (line {lines[k]}): quaternion (qw, qx, qy, qz) has norm "
-                            f"{norm[k]:.6g}, not 1 (tolerance {QUAT_NORM_TOL:g}); {bad.size} such row(s)")
-        quat = quat / norm[:, None]
-        poses[:, :3, :3] = Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_matrix()
-    _mixed_units(q, pos, robot, rows, src)
-    _unit_warnings(q, pos, robot, lu_name, lu, au_name, rows, src)
-    return Measurements(q=q, poses=poses, position_only=position_only, source=path.name, rows=rows)
+    q = values[:, :n] * scale
+    pos = values[:, n : n + len(pcols)].reshape(len(values), len(points), 3) * lu
+    if quat:
+        meas = np.broadcast_to(np.eye(4), (len(values), 4, 4)).copy()
+        meas[:, :3, 3] = pos[:, 0]
+        meas[:, :3, :3] = quaternions_to_rotations(values[:, n + 3 :], rows, lines, src)
+    else:
+        meas = pos
+    mixed_units(q, pos, robot, rows, src, jcols)
+    return Measurements(
+        q=q, measured=meas, source=Path(path).name, rows=rows, ignored=ignored, units=(lu_name, au_name)
+    )
 
 
-def write_measurements(path, q, poses, *, position_only=False) -> None:
-    """Write `q` `(K, n)` (rad / mm) and `poses` `(K, 4, 4)` (mm) as a measurement CSV.
+def write_measurements(path, q, measured, *, position_only: bool = False, joint_names=None) -> None:
+    """Write ``q`` ``(K, n)`` (rad / mm) and ``measured`` — poses ``(K, 4, 4)``, positions
+    ``(K, 3)`` or points ``(K, M, 3)`` (mm) — as a measurement CSV, atomically.
 
-    Values are written in mm and rad with `repr` precision (they read back bit-identically;
-    the orientation goes through a quaternion, exact to ~1e-16). Quaternions are written
-    with `qw >= 0`. The caller's arrays are not modified.
+    Values are written in mm and rad with ``repr`` precision (they read back bit-identically; an
+    orientation goes through a quaternion, exact to ~1e-16, written with ``qw >= 0``). With
+    ``position_only`` only a pose's translation is written. The caller's arrays are not modified.
     """
+    from scipy.spatial.transform import Rotation
+
     q = np.array(q, dtype=np.float64, copy=True)
-    poses = np.array(poses, dtype=np.float64, copy=True)
-    if q.ndim != 2 or poses.ndim != 3 or poses.shape[1:] != (4, 4) or poses.shape[0] != q.shape[0]:
-        raise DataError(f"write_measurements: q must be (K, n) and poses (K, 4, 4) with the same K; "
-                        f"got q {q.shape}, poses {poses.shape}")
-    for name, a in (("q", q), ("poses", poses)):
+    meas = np.array(measured, dtype=np.float64, copy=True)
+    K = q.shape[0] if q.ndim == 2 else -1
+    if meas.shape == (K, 3):
+        meas = meas[:, None]
+    if q.ndim != 2 or not (meas.shape == (K, 4, 4) or (meas.ndim == 3 and meas.shape[0] == K and meas.shape[2] == 3)):
+        raise DataError(
+            f"write_measurements: q must be (K, n) and measured (K, 4, 4), (K, 3) or (K, M, 3) with the "
+            f"same K; got q {q.shape}, measured {meas.shape}"
+        )
+    for name, a in (("q", q), ("measured", meas)):
         if not np.isfinite(a).all():
             raise DataError(f"write_measurements: {name}[{int(np.argwhere(~np.isfinite(a))[0][0])}] is not finite")
-    header = [f"q{j}" for j in range(1, q.shape[1] + 1)] + list(POSITION_COLUMNS)
-    cols = [q, poses[:, :3, 3]]
-    if not position_only:
-        R = poses[:, :3, :3]
+    names = [f"q{j}" for j in range(1, q.shape[1] + 1)] if joint_names is None else list(joint_names)
+    pose = meas.shape == (K, 4, 4)
+    if pose and position_only:
+        meas, pose = meas[:, None, :3, 3], False
+    if pose:
+        R = meas[:, :3, :3]
         err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
         if (err > 1e-6).any() or (np.linalg.det(R) < 0).any():
             k = int(np.argmax(np.where(np.linalg.det(R) < 0, np.inf, err)))
-            raise DataError(f"write_measurements: poses[{k}] rotation is not a proper rotation matrix")
+            raise DataError(f"write_measurements: measured[{k}] rotation is not a proper rotation matrix")
         xyzw = Rotation.from_matrix(R).as_quat()
         wxyz = xyzw[:, [3, 0, 1, 2]] * np.where(xyzw[:, 3:] < 0, -1.0, 1.0)
-        header += list(QUAT_COLUMNS)
-        cols.append(wxyz)
-    table = np.concatenate(cols, axis=1)
-    with Path(path).open("w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f, lineterminator="\n")
-        w.writerow(header)
-        w.writerows([repr(float(v)) for v in row] for row in table)
-
-
-def check_enough_poses(meas: Measurements, n_params: int) -> None:
-    """Raise `DataError` if the poses give fewer equations than `n_params` unknowns."""
-    K, r = len(meas), meas.rows_per_pose
-    if K * r < n_params:
-        need = -(-n_params // r)
-        raise DataError(f"{meas.source}: too few poses: {K} poses x {r} rows = {K * r} equations for "
-                        f"{n_params} parameters; need at least {need} poses")
-
-
-def register_points(P_from, P_to) -> np.ndarray:
-    """Least-squares rigid transform `T` (4x4) with `T @ [p_from, 1] ~ [p_to, 1]` (Kabsch).
-
-    Uses `scipy.spatial.transform.Rotation.align_vectors` on the centred point sets. Needs at
-    least 3 corresponding points, not all on one line; raises `DataError` otherwise.
-    """
-    A = np.array(P_from, dtype=np.float64, copy=True)
-    B = np.array(P_to, dtype=np.float64, copy=True)
-    if A.ndim != 2 or A.shape[1] != 3 or A.shape != B.shape:
-        raise DataError(f"register_points: need two (K, 3) arrays of the same shape, got {A.shape} and {B.shape}")
-    if A.shape[0] < 3:
-        raise DataError(f"register_points: need at least 3 points, got {A.shape[0]}")
-    if not (np.isfinite(A).all() and np.isfinite(B).all()):
-        raise DataError("register_points: points contain non-finite values")
-    ca, cb = A.mean(axis=0), B.mean(axis=0)
-    Ac, Bc = A - ca, B - cb
-    scale = max(np.abs(Ac).max(), np.abs(Bc).max(), 1e-300)
-    for name, P in (("P_from", Ac), ("P_to", Bc)):
-        if np.linalg.matrix_rank(P / scale, tol=1e-9) < 2:
-            raise DataError(f"register_points: {name} points are (nearly) collinear; the rotation is not defined")
-    rot, _ = Rotation.align_vectors(Bc, Ac)  # rot.apply(Ac) ~ Bc in the least-squares sense
-    T = np.eye(4)
-    T[:3, :3] = rot.as_matrix()
-    T[:3, 3] = cb - T[:3, :3] @ ca
-    return T
+        header = names + list(POSITION_COLUMNS) + list(QUAT_COLUMNS)
+        table = np.concatenate([q, meas[:, :3, 3], wxyz], axis=1)
+    else:
+        M = meas.shape[1]
+        header = names + (list(POSITION_COLUMNS) if M == 1 else [f"{a}{j}" for j in range(1, M + 1) for a in "xyz"])
+        table = np.concatenate([q, meas.reshape(K, 3 * M)], axis=1)
+    text = ",".join(header) + "\n" + "".join(",".join(repr(float(v)) for v in row) + "\n" for row in table)
+    write_atomic(path, text)

@@ -1,21 +1,33 @@
-"""Matplotlib figures (Agg backend: files only, no display needed)."""
+"""Matplotlib figures of the paper's reproduction and of a data calibration (Agg backend: files
+only, no display needed)."""
 
 from __future__ import annotations
 
 import matplotlib
 
 matplotlib.use("Agg")
+import textwrap  # noqa: E402
+from pathlib import Path  # noqa: E402
+
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import textwrap  # noqa: E402
 
-STYLE = {"nominal": dict(color="0.4", marker="o"), "linear": dict(color="tab:orange", marker="s"),
-         "gn": dict(color="tab:blue", marker="^"), "lm": dict(color="tab:cyan", marker="v"),
-         "elimination": dict(color="tab:green", marker="D"),
-         "elimination-literal": dict(color="tab:red", marker="x")}
-LABEL = {"nominal": "nominal model", "linear": "one-shot least squares", "gn": "Gauss–Newton",
-         "lm": "Levenberg–Marquardt", "elimination": "elimination (robust)",
-         "elimination-literal": "elimination (literal, paper)"}
+STYLE = {
+    "nominal": dict(color="0.4", marker="o"),
+    "linear": dict(color="tab:orange", marker="s"),
+    "gn": dict(color="tab:blue", marker="^"),
+    "lm": dict(color="tab:cyan", marker="v"),
+    "elimination": dict(color="tab:green", marker="D"),
+    "elimination-literal": dict(color="tab:red", marker="x"),
+}
+LABEL = {
+    "nominal": "nominal model",
+    "linear": "one-shot least squares",
+    "gn": "Gauss–Newton",
+    "lm": "Levenberg–Marquardt",
+    "elimination": "elimination (robust)",
+    "elimination-literal": "elimination (literal, paper)",
+}
 
 
 def axis_deviation(path, axis: str, deviations: dict, *, title: str) -> None:
@@ -37,8 +49,7 @@ def axis_deviation(path, axis: str, deviations: dict, *, title: str) -> None:
     top.set_ylabel(f"{axis} deviation (mm)")
     top.set_title(title, fontsize=10)
     if notes:
-        top.text(0.01, 0.02, "\n".join(notes), transform=top.transAxes, fontsize=8, color="tab:red",
-                 va="bottom")
+        top.text(0.01, 0.02, "\n".join(notes), transform=top.transAxes, fontsize=8, color="tab:red", va="bottom")
     top.legend(fontsize=8, ncol=2)
     top.grid(alpha=0.3)
     bottom.set_ylabel(f"{axis} deviation (mm)\ncalibrated models only")
@@ -59,16 +70,18 @@ def timing(path, runs_ms: dict, compile_s: dict, *, title: str) -> None:
     left.boxplot(data, showfliers=True)
     rng = np.random.default_rng(0)
     for i, d in enumerate(data, start=1):
-        left.scatter(i + rng.uniform(-0.12, 0.12, len(d)), d, s=8, alpha=0.5,
-                     color=STYLE.get(names[i - 1], {}).get("color", "k"))
+        left.scatter(
+            i + rng.uniform(-0.12, 0.12, len(d)), d, s=8, alpha=0.5, color=STYLE.get(names[i - 1], {}).get("color", "k")
+        )
     ticks = [textwrap.fill(LABEL.get(n, n), 14) for n in names]
     left.set_xticks(range(1, len(names) + 1), ticks, fontsize=8)
     left.set_ylabel("calibration time after compilation (ms)")
     left.set_yscale("log")
     left.set_title(title, fontsize=10)
     left.grid(alpha=0.3, axis="y")
-    right.bar(range(len(names)), [compile_s[n] for n in names],
-              color=[STYLE.get(n, {}).get("color", "k") for n in names])
+    right.bar(
+        range(len(names)), [compile_s[n] for n in names], color=[STYLE.get(n, {}).get("color", "k") for n in names]
+    )
     right.set_xticks(range(len(names)), ticks, fontsize=8)
     right.set_ylabel("compile time, once per shape (s)")
     right.set_title("JIT compilation (not in the left panel)", fontsize=10)
@@ -76,3 +89,65 @@ def timing(path, runs_ms: dict, compile_s: dict, *, title: str) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def calibration_figures(result, out_dir) -> list[Path]:
+    """Write ``pose_errors.png`` (held-out position error per pose, frames only vs calibrated)
+    and ``parameters.png`` (estimated DH errors with 1-sigma error bars) into ``out_dir``.
+    **Returns** the paths written."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    pp, rep = result.per_pose, result.report
+    ho, fo = np.asarray(pp["heldout"]), np.asarray(pp["frames_only_heldout"])
+    if ho.ndim == 2:  # several points per pose: the RMS over the points
+        ho, fo = np.sqrt(np.mean(ho**2, -1)), np.sqrt(np.mean(fo**2, -1))
+    paths = []
+
+    fig, ax = plt.subplots(figsize=(10, 4))
+    x = np.arange(len(pp["rows"]))
+    ax.bar(
+        x - 0.2, fo, width=0.4, color="tab:gray", label=f"frames only (RMS {rep['frames_only_heldout_rms_mm']:.2f} mm)"
+    )
+    ax.bar(
+        x + 0.2,
+        ho,
+        width=0.4,
+        color="tab:blue",
+        label=f"calibrated, {rep['choice']} (RMS {rep['heldout_rms_mm']:.2f} mm)",
+    )
+    ax.set_xlabel("pose (CSV data row - 1)")
+    ax.set_ylabel("held-out position error (mm)")
+    ax.set_title(f"{rep['folds']}-fold cross-validation: error on poses not used for fitting")
+    ax.legend()
+    fig.tight_layout()
+    paths.append(out / "pose_errors.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+
+    dh = [(k, v) for k, v in result.deltas.items() if not k.startswith(("base_", "tool_", "point", "camera_"))]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for ax, unit, scale, label in (
+        (axes[0], "mm", 1.0, "length error (mm)"),
+        (axes[1], "rad", 1e3, "angle error (mrad)"),
+    ):
+        sel = [(k, v) for k, v in dh if v[2] == unit]
+        if sel:
+            ax.errorbar(
+                np.arange(len(sel)),
+                [v[0] * scale for _, v in sel],
+                yerr=[v[1] * scale for _, v in sel],
+                fmt="o",
+                capsize=3,
+                label="estimate ± 1 std. error",
+            )
+            ax.set_xticks(np.arange(len(sel)), [k for k, _ in sel], rotation=60)
+        ax.axhline(0.0, color="k", lw=0.8, label="nominal")
+        ax.set_xlabel("parameter")
+        ax.set_ylabel(label)
+        ax.legend()
+    fig.suptitle(f"estimated DH errors ({rep['choice']})")
+    fig.tight_layout()
+    paths.append(out / "parameters.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    return paths

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -19,7 +20,7 @@ from ._config import as_f64
 from .error_model import n_params, perturb
 from .errors import DataError
 from .kinematics import fk
-from .lie import so3_exp_matrix
+from .lie import so3_exp
 from .robot import Robot
 
 # Default error scales, like the paper's Table 2: ~0.005 rad on theta/alpha, ~0.05 mm on d/a.
@@ -27,8 +28,14 @@ DEFAULT_DH_SCALES = (0.005, 0.05, 0.05, 0.005)
 DEFAULT_FRAME_SCALES = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)  # mm, rad
 
 
-def error_scales(robot: Robot, *, base: bool = False, tool: bool = False,
-                 dh_scales=DEFAULT_DH_SCALES, frame_scales=DEFAULT_FRAME_SCALES) -> np.ndarray:
+def error_scales(
+    robot: Robot,
+    *,
+    base: bool = False,
+    tool: bool = False,
+    dh_scales=DEFAULT_DH_SCALES,
+    frame_scales=DEFAULT_FRAME_SCALES,
+) -> np.ndarray:
     """Per-parameter standard deviation of the simulated true errors, in the layout of
     :func:`jaxcal.error_model.param_names`."""
     s = list(np.tile(dh_scales, robot.n_joints))
@@ -43,27 +50,45 @@ def sample_poses(key, robot: Robot, shape) -> Float[Array, "*shape n"]:
     return lo + u * (hi - lo)
 
 
-def measure(robot: Robot, x_true, q, key, *, sigma_pos: float = 0.0, sigma_rot: float = 0.0,
-            base: bool = False, tool: bool = False) -> Float[Array, "*b 4 4"]:
+def measure(
+    robot: Robot,
+    x_true,
+    q,
+    key,
+    *,
+    sigma_pos: float = 0.0,
+    sigma_rot: float = 0.0,
+    base: bool = False,
+    tool: bool = False,
+) -> Float[Array, "*b 4 4"]:
     """Poses of the true robot ``perturb(robot, x_true)`` at ``q``, with measurement noise."""
     T = fk(perturb(robot, x_true, base=base, tool=tool), q)
     kp, kr = jax.random.split(key)
     dp = sigma_pos * jax.random.normal(kp, T.shape[:-2] + (3,), dtype=jnp.float64)
     dr = sigma_rot * jax.random.normal(kr, T.shape[:-2] + (3,), dtype=jnp.float64)
-    R = so3_exp_matrix(dr) @ T[..., :3, :3]
+    R = so3_exp(dr) @ T[..., :3, :3]
     return T.at[..., :3, :3].set(R).at[..., :3, 3].add(dp)
+
+
+@eqx.filter_jit
+def _measure_batch(robot: Robot, x, q, q_val, keys, sigma_pos, sigma_rot, *, base: bool, tool: bool):
+    def run(x_, q_, qv, key):
+        meas = measure(robot, x_, q_, key, sigma_pos=sigma_pos, sigma_rot=sigma_rot, base=base, tool=tool)
+        return meas, fk(perturb(robot, x_, base=base, tool=tool), qv)
+
+    return jax.vmap(run)(x, q, q_val, keys)
 
 
 @dataclasses.dataclass(frozen=True)
 class Simulation:
     """A batch of simulated calibrations (all arrays have a leading robot axis ``R``)."""
 
-    robot: Robot                # nominal model
-    x_true: np.ndarray          # (R, m) true parameter errors
-    q: np.ndarray               # (R, K, n) calibration poses
-    measured: np.ndarray        # (R, K, 4, 4) noisy measured poses
-    q_val: np.ndarray           # (R, Kv, n) inspection (validation) poses
-    true_val: np.ndarray        # (R, Kv, 4, 4) noise-free true poses at q_val
+    robot: Robot  # nominal model
+    x_true: np.ndarray  # (R, m) true parameter errors
+    q: np.ndarray  # (R, K, n) calibration poses
+    measured: np.ndarray  # (R, K, 4, 4) noisy measured poses
+    q_val: np.ndarray  # (R, Kv, n) inspection (validation) poses
+    true_val: np.ndarray  # (R, Kv, 4, 4) noise-free true poses at q_val
     sigma_pos: float
     sigma_rot: float
     base: bool
@@ -71,9 +96,22 @@ class Simulation:
     seed: int
 
 
-def simulate(robot: Robot, *, n_robots: int = 1, n_poses: int = 50, n_val: int = 50, seed: int = 0,
-             sigma_pos: float = 0.0, sigma_rot: float = 0.0, base: bool = False, tool: bool = False,
-             scales=None, x_true=None, q=None, q_val=None) -> Simulation:
+def simulate(
+    robot: Robot,
+    *,
+    n_robots: int = 1,
+    n_poses: int = 50,
+    n_val: int = 50,
+    seed: int = 0,
+    sigma_pos: float = 0.0,
+    sigma_rot: float = 0.0,
+    base: bool = False,
+    tool: bool = False,
+    scales=None,
+    x_true=None,
+    q=None,
+    q_val=None,
+) -> Simulation:
     """Draw ``n_robots`` true robots around ``robot`` and measure ``n_poses`` poses of each.
 
     **Arguments**: ``scales`` per-parameter std of the true errors (default
@@ -91,8 +129,12 @@ def simulate(robot: Robot, *, n_robots: int = 1, n_poses: int = 50, n_val: int =
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
             raise DataError(f"{name} must be an integer >= {lo}, got {v!r}")
     for name, v in (("sigma_pos", sigma_pos), ("sigma_rot", sigma_rot)):
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v) \
-                or v < 0:
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float, np.integer, np.floating))
+            or not np.isfinite(v)
+            or v < 0
+        ):
             raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
     m = n_params(robot, base=base, tool=tool)
     k_err, k_q, k_noise, k_val = jax.random.split(jax.random.PRNGKey(seed), 4)
@@ -110,28 +152,42 @@ def simulate(robot: Robot, *, n_robots: int = 1, n_poses: int = 50, n_val: int =
             continue
         a = np.asarray(as_f64(a, name))
         if a.ndim not in (2, 3) or a.shape[-1] != robot.n_joints or (a.ndim == 3 and a.shape[0] != n_robots):
-            raise DataError(f"{name} must have shape (K, {robot.n_joints}) or ({n_robots}, K, {robot.n_joints}), "
-                            f"got {a.shape}")
+            raise DataError(
+                f"{name} must have shape (K, {robot.n_joints}) or ({n_robots}, K, {robot.n_joints}), got {a.shape}"
+            )
         if name == "q" and a.shape[-2] < 1:
             raise DataError("q must hold at least one pose")
         if not np.all(np.isfinite(a)):
-            raise DataError(f"{name}: non-finite value at index {tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])}")
+            raise DataError(
+                f"{name}: non-finite value at index {tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])}"
+            )
     n = robot.n_joints
-    q = sample_poses(k_q, robot, (n_robots, n_poses)) if q is None else \
-        jnp.broadcast_to(jnp.asarray(q, jnp.float64), (n_robots,) + np.shape(q)[-2:])
-    q_val = sample_poses(k_val, robot, (n_robots, n_val)) if q_val is None else \
-        jnp.broadcast_to(jnp.asarray(q_val, jnp.float64), (n_robots,) + np.shape(q_val)[-2:])
+    q = (
+        sample_poses(k_q, robot, (n_robots, n_poses))
+        if q is None
+        else jnp.broadcast_to(jnp.asarray(q, jnp.float64), (n_robots,) + np.shape(q)[-2:])
+    )
+    q_val = (
+        sample_poses(k_val, robot, (n_robots, n_val))
+        if q_val is None
+        else jnp.broadcast_to(jnp.asarray(q_val, jnp.float64), (n_robots,) + np.shape(q_val)[-2:])
+    )
     if q.shape[-1] != n or q_val.shape[-1] != n:
         raise DataError(f"q and q_val must have {n} joint columns")
     keys = jax.random.split(k_noise, n_robots)
-
-    @jax.jit
-    def run(x, q, q_val, key):
-        meas = measure(robot, x, q, key, sigma_pos=sigma_pos, sigma_rot=sigma_rot, base=base, tool=tool)
-        true_val = fk(perturb(robot, x, base=base, tool=tool), q_val)
-        return meas, true_val
-
-    meas, true_val = jax.vmap(run)(x_true, q, q_val, keys)
-    return Simulation(robot=robot, x_true=np.asarray(x_true), q=np.asarray(q), measured=np.asarray(meas),
-                      q_val=np.asarray(q_val), true_val=np.asarray(true_val), sigma_pos=float(sigma_pos),
-                      sigma_rot=float(sigma_rot), base=base, tool=tool, seed=seed)
+    meas, true_val = _measure_batch(
+        robot.stripped(), x_true, q, q_val, keys, jnp.float64(sigma_pos), jnp.float64(sigma_rot), base=base, tool=tool
+    )
+    return Simulation(
+        robot=robot,
+        x_true=np.asarray(x_true),
+        q=np.asarray(q),
+        measured=np.asarray(meas),
+        q_val=np.asarray(q_val),
+        true_val=np.asarray(true_val),
+        sigma_pos=float(sigma_pos),
+        sigma_rot=float(sigma_rot),
+        base=base,
+        tool=tool,
+        seed=seed,
+    )

@@ -12,7 +12,7 @@ import tempfile
 from pathlib import Path
 
 
-from jaxcal.experiments.reproduce import run_reproduce
+from jaxcal.experiments import run_reproduce
 
 SMALL = os.environ.get("JAXCAL_NB_SMALL") == "1"
 out = Path(tempfile.mkdtemp()) / "reproduce"

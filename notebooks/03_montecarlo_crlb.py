@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 import jaxcal
-from jaxcal.experiments.montecarlo import run_montecarlo
+from jaxcal.experiments import run_montecarlo
 
 SMALL = os.environ.get("JAXCAL_NB_SMALL") == "1"
 R, K = (60, 30) if SMALL else (1000, 100)

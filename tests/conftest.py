@@ -2,16 +2,21 @@ import os
 from pathlib import Path
 
 # One persistent XLA compilation cache for the whole run, shared by the xdist workers and the
-# subprocesses the tests start (CLI, notebooks, benchmarks): the same solvers are compiled
-# once instead of once per process. Set before jax is imported; an existing setting wins.
-os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(Path(__file__).resolve().parent.parent / ".pytest_cache" / "jax-cache"))
-os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.2")
+# subprocesses the tests start (CLI, benchmarks): the same solvers are compiled once instead of
+# once per process. Set before jax is imported; an existing setting wins.
+_CACHE = Path(__file__).resolve().parent.parent / ".pytest_cache" / "jax-cache"
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_CACHE))
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+# The suite is compile-bound (small data, many distinct programs): XLA without most of its
+# optimisations compiles about twice as fast, and the tests check values, not speed
+# (benchmarks/ measures speed with the default compiler).
+os.environ.setdefault("JAX_DISABLE_MOST_OPTIMIZATIONS", "1")
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-import jaxcal  # noqa: F401  (enables float64)
+import jaxcal  # noqa: F401,E402  (enables float64)
 
 jax.config.update("jax_enable_x64", True)
 
@@ -21,30 +26,26 @@ def rng():
     return np.random.default_rng(20221)
 
 
-def random_dh(rng, n=6, *, lengths=300.0):
-    """A random, generic DH table (mm, rad)."""
-    return np.c_[rng.uniform(-np.pi, np.pi, n), rng.uniform(-lengths, lengths, n),
-                 rng.uniform(-lengths, lengths, n), rng.uniform(-np.pi, np.pi, n)]
+# JAXCAL_COMPILE_LOG=path: append each test's compile seconds (trace, lower, XLA) to that file, to
+# find the tests whose compiles dominate a run with an empty compilation cache.
+if os.environ.get("JAXCAL_COMPILE_LOG"):
+    import jax.monitoring
 
+    _compile = {"s": 0.0, "n": 0}
 
-def random_transform(rng, scale=100.0):
-    from scipy.spatial.transform import Rotation
+    def _on_event(event, duration, **_):
+        if event.startswith("/jax/core/compile/"):
+            _compile["s"] += duration
+            _compile["n"] += event.endswith("backend_compile_duration")
 
-    T = np.eye(4)
-    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
-    T[:3, 3] = rng.normal(size=3) * scale
-    return T
+    jax.monitoring.register_event_duration_secs_listener(_on_event)
 
+    @pytest.fixture(autouse=True)
+    def _log_compiles(request):
+        import time
 
-def run_cli(monkeypatch, capsys, *args):
-    """`jaxcal ARGS` in-process through the real entry point `jaxcal.cli.main`; returns
-    (exit code, stdout, stderr)."""
-    import sys
-
-    from jaxcal.cli import main
-
-    monkeypatch.setattr(sys, "argv", ["jaxcal", *map(str, args)])
-    with pytest.raises(SystemExit) as e:
-        main()
-    out = capsys.readouterr()
-    return e.value.code, out.out, out.err
+        _compile.update(s=0.0, n=0)
+        t0 = time.perf_counter()
+        yield
+        with open(os.environ["JAXCAL_COMPILE_LOG"], "a") as f:
+            f.write(f"{_compile['s']:.2f} {_compile['n']} {time.perf_counter() - t0:.2f} {request.node.nodeid}\n")

@@ -29,11 +29,15 @@ def sdh_omega_parts(theta, d, a, alpha):
 def sdh_omega_combined(theta, d, a, alpha, dth, dd, da, dal):
     """Eq. (5), the combined Omega_i, as printed."""
     ca, sa = np.cos(alpha), np.sin(alpha)
-    return np.array([
-        [0, -ca * dth, sa * dth, da],
-        [ca * dth, 0, dal, a * ca * dth + sa * dd],
-        [-sa * dth, -dal, 0, -a * sa * dth + ca * dd],
-        [0, 0, 0, 0]], float)
+    return np.array(
+        [
+            [0, -ca * dth, sa * dth, da],
+            [ca * dth, 0, dal, a * ca * dth + sa * dd],
+            [-sa * dth, -dal, 0, -a * sa * dth + ca * dd],
+            [0, 0, 0, 0],
+        ],
+        float,
+    )
 
 
 def mdh_dA(theta, d, a, alpha):
@@ -49,8 +53,12 @@ def mdh_dA(theta, d, a, alpha):
 def mdh_omega_combined(theta, d, a, alpha, dth, dd, da, dal):
     """Eq. (7), the MDH combined Omega_i, as printed."""
     ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
-    return np.array([
-        [0, -ca * dth, sa * dth, -d * st * dal + ct * da],
-        [dth, 0, -ct * dal, -d * ct * dal - st * da],
-        [st * dth, ct * dal, 0, dd],
-        [0, 0, 0, 0]], float)
+    return np.array(
+        [
+            [0, -ca * dth, sa * dth, -d * st * dal + ct * da],
+            [dth, 0, -ct * dal, -d * ct * dal - st * da],
+            [st * dth, ct * dal, 0, dd],
+            [0, 0, 0, 0],
+        ],
+        float,
+    )

@@ -14,12 +14,12 @@ import pytest
 
 import jaxcal
 from jaxcal import DataError, RobotFileError
-from jaxcal.calibrate import calibrate, calibrate_batch, identify
-from jaxcal.compensate import compensate
+from jaxcal.calibration import calibrate, calibrate_batch, identify
+from jaxcal.compensation import compensate
 from jaxcal.error_model import identification_jacobian, perturb
 from jaxcal.measurements import read_measurements, write_measurements
-from jaxcal.robot_io import load_robot
-from jaxcal.simulate import simulate
+from jaxcal.robot import load_robot
+from jaxcal.simulation import simulate
 
 ROBOT = jaxcal.preset("paper-6r")
 SIM = simulate(ROBOT, n_robots=2, n_poses=20, seed=0, sigma_pos=0.01, sigma_rot=1e-5)
@@ -44,89 +44,167 @@ PY = {
     "Robot dh wrong shape": (lambda: jaxcal.Robot(np.zeros((6, 3))), RobotFileError, r"shape \(n_joints, 4\)"),
     "Robot dh 3-D": (lambda: jaxcal.Robot(np.zeros((1, 6, 4))), RobotFileError, r"got \(1, 6, 4\)"),
     "Robot no joints": (lambda: jaxcal.Robot(np.zeros((0, 4))), RobotFileError, "at least one joint"),
-    "Robot dh nan": (lambda: jaxcal.Robot(_with(np.zeros((3, 4)), (2, 1), np.nan)), RobotFileError,
-                     "joint 3: d is not finite"),
+    "Robot dh nan": (
+        lambda: jaxcal.Robot(_with(np.zeros((3, 4)), (2, 1), np.nan)),
+        RobotFileError,
+        "joint 3: d is not finite",
+    ),
     "Robot dh strings": (lambda: jaxcal.Robot(np.array([["a"] * 4])), DataError, "dh: expected real numbers"),
     "Robot dh complex": (lambda: jaxcal.Robot(np.zeros((2, 4), complex)), DataError, "complex"),
     "Robot convention": (lambda: jaxcal.Robot(np.zeros((2, 4)), convention="dh"), RobotFileError, "convention"),
-    "Robot joint types count": (lambda: jaxcal.Robot(np.zeros((2, 4)), joint_types=("R", "R", "P")),
-                                RobotFileError, "3 joint types for 2 joints"),
-    "Robot joint type X": (lambda: jaxcal.Robot(np.zeros((2, 4)), joint_types=("R", "X")), RobotFileError,
-                           "joint 2: type"),
+    "Robot joint types count": (
+        lambda: jaxcal.Robot(np.zeros((2, 4)), joint_types=("R", "R", "P")),
+        RobotFileError,
+        "3 joint types for 2 joints",
+    ),
+    "Robot joint type X": (
+        lambda: jaxcal.Robot(np.zeros((2, 4)), joint_types=("R", "X")),
+        RobotFileError,
+        "joint 2: type",
+    ),
     "Robot base 3x3": (lambda: jaxcal.Robot(np.zeros((2, 4)), base=np.eye(3)), RobotFileError, "base must be a 4x4"),
-    "Robot tool not rigid": (lambda: jaxcal.Robot(np.zeros((2, 4)), tool=2 * np.eye(4)), RobotFileError,
-                             "tool is not a rigid"),
-    "Robot tool nan": (lambda: jaxcal.Robot(np.zeros((2, 4)), tool=np.full((4, 4), np.nan)), RobotFileError,
-                       "tool transform has non-finite"),
-    "Robot limits shape": (lambda: jaxcal.Robot(np.zeros((2, 4)), q_limits=np.zeros((3, 2))), RobotFileError,
-                           r"q_limits must have shape \(2, 2\)"),
-    "Robot limits inverted": (lambda: jaxcal.Robot(np.zeros((2, 4)), q_limits=[[0, 1], [1, 0]]), RobotFileError,
-                              "joint 2: lower limit"),
+    "Robot tool not rigid": (
+        lambda: jaxcal.Robot(np.zeros((2, 4)), tool=2 * np.eye(4)),
+        RobotFileError,
+        "tool is not a rigid",
+    ),
+    "Robot tool nan": (
+        lambda: jaxcal.Robot(np.zeros((2, 4)), tool=np.full((4, 4), np.nan)),
+        RobotFileError,
+        "tool transform has non-finite",
+    ),
+    "Robot limits shape": (
+        lambda: jaxcal.Robot(np.zeros((2, 4)), q_limits=np.zeros((3, 2))),
+        RobotFileError,
+        r"q_limits must have shape \(2, 2\)",
+    ),
+    "Robot limits inverted": (
+        lambda: jaxcal.Robot(np.zeros((2, 4)), q_limits=[[0, 1], [1, 0]]),
+        RobotFileError,
+        "joint 2: lower limit",
+    ),
     # fk / identification Jacobian / perturb
-    "fk q one value": (lambda: jaxcal.fk(ROBOT, np.zeros(1)), DataError, r"q must have shape \(\.\.\., 6\).*got \(1,\)"),
+    "fk q one value": (
+        lambda: jaxcal.fk(ROBOT, np.zeros(1)),
+        DataError,
+        r"q must have shape \(\.\.\., 6\).*got \(1,\)",
+    ),
     "fk q 5 joints": (lambda: jaxcal.fk(ROBOT, np.zeros((4, 5))), DataError, r"got \(4, 5\)"),
     "fk q scalar": (lambda: jaxcal.fk(ROBOT, 0.0), DataError, r"got \(\)"),
     "fk q strings": (lambda: jaxcal.fk(ROBOT, np.array(["a"] * 6)), DataError, "expected real numbers"),
     "jacobian q 7 joints": (lambda: identification_jacobian(ROBOT, np.zeros((3, 7))), DataError, r"got \(3, 7\)"),
     "perturb x too long": (lambda: perturb(ROBOT, np.zeros(30)), DataError, r"x must have shape \(24,\)"),
-    "perturb x base missing": (lambda: perturb(ROBOT, np.zeros(24), base=True), DataError,
-                               r"\(30,\) = 6 joints x 4 DH errors \+ 6 base"),
+    "perturb x base missing": (
+        lambda: perturb(ROBOT, np.zeros(24), base=True),
+        DataError,
+        r"\(30,\) = 6 joints x 4 DH errors \+ 6 base",
+    ),
     # calibrate
     "calibrate q 5 joints": (lambda: calibrate(ROBOT, Q[:, :5], M), DataError, "n = 6 joints"),
-    "calibrate measured count": (lambda: calibrate(ROBOT, Q, M[:-1]), DataError, r"measured must have shape \(20, 4, 4\)"),
-    "calibrate q nan": (lambda: calibrate(ROBOT, _with(Q, (4, 2), np.nan), M), DataError,
-                        r"q: non-finite value at index \(4, 2\)"),
-    "calibrate measured inf": (lambda: calibrate(ROBOT, Q, _with(M, (7, 1, 3), np.inf)), DataError,
-                               r"measured: non-finite value at index \(7, 1, 3\)"),
+    "calibrate measured count": (
+        lambda: calibrate(ROBOT, Q, M[:-1]),
+        DataError,
+        r"measured must have shape \(20, 4, 4\)",
+    ),
+    "calibrate q nan": (
+        lambda: calibrate(ROBOT, _with(Q, (4, 2), np.nan), M),
+        DataError,
+        r"q: non-finite value at index \(4, 2\)",
+    ),
+    "calibrate measured inf": (
+        lambda: calibrate(ROBOT, Q, _with(M, (7, 1, 3), np.inf)),
+        DataError,
+        r"measured: non-finite value at index \(7, 1, 3\)",
+    ),
     "calibrate q complex": (lambda: calibrate(ROBOT, Q.astype(complex), M), DataError, "complex"),
     "calibrate q 1-D": (lambda: calibrate(ROBOT, Q[0], M[0]), DataError, r"q must have shape \(K, n\)"),
     "calibrate no poses": (lambda: calibrate(ROBOT, Q[:0], M[:0]), DataError, "too few poses: 0 poses"),
     "calibrate too few poses": (lambda: calibrate(ROBOT, Q[:3], M[:3]), DataError, "3 poses x 6 rows = 18"),
-    "calibrate rotation not rigid": (lambda: calibrate(ROBOT, Q, _with(M, (3, 0, 0), 2.0)), DataError,
-                                     r"measured\[3\]: rotation is not a proper rotation"),
-    "calibrate bottom row": (lambda: calibrate(ROBOT, Q, _with(M, (5, 3, 0), 1.0)), DataError,
-                             r"measured\[5\]: bottom row"),
-    "calibrate metres as mm": (lambda: calibrate(ROBOT, Q, _scaled_pos(M, 1e-3)), DataError,
-                               r"positions spread .* \(were they given in metres\?\)"),
+    "calibrate rotation not rigid": (
+        lambda: calibrate(ROBOT, Q, _with(M, (3, 0, 0), 2.0)),
+        DataError,
+        r"measured\[3\]: rotation is not a proper rotation",
+    ),
+    "calibrate bottom row": (
+        lambda: calibrate(ROBOT, Q, _with(M, (5, 3, 0), 1.0)),
+        DataError,
+        r"measured\[5\]: bottom row",
+    ),
+    "calibrate metres as mm": (
+        lambda: calibrate(ROBOT, Q, _scaled_pos(M, 1e-3)),
+        DataError,
+        r"positions spread .* metres read as millimetres.*length_unit=\"m\"",
+    ),
     "calibrate method": (lambda: calibrate(ROBOT, Q, M, method="newton"), DataError, "method must be one of"),
     "calibrate sigma nan": (lambda: calibrate(ROBOT, Q, M, sigma_pos_mm=float("nan")), DataError, "sigma_pos_mm"),
     "calibrate sigma negative": (lambda: calibrate(ROBOT, Q, M, sigma_rot_rad=-1e-3), DataError, "sigma_rot_rad"),
     "calibrate max_steps 0": (lambda: calibrate(ROBOT, Q, M, max_steps=0), DataError, "max_steps"),
     "calibrate loss unknown": (lambda: calibrate(ROBOT, Q, M, loss="tukey"), DataError, "loss must be one of"),
-    "calibrate loss with linear": (lambda: calibrate(ROBOT, Q, M, method="linear", loss="huber"), DataError,
-                                   "needs method 'gn' or 'lm'"),
-    "calibrate loss_scale 0": (lambda: calibrate(ROBOT, Q, M, loss="huber", loss_scale=0.0), DataError,
-                               "loss_scale"),
+    "calibrate loss with linear": (
+        lambda: calibrate(ROBOT, Q, M, method="linear", loss="huber"),
+        DataError,
+        "needs method 'gn' or 'lm'",
+    ),
+    "calibrate loss_scale 0": (lambda: calibrate(ROBOT, Q, M, loss="huber", loss_scale=0.0), DataError, "loss_scale"),
     "calibrate robot not Robot": (lambda: calibrate("paper-6r", Q, M), DataError, "robot must be a jaxcal.Robot"),
     # calibrate_batch
     "batch unbatched q": (lambda: calibrate_batch(ROBOT, Q, M), DataError, r"\(R, K, n\)"),
-    "batch q nan": (lambda: calibrate_batch(ROBOT, _with(SIM.q, (1, 3, 0), np.nan), SIM.measured), DataError,
-                    r"q: non-finite value at index \(1, 3, 0\)"),
-    "batch too few poses": (lambda: calibrate_batch(ROBOT, SIM.q[:, :2], SIM.measured[:, :2]), DataError,
-                            "too few poses: 2 poses"),
-    "batch metres in one data set": (lambda: calibrate_batch(ROBOT, SIM.q, np.stack([SIM.measured[0],
-                                                                                    _scaled_pos(SIM.measured[1], 1e-3)])),
-                                     DataError, r"measured \(data set 1\)"),
-    "batch ident of other options": (lambda: calibrate_batch(ROBOT, SIM.q, SIM.measured, estimate_base=True,
-                                                             ident=identify(ROBOT, Q)),
-                                     DataError, "ident is for"),
+    "batch q nan": (
+        lambda: calibrate_batch(ROBOT, _with(SIM.q, (1, 3, 0), np.nan), SIM.measured),
+        DataError,
+        r"q: non-finite value at index \(1, 3, 0\)",
+    ),
+    "batch too few poses": (
+        lambda: calibrate_batch(ROBOT, SIM.q[:, :2], SIM.measured[:, :2]),
+        DataError,
+        "too few poses: 2 poses",
+    ),
+    "batch metres in one data set": (
+        lambda: calibrate_batch(ROBOT, SIM.q, np.stack([SIM.measured[0], _scaled_pos(SIM.measured[1], 1e-3)])),
+        DataError,
+        r"measured \(data set 1\)",
+    ),
+    "batch ident of other options": (
+        lambda: calibrate_batch(
+            ROBOT,
+            SIM.q,
+            SIM.measured,
+            estimate_base=True,
+            ident=identify(ROBOT, Q, estimate_base=False, estimate_tool=False),
+        ),
+        DataError,
+        "ident is for",
+    ),
     # simulate
     "simulate n_poses 0": (lambda: simulate(ROBOT, n_poses=0), DataError, "n_poses must be an integer >= 1"),
     "simulate n_robots 0": (lambda: simulate(ROBOT, n_robots=0), DataError, "n_robots"),
     "simulate sigma nan": (lambda: simulate(ROBOT, sigma_pos=float("nan")), DataError, "sigma_pos"),
     "simulate sigma negative": (lambda: simulate(ROBOT, sigma_rot=-1.0), DataError, "sigma_rot"),
     "simulate x_true shape": (lambda: simulate(ROBOT, x_true=np.zeros(5)), DataError, r"x_true .* got \(5,\)"),
-    "simulate q nan": (lambda: simulate(ROBOT, q=np.full((5, 6), np.nan)), DataError, r"q: non-finite value at index \(0, 0\)"),
+    "simulate q nan": (
+        lambda: simulate(ROBOT, q=np.full((5, 6), np.nan)),
+        DataError,
+        r"q: non-finite value at index \(0, 0\)",
+    ),
     "simulate q 5 joints": (lambda: simulate(ROBOT, q=np.zeros((5, 5))), DataError, r"q must have shape \(K, 6\)"),
     "simulate scales shape": (lambda: simulate(ROBOT, scales=np.ones(3)), DataError, "scales must be 24"),
     # compensate
-    "compensate targets nan": (lambda: compensate(ROBOT, _with(M[:2], (1, 0, 3), np.nan), Q[:2]), DataError,
-                               r"targets: non-finite value at index \(1, 0, 3\)"),
-    "compensate q_start nan": (lambda: compensate(ROBOT, M[:2], _with(Q[:2], (0, 4), np.inf)), DataError,
-                               r"q_start: non-finite value at index \(0, 4\)"),
+    "compensate targets nan": (
+        lambda: compensate(ROBOT, _with(M[:2], (1, 0, 3), np.nan), Q[:2]),
+        DataError,
+        r"targets: non-finite value at index \(1, 0, 3\)",
+    ),
+    "compensate q_start nan": (
+        lambda: compensate(ROBOT, M[:2], _with(Q[:2], (0, 4), np.inf)),
+        DataError,
+        r"q_start: non-finite value at index \(0, 4\)",
+    ),
     "compensate q_start 5 joints": (lambda: compensate(ROBOT, M[:2], Q[:2, :5]), DataError, r"\(K, 6\)"),
-    "compensate targets not rigid": (lambda: compensate(ROBOT, _with(M[:2], (1, 0, 0), 3.0), Q[:2]), DataError,
-                                     r"targets\[1\]: rotation"),
+    "compensate targets not rigid": (
+        lambda: compensate(ROBOT, _with(M[:2], (1, 0, 0), 3.0), Q[:2]),
+        DataError,
+        r"targets\[1\]: rotation",
+    ),
     "compensate damping negative": (lambda: compensate(ROBOT, M[:2], Q[:2], damping=-1.0), DataError, "damping"),
 }
 
@@ -161,9 +239,14 @@ rpy = [0.0, 0.0, 0.0]
 
 TOML = {
     "unknown top-level key": ("colour = 'red'\n" + GOOD_TOML, "unknown top-level key(s) ['colour']"),
-    "unknown joint key": (GOOD_TOML.replace("a = 300.0", "a = 300.0\noffset = 1"), "joint 2: unknown key(s) ['offset']"),
-    "unknown tool key": (GOOD_TOML.replace("rpy = [0.0, 0.0, 0.0]", "rpy = [0.0, 0.0, 0.0]\nscale = 1"),
-                         "[tool]: unknown key(s) ['scale']"),
+    "unknown joint key": (
+        GOOD_TOML.replace("a = 300.0", "a = 300.0\noffset = 1"),
+        "joint 2: unknown key(s) ['offset']",
+    ),
+    "unknown tool key": (
+        GOOD_TOML.replace("rpy = [0.0, 0.0, 0.0]", "rpy = [0.0, 0.0, 0.0]\nscale = 1"),
+        "[tool]: unknown key(s) ['scale']",
+    ),
     "missing field": (GOOD_TOML.replace("d = 100.0\n", ""), "joint 1: missing d"),
     "missing all joints": ('name = "x"\n', "needs at least one [[joints]]"),
     "wrong type string": (GOOD_TOML.replace("a = 300.0", "a = '300'"), "joint 2 a: expected a number"),
@@ -171,10 +254,14 @@ TOML = {
     "wrong type joints": (GOOD_TOML.split("[[joints]]")[0] + "joints = 'RR'\n", "needs at least one [[joints]]"),
     "non-finite": (GOOD_TOML.replace("a = 200.0", "a = inf"), "joint 1 a: not finite"),
     "bad joint type": (GOOD_TOML.replace("alpha = 0.0", "alpha = 0.0\ntype = 'S'"), "joint 2: type must be 'R' or 'P'"),
-    "limits wrong length": (GOOD_TOML.replace("limits = [-2.0, 2.0]", "limits = [-2.0, 0.0, 2.0]"),
-                            "joint 2: limits must be [lower, upper]"),
-    "limits inverted": (GOOD_TOML.replace("limits = [-2.0, 2.0]", "limits = [2.0, -2.0]"),
-                        "joint 2: lower limit is not below"),
+    "limits wrong length": (
+        GOOD_TOML.replace("limits = [-2.0, 2.0]", "limits = [-2.0, 0.0, 2.0]"),
+        "joint 2: limits must be [lower, upper]",
+    ),
+    "limits inverted": (
+        GOOD_TOML.replace("limits = [-2.0, 2.0]", "limits = [2.0, -2.0]"),
+        "joint 2: lower limit is not below",
+    ),
     "tool xyz wrong length": (GOOD_TOML.replace("xyz = [0.0, 0.0, 50.0]", "xyz = [0.0, 50.0]"), "[tool].xyz"),
     "bad length unit": (GOOD_TOML.replace('length_unit = "mm"', 'length_unit = "inch"'), "length_unit"),
     "bad convention": (GOOD_TOML.replace('convention = "sdh"', 'convention = "dh"'), "convention"),
@@ -248,15 +335,26 @@ CSV = {
     "empty": ([], "file is empty"),
     "blank lines only": (["", ""], "file is empty"),
     "header only": (LINES[:1], "header only, no data rows"),
-    "duplicated column": ([LINES[0] + ",x"] + [r + ",1.0" for r in LINES[1:]], "duplicated column name 'x' (columns 7 and 10)"),
-    "unknown column": ([LINES[0] + ",temp"] + [r + ",1.0" for r in LINES[1:]], "unknown column(s) 'temp'"),
-    "missing column": ([LINES[0].replace(",z", "")] + [r.rsplit(",", 1)[0] for r in LINES[1:]], "missing column(s) 'z'"),
-    "7 joint columns": ([LINES[0].replace("q6", "q6,q7")] + [r.replace(",", ",0.0,", 1) for r in LINES[1:]],
-                        "robot has 6 joints, file has q1..q7"),
-    "not a number": (LINES[:4] + [LINES[4].replace(LINES[4].split(",")[7], "abc")] + LINES[5:],
-                     "row 4 (line 5), column 'y': not a number: 'abc'"),
-    "nan value": (LINES[:2] + [LINES[2].replace(LINES[2].split(",")[0], "nan", 1)] + LINES[3:],
-                  "row 2 (line 3), column 'q1': value 'nan' is not finite"),
+    "duplicated column": (
+        [LINES[0] + ",x"] + [r + ",1.0" for r in LINES[1:]],
+        "duplicated column name 'x' (columns 7 and 10)",
+    ),
+    "missing column": (
+        [LINES[0].replace(",z", "")] + [r.rsplit(",", 1)[0] for r in LINES[1:]],
+        "missing column(s) 'z'",
+    ),
+    "7 joint columns": (
+        [LINES[0].replace("q6", "q6,q7")] + [r.replace(",", ",0.0,", 1) for r in LINES[1:]],
+        "robot has 6 joints, file has q1..q7",
+    ),
+    "not a number": (
+        LINES[:4] + [LINES[4].replace(LINES[4].split(",")[7], "abc")] + LINES[5:],
+        "row 4 (line 5), column 'y': not a number: 'abc'",
+    ),
+    "nan value": (
+        LINES[:2] + [LINES[2].replace(LINES[2].split(",")[0], "nan", 1)] + LINES[3:],
+        "row 2 (line 3), column 'q1': value 'nan' is not finite",
+    ),
     "ragged row": (LINES[:3] + [LINES[3].rsplit(",", 1)[0]] + LINES[4:], "row 3 (line 4): 8 fields"),
     "mixed units m among mm": (_mixed_m(LINES), "mixed length units? row 3"),
     "mixed units deg among rad": (_mixed_deg(LINES), "mixed angle units? row 5, column 'q2'"),
@@ -281,7 +379,7 @@ def test_good_file_reads(tmp_path):
 
 
 # -- command line ------------------------------------------------------------------------------
-from conftest import run_cli  # noqa: E402
+from helpers import run_cli  # noqa: E402
 
 
 def _files(tmp_path):
@@ -300,23 +398,31 @@ CLI = {
     "info bad robot file": (lambda f: ["info", f["bad_toml"]], "joint 1: missing d"),
     "info missing robot file": (lambda f: ["info", "no-such-robot"], "robot file not found: no-such-robot"),
     "verify --points 0": (lambda f: ["verify", "--points", "0"], "--points must be >= 40"),
-    "montecarlo --method bogus": (lambda f: ["montecarlo", "paper-6r", "--robots", "2", "--poses", "10", "--method",
-                                             "bogus"], "--method must be one of"),
-    "montecarlo --robots 0": (lambda f: ["montecarlo", "paper-6r", "--robots", "0"], "--robots, --poses"),
+    "montecarlo --method bogus": (
+        lambda f: ["montecarlo", "paper-6r", "--robots", "2", "--poses", "10", "--method", "bogus"],
+        "--method must be one of",
+    ),
+    "montecarlo --robots 0": (lambda f: ["montecarlo", "paper-6r", "--robots", "0"], "--robots must be"),
     "montecarlo --val-poses 0": (lambda f: ["montecarlo", "paper-6r", "--val-poses", "0"], "--val-poses"),
-    "montecarlo --noise-mm -1": (lambda f: ["montecarlo", "paper-6r", "--noise-mm", "-1"], "--noise-mm and"),
+    "montecarlo --noise-mm -1": (lambda f: ["montecarlo", "paper-6r", "--noise-mm", "-1"], "--noise-mm must be"),
     "montecarlo bad robot": (lambda f: ["montecarlo", f["bad_toml"]], "joint 1: missing d"),
-    "reproduce --noise-mm -1": (lambda f: ["reproduce", "--noise-mm", "-1", "--out", f["good"].parent / "o"],
-                                "--noise-mm and --noise-rad must be >= 0"),
+    "reproduce --noise-mm -1": (
+        lambda f: ["reproduce", "--noise-mm", "-1", "--out", f["good"].parent / "o"],
+        "--noise-mm must be >= 0",
+    ),
     "reproduce --pairs 0": (lambda f: ["reproduce", "--pairs", "0", "--out", f["good"].parent / "o"], "--pairs"),
     "calibrate header-only file": (lambda f: ["calibrate", "paper-6r", f["header"]], "header only, no data rows"),
     "calibrate mixed units": (lambda f: ["calibrate", "paper-6r", f["mixed"]], "mixed length units?"),
-    "calibrate missing data": (lambda f: ["calibrate", "paper-6r", f["good"].parent / "none.csv"],
-                               "measurement file not found"),
+    "calibrate missing data": (
+        lambda f: ["calibrate", "paper-6r", f["good"].parent / "none.csv"],
+        "measurement file not found",
+    ),
     "calibrate --method bogus": (lambda f: ["calibrate", "paper-6r", f["good"], "--method", "bogus"], "--method"),
     "calibrate --folds 1": (lambda f: ["calibrate", "paper-6r", f["good"], "--folds", "1"], "--folds"),
-    "calibrate --length-unit inch": (lambda f: ["calibrate", "paper-6r", f["good"], "--length-unit", "inch"],
-                                     "length_unit must be one of"),
+    "calibrate --length-unit inch": (
+        lambda f: ["calibrate", "paper-6r", f["good"], "--length-unit", "inch"],
+        "--length-unit must be one of",
+    ),
     "compensate header-only targets": (lambda f: ["compensate", "paper-6r", f["header"]], "header only"),
     "compensate bad robot": (lambda f: ["compensate", f["bad_toml"], f["good"]], "joint 1: missing d"),
 }
@@ -338,8 +444,7 @@ def test_cli_entry_point_subprocess(tmp_path):
     exe = Path(sys.executable).with_name("jaxcal")
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-c", "from jaxcal.cli import main; main()"]
     f = _files(tmp_path)
-    p = subprocess.run(cmd + ["calibrate", "paper-6r", str(f["header"])], capture_output=True, text=True,
-                       timeout=120)
+    p = subprocess.run(cmd + ["calibrate", "paper-6r", str(f["header"])], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
     assert p.stderr.strip().count("\n") == 0 and "header only, no data rows" in p.stderr
     assert "Traceback" not in p.stderr + p.stdout

@@ -5,13 +5,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import random_transform
 from numpy.testing import assert_allclose
 
 from jaxcal import fk, preset
 from jaxcal.camera import CAMERA_MODELS, apply_camera, camera_jacobian, n_params, param_names
 from jaxcal.error_model import identification_jacobian, perturb, pose_error
-
-from conftest import random_transform
 
 
 def _poses(rng, k=6):
@@ -31,14 +30,22 @@ def test_linear_model_maps_the_target_origin_in_camera_axes(rng):
     """The target origin in the camera's axes t = -R^T p is reported as (I + A) t."""
     T = _poses(rng)
     c = rng.normal(0, 0.01, 8)
-    A = np.array([[c[1], c[2], c[3]], [c[4], -c[1], c[5]], [c[6], c[7], c[0]]])   # the documented layout
+    A = np.array([[c[1], c[2], c[3]], [c[4], -c[1], c[5]], [c[6], c[7], c[0]]])  # the documented layout
     got = np.asarray(apply_camera(T, jnp.asarray(c), "linear"))
     t = -np.einsum("kji,kj->ki", T[:, :3, :3], T[:, :3, 3])
     t_reported = -np.einsum("kji,kj->ki", got[:, :3, :3], got[:, :3, 3])
     assert_allclose(t_reported, t @ (np.eye(3) + A).T, rtol=1e-12, atol=1e-9)
     assert_allclose(got[:, :3, :3], T[:, :3, :3], rtol=0, atol=0)
-    assert param_names("linear") == ["camera_depth_scale", "camera_anisotropy", "camera_A_xy", "camera_A_xz",
-                                     "camera_A_yx", "camera_A_yz", "camera_A_zx", "camera_A_zy"]
+    assert param_names("linear") == [
+        "camera_depth_scale",
+        "camera_anisotropy",
+        "camera_A_xy",
+        "camera_A_xz",
+        "camera_A_yx",
+        "camera_A_yz",
+        "camera_A_zx",
+        "camera_A_zy",
+    ]
 
 
 def test_quadratic_model_adds_the_image_field_term(rng):
@@ -78,7 +85,7 @@ def test_camera_jacobian_matches_autodiff(rng, model):
         T = fk(perturb(r, xs[:m], base=True, tool=True), q)
         return pose_error(apply_camera(T, c0 + xs[m:], model), apply_camera(fk(r, q), c0, model))
 
-    auto = jax.jacfwd(measured)(jnp.zeros(m + mc))                   # (5, 6, m + mc)
+    auto = jax.jacfwd(measured)(jnp.zeros(m + mc))  # (5, 6, m + mc)
     ana = camera_jacobian(identification_jacobian(r, q, base=True, tool=True), fk(r, q), c0, model)
     assert ana.shape == auto.shape
     assert_allclose(np.asarray(ana), np.asarray(auto), atol=1e-8 * float(np.abs(auto).max()))

@@ -37,7 +37,7 @@ def _points(rng, n=400):
     al = rng.uniform(-2 * np.pi, 2 * np.pi, n)
     special = np.array([0.0, np.pi / 2, -np.pi / 2, np.pi, 1e-12, np.pi - 1e-12, -1e-9])
     al[: 3 * len(special)] = np.tile(special, 3)
-    th[len(special): 2 * len(special)] = special
+    th[len(special) : 2 * len(special)] = special
     a[::11] = 0.0
     d[::13] = 0.0
     return np.stack([th, d, a, al], -1)
@@ -81,8 +81,12 @@ def test_omega_twists_are_vee_of_omegas(conv, rng):
 
 
 @settings(max_examples=50, deadline=None)
-@given(st.floats(-7, 7), st.floats(-1e3, 1e3), st.floats(-1e3, 1e3),
-       st.sampled_from([0.0, np.pi / 2, -np.pi / 2, np.pi]) | st.floats(-7, 7))
+@given(
+    st.floats(-7, 7),
+    st.floats(-1e3, 1e3),
+    st.floats(-1e3, 1e3),
+    st.sampled_from([0.0, np.pi / 2, -np.pi / 2, np.pi]) | st.floats(-7, 7),
+)
 def test_partials_hypothesis(theta, d, a, alpha):
     P = np.array([[theta, d, a, alpha]])
     for conv in CONVS:

@@ -7,13 +7,19 @@ import sys
 import numpy as np
 
 import jaxcal
-from jaxcal.calibrate import calibrate, calibrate_batch
-from jaxcal.experiments.montecarlo import run_montecarlo
-from jaxcal.simulate import simulate
+from jaxcal.calibration import calibrate, calibrate_batch
+from jaxcal.experiments import run_montecarlo
+from jaxcal.simulation import simulate
 
 ROBOT = jaxcal.preset("paper-6r")
-TIMING_KEYS = {"robots_per_second", "run_seconds", "run_seconds_all", "compile_seconds", "first_call_seconds",
-               "machine"}
+TIMING_KEYS = {
+    "robots_per_second",
+    "run_seconds",
+    "run_seconds_all",
+    "compile_seconds",
+    "first_call_seconds",
+    "machine",
+}
 
 
 def _same(a, b):
@@ -78,12 +84,14 @@ def test_robot_objects_are_immutable():
 def test_results_do_not_depend_on_hash_seed(tmp_path):
     """The identifiability base set and a calibration estimate, computed in two interpreters
     with different PYTHONHASHSEED (set/dict-of-str iteration order), are bit-identical."""
-    code = ("import numpy as np, jaxcal\n"
-            "from jaxcal.calibrate import calibrate\n"
-            "from jaxcal.simulate import simulate\n"
-            "r = jaxcal.preset('puma560'); s = simulate(r, n_poses=12, seed=2, base=True, tool=True)\n"
-            "res = calibrate(r, s.q[0], s.measured[0], method='linear', estimate_base=True, estimate_tool=True)\n"
-            "print(res.identifiability.base, res.identifiability.fixed_names); print(res.x.tobytes().hex())\n")
+    code = (
+        "import numpy as np, jaxcal\n"
+        "from jaxcal.calibration import calibrate\n"
+        "from jaxcal.simulation import simulate\n"
+        "r = jaxcal.preset('puma560'); s = simulate(r, n_poses=12, seed=2, base=True, tool=True)\n"
+        "res = calibrate(r, s.q[0], s.measured[0], method='linear', estimate_base=True, estimate_tool=True)\n"
+        "print(res.identifiability.base, res.identifiability.fixed_names); print(res.x.tobytes().hex())\n"
+    )
     outs = []
     for seed in ("1", "12345"):
         env = dict(__import__("os").environ, PYTHONHASHSEED=seed)

@@ -4,10 +4,10 @@ entries listed in docs/errata.md disagree. A test per erratum."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import paper_printed as PP
 import pytest
 from numpy.testing import assert_allclose
 
-import paper_printed as PP
 from jaxcal import derivatives as D
 from jaxcal import kinematics as K
 from jaxcal.lie import inv_transform

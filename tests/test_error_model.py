@@ -5,18 +5,27 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import random_dh, random_transform
 from numpy.testing import assert_allclose
 
-from conftest import random_dh, random_transform
-from jaxcal import Robot, error_model as E, fk, presets
+from jaxcal import Robot, fk
+from jaxcal import error_model as E
 from jaxcal.lie import hat, vee
+from jaxcal.robot import preset
 
 
 def _robots(rng):
-    out = [presets.paper_6r(), presets.puma560(), presets.ur5(), presets.panda()]
+    out = [preset("paper-6r"), preset("puma560"), preset("ur5"), preset("panda")]
     for conv in ("sdh", "mdh"):
-        out.append(Robot(random_dh(rng), convention=conv, base=random_transform(rng),
-                         tool=random_transform(rng, 80.0), joint_types=("R", "P", "R", "R", "P", "R")))
+        out.append(
+            Robot(
+                random_dh(rng),
+                convention=conv,
+                base=random_transform(rng),
+                tool=random_transform(rng, 80.0),
+                joint_types=("R", "P", "R", "R", "P", "R"),
+            )
+        )
     return out
 
 
@@ -47,7 +56,9 @@ def test_jacobian_column_layout_without_frames(rng, base, tool):
         Q = jnp.asarray(rng.uniform(-2, 2, (8, robot.n_joints)))
         n4 = 4 * robot.n_joints
         full = np.asarray(E.identification_jacobian(robot, Q, base=True, tool=True))
-        keep = list(range(n4)) + (list(range(n4, n4 + 6)) if base else []) + (list(range(n4 + 6, n4 + 12)) if tool else [])
+        keep = (
+            list(range(n4)) + (list(range(n4, n4 + 6)) if base else []) + (list(range(n4 + 6, n4 + 12)) if tool else [])
+        )
         J = E.identification_jacobian(robot, Q, base=base, tool=tool)
         assert_allclose(np.asarray(J), full[..., keep], atol=1e-12, rtol=0)
         Jp = E.identification_jacobian(robot, Q, base=base, tool=tool, position_only=True)
@@ -67,8 +78,10 @@ def test_jacobian_and_fk_is_the_two_calls_from_one_chain(rng, base, tool, positi
 
 
 def test_jacobians_keep_leading_axes_and_vmap_over_robots(rng):
-    robots = [Robot(random_dh(rng), convention="mdh", base=random_transform(rng), tool=random_transform(rng, 80.0))
-              for _ in range(3)]
+    robots = [
+        Robot(random_dh(rng), convention="mdh", base=random_transform(rng), tool=random_transform(rng, 80.0))
+        for _ in range(3)
+    ]
     Q = jnp.asarray(rng.uniform(-2, 2, (2, 4, 6)))
     for fn in (E.identification_jacobian, E.twist_jacobian):
         J = fn(robots[0], Q, base=True, tool=True)
@@ -104,7 +117,7 @@ def test_eq10_literal_sum_equals_adjoint_form(rng):
 
 def test_eq10_is_dT_Tinv_to_first_order(rng):
     """(T(p + eps*delta) - T(p)) T^{-1} / eps -> sum_i T_i Omega_i T_i^{-1} as eps -> 0."""
-    robot = presets.paper_6r()
+    robot = preset("paper-6r")
     q = jnp.asarray(rng.uniform(-2, 2, 6))
     delta = jnp.asarray(rng.normal(size=(6, 4)))
     M = np.asarray(E.error_twist_matrix(robot, q, delta))
@@ -120,7 +133,7 @@ def test_eq10_is_dT_Tinv_to_first_order(rng):
 @pytest.mark.parametrize("name", ["paper-6r", "panda"])
 def test_first_order_model_error_is_quadratic(name, rng):
     """|e_true(s d) - J s d| = O(s^2): halving s divides the remainder by 4."""
-    robot = presets.preset(name)
+    robot = preset(name)
     Q = jnp.asarray(rng.uniform(-2, 2, (20, robot.n_joints)))
     m = E.n_params(robot, base=True, tool=True)
     d = jnp.asarray(rng.normal(size=m)) * jnp.where(jnp.arange(m) % 4 % 2 == 0, 1e-2, 1.0)
@@ -139,7 +152,7 @@ def test_vee_hat_roundtrip(rng):
 
 
 def test_param_names_and_layout():
-    r = presets.paper_6r()
+    r = preset("paper-6r")
     names = E.param_names(r, base=True, tool=True)
     assert len(names) == E.n_params(r, base=True, tool=True) == 36
     assert names[:5] == ["theta1", "d1", "a1", "alpha1", "theta2"]

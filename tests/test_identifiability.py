@@ -22,10 +22,10 @@ import functools
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import random_dh
 from numpy.testing import assert_allclose, assert_array_equal
 
 import jaxcal
-from conftest import random_dh
 from jaxcal import error_model as E
 from jaxcal.errors import DataError
 from jaxcal.identifiability import analyze, crlb, row_sigmas
@@ -36,11 +36,10 @@ def _poses(robot, n=50, seed=7):
     return np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (n, robot.n_joints))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _jac(name, position_only=False, base=False, tool=False):
     robot = jaxcal.preset(name)
-    J = E.identification_jacobian(robot, jnp.asarray(_poses(robot)), position_only=position_only,
-                                  base=base, tool=tool)
+    J = E.identification_jacobian(robot, jnp.asarray(_poses(robot)), position_only=position_only, base=base, tool=tool)
     return np.asarray(J), tuple(E.param_names(robot, base=base, tool=tool))
 
 
@@ -89,8 +88,7 @@ def test_paper_tool_absorbs_last_joint():
     A = _analyze("paper-6r", tool=True)
     assert (A.rank, len(A.names)) == (25, 30)
     assert _names(A, A.fixed) == ("d3", "tool_x", "tool_z", "tool_rx", "tool_rz")
-    assert A.combinations == ("d2 + d3", "theta6 + tool_rz", "d6 + tool_z", "a6 + tool_x",
-                              "alpha6 + tool_rx")
+    assert A.combinations == ("d2 + d3", "theta6 + tool_rz", "d6 + tool_z", "a6 + tool_x", "alpha6 + tool_rx")
 
 
 def test_paper_base_and_tool():
@@ -98,8 +96,15 @@ def test_paper_base_and_tool():
     A = _analyze("paper-6r", base=True, tool=True)
     assert (A.rank, len(A.names)) == (29, 36)
     assert _names(A, A.fixed) == ("d3", "base_z", "base_rz", "tool_x", "tool_z", "tool_rx", "tool_rz")
-    assert A.combinations == ("theta1 + base_rz", "d1 + base_z", "d2 + d3", "theta6 + tool_rz",
-                              "d6 + tool_z", "a6 + tool_x", "alpha6 + tool_rx")
+    assert A.combinations == (
+        "theta1 + base_rz",
+        "d1 + base_z",
+        "d2 + d3",
+        "theta6 + tool_rz",
+        "d6 + tool_z",
+        "a6 + tool_x",
+        "alpha6 + tool_rx",
+    )
 
 
 def test_paper_position_only_wrist_centre():
@@ -142,8 +147,7 @@ def test_puma560():
     P = _analyze("puma560", position_only=True)
     assert (P.rank, len(P.names)) == (15, 24)
     assert P.unidentifiable == ("theta4", "alpha4", "theta5", "alpha5", "theta6", "alpha6")
-    assert _names(P, P.fixed) == ("d3", "alpha3", "theta4", "d4", "alpha4", "theta5", "alpha5",
-                                  "theta6", "alpha6")
+    assert _names(P, P.fixed) == ("d3", "alpha3", "theta4", "d4", "alpha4", "theta5", "alpha5", "theta6", "alpha6")
     assert P.combinations == ("d2 + d3 + 431.8 alpha3", "theta3 + 0.04926 d4", "a3 + 21.27 d4")
     C, n = P.combination_matrix, P.names
     assert_allclose(C[P.base.index(n.index("theta3")), n.index("d4")], 1 / 20.3, rtol=1e-9)
@@ -180,9 +184,15 @@ def test_generic_and_mdh_arms():
     assert P.combinations == ("theta1 + base_rz", "d1 + base_z", "a1 + base_x", "alpha1 + base_rx")
 
 
-@pytest.mark.parametrize("cfg", [("paper-6r", {}), ("paper-6r", dict(position_only=True, tool=True)),
-                                 ("puma560", dict(position_only=True, base=True)),
-                                 ("ur5", dict(base=True, tool=True))])
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        ("paper-6r", {}),
+        ("paper-6r", dict(position_only=True, tool=True)),
+        ("puma560", dict(position_only=True, base=True)),
+        ("ur5", dict(base=True, tool=True)),
+    ],
+)
 def test_combination_matrix_is_base_least_squares(cfg):
     """Noise-free data J x_true fitted with the base columns only gives C @ x_true."""
     J, names = _jac(cfg[0], **cfg[1])
@@ -229,8 +239,7 @@ def test_crlb_sigma_forms_agree():
     assert_array_equal(flat[:6], [0.1, 0.1, 0.1, 1e-3, 1e-3, 1e-3])
     ref = crlb(J, flat, A)
     pattern = [0.1, 0.1, 0.1, 1e-3, 1e-3, 1e-3]
-    for Jx, s in [(J, pattern), (J.reshape(-1, 24), pattern), (J.reshape(-1, 24), flat),
-                  (J, flat.reshape(-1, 6))]:
+    for Jx, s in [(J, pattern), (J.reshape(-1, 24), pattern), (J.reshape(-1, 24), flat), (J, flat.reshape(-1, 6))]:
         assert_allclose(crlb(Jx, s, A), ref, rtol=1e-10)
     # a scalar sigma scales the covariance by sigma^2; against the normal equations directly
     Jb = J.reshape(-1, 24)[:, list(A.base)]
@@ -260,10 +269,15 @@ def test_observability_indices_by_hand(cfg):
     J, names = _jac(cfg[0], **cfg[1])
     A = analyze(J, names)
     Jf = J.reshape(-1, J.shape[-1])[:, list(A.base)]
-    s = np.linalg.svd(Jf / np.sqrt((Jf ** 2).sum(0)), compute_uv=False)
+    s = np.linalg.svd(Jf / np.sqrt((Jf**2).sum(0)), compute_uv=False)
     r, rows = len(s), Jf.shape[0]
-    hand = {"O1": np.prod(s) ** (1 / r) / np.sqrt(rows), "O2": s.min() / s.max(), "O3": s.min(),
-            "O4": s.min() ** 2 / s.max(), "O5": 1 / np.sum(1 / s)}
+    hand = {
+        "O1": np.prod(s) ** (1 / r) / np.sqrt(rows),
+        "O2": s.min() / s.max(),
+        "O3": s.min(),
+        "O4": s.min() ** 2 / s.max(),
+        "O5": 1 / np.sum(1 / s),
+    }
     assert A.indices.keys() == hand.keys()
     for k in hand:
         assert_allclose(A.indices[k], hand[k], rtol=1e-9)
@@ -305,6 +319,7 @@ def test_bad_input_and_borderline_spectrum():
 def test_base_covariance_on_a_stack(rng):
     """Stacked pose sets at once, against inv(Jb^T Jb) set by set; a zero column names its set."""
     from jaxcal.identifiability import base_covariance
+
     Jb = rng.normal(size=(3, 40, 5)) * np.array([1.0, 1e3, 1e-3, 10.0, 1.0])
     got = base_covariance(Jb)
     for k in range(3):

@@ -4,11 +4,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import random_dh, random_transform
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from conftest import random_dh, random_transform
-from jaxcal import DataError, Robot, fk, fk_frames, kinematics as K, presets, to_mdh, to_sdh
+from jaxcal import Robot, fk, fk_frames, to_mdh, to_sdh
+from jaxcal import kinematics as K
+from jaxcal.robot import PRESETS, preset
 
 
 def _rot(axis, angle):
@@ -69,7 +71,7 @@ def test_every_frame_matches_reference(conv, rng):
     assert got.shape == (2, 3, 5, 4, 4)
     for idx in np.ndindex(2, 3):
         for i in range(5):
-            want = ref_fk(conv, dh[:i + 1], types[:i + 1], base, np.eye(4), Q[idx][:i + 1])
+            want = ref_fk(conv, dh[: i + 1], types[: i + 1], base, np.eye(4), Q[idx][: i + 1])
             assert_allclose(got[idx][i], want, atol=1e-9)
 
 
@@ -79,7 +81,7 @@ def test_prismatic_joint_translates_along_z(rng):
 
 
 def test_batched_shapes_jit_and_vmap(rng):
-    r = presets.paper_6r()
+    r = preset("paper-6r")
     Q = jnp.asarray(rng.uniform(-1, 1, (3, 5, 6)))
     assert fk(r, Q).shape == (3, 5, 4, 4)
     assert fk_frames(r, Q).shape == (3, 5, 6, 4, 4)
@@ -99,9 +101,9 @@ def test_vmap_over_robots(rng):
         assert_allclose(np.asarray(g), np.asarray(fk(r, q)), atol=1e-12)
 
 
-@pytest.mark.parametrize("name", list(presets.PRESETS))
+@pytest.mark.parametrize("name", list(PRESETS))
 def test_sdh_mdh_conversion_presets(name, rng):
-    r = presets.preset(name)
+    r = preset(name)
     other = to_mdh(r) if r.convention == "sdh" else to_sdh(r)
     assert other.convention != r.convention
     Q = jnp.asarray(rng.uniform(-3, 3, (50, r.n_joints)))
@@ -112,8 +114,12 @@ def test_sdh_mdh_conversion_presets(name, rng):
 
 def test_sdh_mdh_conversion_random(rng):
     for _ in range(10):
-        r = Robot(random_dh(rng), base=random_transform(rng), tool=random_transform(rng),
-                  joint_types=tuple(rng.choice(["R", "P"], 6)))
+        r = Robot(
+            random_dh(rng),
+            base=random_transform(rng),
+            tool=random_transform(rng),
+            joint_types=tuple(rng.choice(["R", "P"], 6)),
+        )
         Q = jnp.asarray(rng.uniform(-3, 3, (20, 6)))
         assert_allclose(np.asarray(fk(to_mdh(r), Q)), np.asarray(fk(r, Q)), atol=1e-9)
 
@@ -121,47 +127,12 @@ def test_sdh_mdh_conversion_random(rng):
 def test_paper_arm_home_pose():
     """Table 1 arm at q = 0, by hand: joint 2's -pi/2 offset points the 580 mm upper arm up;
     x = a1 + d4 = 800, y = d5 = 228, z = a2 + a3 = 780 (mm)."""
-    T = np.asarray(fk(presets.paper_6r(), jnp.zeros(6)))
+    T = np.asarray(fk(preset("paper-6r"), jnp.zeros(6)))
     assert_allclose(T[:3, 3], [800.0, 228.0, 780.0], atol=1e-9)
 
 
 def test_ur5_home_pose():
     """UR5 at q = 0 (published table): x = a2 + a3 = -817.25, y = -(d4 + d6) = -191.45,
     z = d1 - d5 = -5.491 (mm)."""
-    T = np.asarray(fk(presets.ur5(), jnp.zeros(6)))
+    T = np.asarray(fk(preset("ur5"), jnp.zeros(6)))
     assert_allclose(T[:3, 3], [-817.25, -191.45, 89.159 - 94.65], atol=1e-9)
-
-
-@pytest.mark.parametrize("conv", ["sdh", "mdh"])
-def test_fk_pose_last_matches_reference(conv, rng):
-    """fk_pose_last: joint axis first in, pose axis last out, against the independent reference;
-    the pure-JAX form (the fallback) too, and leading pose axes kept."""
-    dh = random_dh(rng, 7)
-    types = ("R", "P", "R", "R", "R", "P", "R")
-    base, tool = random_transform(rng), random_transform(rng)
-    robot = Robot(dh, convention=conv, joint_types=types, base=base, tool=tool)
-    Q = rng.uniform(-2, 2, (7, 3, 4)) * np.where(np.array(types) == "P", 100.0, 1.0)[:, None, None]
-    got = np.asarray(K.fk_pose_last(robot, Q))
-    assert got.shape == (4, 4, 3, 4)
-    xla = np.asarray(K._fk_pose_last_xla(robot, jnp.asarray(Q.reshape(7, -1)))).reshape(4, 4, 3, 4)
-    for idx in np.ndindex(3, 4):
-        want = ref_fk(conv, dh, types, base, tool, Q[(slice(None),) + idx])
-        assert_allclose(got[(...,) + idx], want, atol=1e-9)
-        assert_allclose(xla[(...,) + idx], want, atol=1e-9)
-
-
-def test_fk_pose_last_refuses_bad_input_by_position():
-    robot = presets.paper_6r()
-    with pytest.raises(DataError, match=r"shape \(6, \.\.\.\).*got \(10, 6\)"):
-        K.fk_pose_last(robot, np.zeros((10, 6)))
-    q = np.zeros((6, 10))
-    q[4, 7] = np.nan  # joint 5 of pose 7
-    with pytest.raises(DataError, match=r"q\[4, 7\] \(pose 7, joint 5\) is not finite"):
-        K.fk_pose_last(robot, q)
-    q[4, 7], q[1, 2] = 0.0, 3e5
-    with pytest.raises(DataError, match=r"q\[1, 2\] \(pose 2, joint 2\) = 300000 rad is beyond"):
-        K.fk_pose_last(robot, q)
-    q[1, 2] = 0.0
-    q_copy = q.copy()
-    K.fk_pose_last(robot, q)
-    assert np.array_equal(q, q_copy)  # the caller's array is not changed

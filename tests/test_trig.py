@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from jaxcal import DataError, Robot, fk, presets
+from jaxcal import DataError, Robot, fk
+from jaxcal.robot import preset
 from jaxcal.trig import DOMAIN, sincos
 
 _sincos = jax.jit(sincos)
@@ -27,6 +28,7 @@ def test_polynomials_truncation_error():
     on |r| <= pi/4 against extended-precision sin/cos, the polynomials are off by less than
     3e-18 (an error in any coefficient's digits shows here, far above rounding)."""
     from jaxcal.trig import _C, _S
+
     r = np.linspace(-np.pi / 4, np.pi / 4, 20001).astype(np.longdouble)
     z = r * r
 
@@ -61,7 +63,7 @@ def test_derivative_is_exact():
 
 
 def test_fk_refuses_angles_beyond_the_domain_and_non_finite_values():
-    robot = presets.preset("paper-6r")
+    robot = preset("paper-6r")
     q = np.zeros((5, 6))
     q[3, 1] = 2 * DOMAIN
     with pytest.raises(DataError, match=r"q\[3, 1\] \(pose 3, joint 2\).*beyond"):

@@ -1,6 +1,5 @@
-"""Candidate parameter sets for real-data calibration (``jaxcal calibrate --params``): which DH
-errors may move and under which ridge prior; :mod:`jaxcal.crossval` compares them by
-cross-validation."""
+"""Candidate parameter sets (the ``params`` option): which DH errors may move and under which
+ridge prior; :func:`jaxcal.calibrate_data` compares them by cross-validation."""
 
 from __future__ import annotations
 
@@ -8,9 +7,9 @@ import dataclasses
 
 import numpy as np
 
-from .camera import n_params
-from .errors import DataError
-from .robot import DH_NAMES, Robot
+from ..camera import n_params
+from ..errors import DataError
+from ..robot import DH_NAMES, Robot
 
 PARAM_SETS = ("auto", "frames", "offsets", "angles", "all")
 RIDGE_GRID_MM = (0.1, 0.3, 1.0, 3.0)
@@ -47,14 +46,18 @@ def _kinds(n: int, kinds) -> tuple[int, ...]:
 
 
 def parse_params(spec: str, robot: Robot, ridge_mm: float | None = None) -> list[Candidate]:
-    """Candidates for ``--params``: ``auto`` (frames, offsets, angles, all with a ridge grid
+    """Candidates for ``params``: ``auto`` (frames, offsets, angles, all with a ridge grid
     and all), one of ``frames|offsets|angles|all``, or a comma-separated list of DH kinds
     (``theta,d,a,alpha``) and/or parameter names (``theta2, a4``). ``ridge_mm`` adds a prior
     to an explicit set."""
     n = robot.n_joints
     names = robot.param_names()
-    named = {"frames": (), "offsets": _kinds(n, ["theta"]), "angles": _kinds(n, ["theta", "alpha"]),
-             "all": tuple(range(4 * n))}
+    named = {
+        "frames": (),
+        "offsets": _kinds(n, ["theta"]),
+        "angles": _kinds(n, ["theta", "alpha"]),
+        "all": tuple(range(4 * n)),
+    }
     spec = spec.strip()
     if spec == "auto":
         cands = [Candidate(k, v) for k, v in named.items() if k != "all"]
@@ -70,9 +73,12 @@ def parse_params(spec: str, robot: Robot, ridge_mm: float | None = None) -> list
             elif tok in names:
                 idx.add(names.index(tok))
             else:
-                raise DataError(f"--params: unknown parameter or set {tok!r}; use auto, frames, offsets, angles, "
-                                f"all, or a comma list of theta, d, a, alpha and names like theta2, a4 "
-                                f"(joints 1..{n})")
+                raise DataError(
+                    f"params: unknown parameter or set {tok!r}; use auto, frames, offsets, angles, "
+                    f"all, or a comma list of theta, d, a, alpha and names like theta2, a4 "
+                    f"(joints 1..{n})",
+                    option="params",
+                )
         dh = tuple(sorted(idx))
     name = spec if ridge_mm is None else f"{spec}, ridge {ridge_mm:g}"
     return [Candidate(name, dh, ridge_mm)]

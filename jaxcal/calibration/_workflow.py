@@ -1,255 +1,380 @@
-"""Calibration of real data with honest held-out validation: base/tool initialisation, a
-choice of parameter sets and ridge priors by K-fold cross-validation, and the final fit.
+"""The real-data workflow (:func:`calibrate_data`): a calibration with honest held-out
+validation, the one behind ``jaxcal calibrate``.
 
 ## Model
-``T(x, q) = exp(xi_b) B0 · A_1(dh + dx_1) ... A_n(dh + dx_n) · X0 exp(xi_t)`` with
-``x = [dx (4n), xi_b (6), xi_t (6)]`` (the layout of :func:`jaxcal.error_model.param_names`
-with base and tool), ``B0, X0`` from :func:`jaxcal.initial_guess.initial_frames`. Fitted by
-:mod:`jaxcal.solvers.manifold` with the analytic identification Jacobian. With a camera
-measurement model (``camera``, :mod:`jaxcal.camera`) the modelled pose goes through
-``apply_camera(T, c)`` and its unknowns ``c`` are estimated in every candidate (held at 0 in the
-frames-only stage); they are not part of the calibrated robot. With ``camera="auto"`` each
-parameter set is a candidate once per camera model, so the model is chosen like the set.
+``T(x, q) = exp(xi_b) B0 · A_1(dh + dx_1) ... A_n(dh + dx_n) · X0 exp(xi_t)`` (or points ``m_j``
+on the tool) with ``B0, X0`` from the closed-form guess of each training set
+(:mod:`._initial`); a camera model (:mod:`jaxcal.camera`) when asked.
 
-The objective, the ridge/pin priors and the noise weighting are in :mod:`jaxcal.cv_fit`.
+## Stages
+A frames-only fit (nominal DH, unit weights 1 mm : 1 deg) on every training set gives its
+starting frames and its noise weights (the RMS per coordinate and per axis); then every
+candidate parameter set (:func:`parse_params`) is fitted on every training set from there, with
+those weights. All of it is one compiled solve (:mod:`._core`).
 
 ## Cross-validation
-Folds are a seeded permutation of the poses cut into ``K`` nearly equal parts. Each candidate
-is fitted on ``K-1`` folds (frames initialised from those poses only) and evaluated on the
-held-out fold; the held-out position errors of all folds are pooled into an RMS. The final
-candidate is the one with the lowest pooled held-out position RMS (a simpler candidate within
-1 % of it wins), refitted on all poses. Because picking the best of several candidates on the
-same folds is optimistic, the reported ``heldout_*`` figures come from **nested**
-cross-validation: inside each outer training set the candidate is chosen by an inner ``K``-fold
-CV, and only then evaluated on the outer held-out fold.
+Folds are a seeded permutation of the poses cut into ``folds`` nearly equal parts. Each
+candidate is fitted on ``folds - 1`` folds and evaluated on the one held out; the held-out
+position errors of all folds are pooled into an RMS. The chosen candidate has the lowest pooled
+held-out RMS (a simpler candidate within 1 % wins) and is refitted on all poses. Choosing the
+best of several candidates on the same folds is optimistic, so the reported ``heldout_*``
+figures come from **nested** cross-validation: inside each training set the candidate is chosen
+again by an inner cross-validation, then evaluated on the outer held-out fold. Above
+``nested_max_poses`` poses the figures are plain K-fold (the report says which).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 
-import jax.numpy as jnp
+import jax
 import numpy as np
 
-from .camera import CAMERA_MODELS, check_target_in_front, n_params
-from .camera import param_names as camera_param_names
-from .cv_fit import fit_many, make_setup
-from .error_model import pose_error
-from .errors import DataError
-from .param_sets import Candidate, parse_params
-from .robot import Robot
-from .uncertainty import frame_doc, standard_errors
-
-
-# -- errors ------------------------------------------------------------------------------------
-
-def pose_errors(predicted, measured) -> tuple[np.ndarray, np.ndarray]:
-    """Per pose: position error norm (mm) and rotation error angle (deg)."""
-    e = np.asarray(pose_error(jnp.asarray(measured), jnp.asarray(predicted)))
-    return np.linalg.norm(e[..., :3], axis=-1), np.degrees(np.linalg.norm(e[..., 3:], axis=-1))
-
-
-def _rms(v):
-    return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
+from ..camera import CAMERA_MODELS, check_target_in_front
+from ..camera import n_params as camera_size
+from ..errors import DataError
+from ..model import Layout, Model, measured_robot
+from ..robot import Robot
+from . import _core as core
+from ._checks import as_target, check_units
+from ._options import Options, make_options
+from ._param_sets import Candidate, parse_params
+from ._single import check_enough_poses, estimated, judge, make_layout, nominal_model, prior_of, still_joint_notes
 
 
 def fold_ids(n_poses: int, k: int, seed: int) -> np.ndarray:
     """Fold index (0..k-1) of each pose: a seeded permutation cut into k nearly equal parts."""
     if not 2 <= k <= n_poses:
-        raise DataError(f"--folds must be between 2 and the number of poses ({n_poses}), got {k}")
+        raise DataError(f"folds must be between 2 and the number of poses ({n_poses}), got {k}", option="folds")
     out = np.empty(n_poses, dtype=np.int64)
     out[np.random.default_rng(seed).permutation(n_poses)] = np.arange(n_poses) % k
     return out
 
 
-CAMERA_CHOICES = CAMERA_MODELS + ("auto",)
-"""Values of ``--camera-model``: a model, or ``auto`` (chosen by cross-validation)."""
-
-
-# -- the whole procedure -----------------------------------------------------------------------
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class DataCalibration:
-    """What :func:`calibrate_measurements` returns (lengths mm, angles rad unless named)."""
-
-    robot: Robot
-    """The calibrated model, fitted on all poses with the chosen parameter set."""
-    nominal: Robot
-    choice: Candidate
-    """The parameter set chosen by cross-validation (or the one asked for)."""
-    report: dict
-    """JSON-ready summary (see :func:`calibrate_measurements`)."""
-    cv_table: list
-    """Per candidate: name, CV held-out position RMS / max (mm), rotation RMS (deg), train RMS."""
-    per_pose: dict
-    """Per-pose position errors (mm): ``frames_only_heldout``, ``heldout``, ``frames_only_train``,
-    ``train``; rotation errors (deg) ``*_rot``; ``rows``: the CSV data rows."""
-    deltas: dict
-    """name -> (value, standard error) of every estimated parameter (DH errors in mm / rad; base
-    and tool twists relative to the all-pose initial guess, mm / rad)."""
-
-
-def _pooled(pe, re, masks):
-    sel = np.asarray(masks, bool)
-    out = {"pos_rms_mm": _rms(pe[sel]), "pos_max_mm": float(pe[sel].max()), "rot_rms_deg": _rms(re[sel])}
-    return out
-
-
-def _choose(scores: list[float], candidates) -> int:
+def choose(scores: list[float], candidates) -> int:
     """Lowest score; a simpler candidate (fewer free parameters, stronger prior) within 1 % wins.
     A non-finite score (a fit that failed) never wins; if every score is, that is an error."""
     scores = [s if np.isfinite(s) else np.inf for s in scores]
     best = min(scores)
     if not np.isfinite(best):
-        raise DataError(f"every candidate parameter set ({', '.join(c.name for c in candidates)}) failed to fit "
-                        f"(non-finite held-out errors); the data or the camera model may be degenerate")
+        raise DataError(
+            f"every candidate parameter set ({', '.join(c.name for c in candidates)}) failed to fit "
+            f"(non-finite held-out errors); the data or the camera model may be degenerate"
+        )
     ok = [i for i, s in enumerate(scores) if s <= 1.01 * best]
     return min(ok, key=lambda i: candidates[i].complexity)
 
 
-def calibrate_measurements(robot: Robot, q, measured, *, position_only: bool, method: str = "gn",
-                           params: str = "auto", ridge_mm: float | None = None, estimate_base: bool = True,
-                           estimate_tool: bool = True, folds: int = 5, seed: int = 0,
-                           rows=None, camera: str = "none") -> DataCalibration:
-    """Calibrate from measured poses with K-fold (and nested) cross-validation.
+def _rms(v) -> float:
+    return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
 
-    **Arguments**: ``q`` ``(K, n)`` rad; ``measured`` ``(K, 4, 4)`` mm; ``params`` see
-    :func:`parse_params`; ``folds`` ``K`` of the cross-validation (seeded by ``seed``).
 
-    **Returns** a :class:`DataCalibration` whose ``report`` has ``train_rms_mm``,
-    ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_rot_rms_deg`` (nested CV),
-    ``frames_only_*`` (same, nominal DH with base/tool fitted), ``choice``, ``cv``,
-    ``parameters`` (deltas with standard errors), ``unidentifiable``, ``condition_number``,
-    ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``, ``camera_model`` (the model of
-    the final fit), ``camera_model_option`` (what was asked for, e.g. ``auto``),
-    ``camera_parameters``.
+def frame_doc(T) -> dict:
+    """A frame as ``xyz_mm`` and roll-pitch-yaw ``rpy_deg`` (fixed axes x-y-z)."""
+    from scipy.spatial.transform import Rotation
 
-    ``camera`` (``none | depth | linear | quadratic``) adds a camera measurement model
-    (:mod:`jaxcal.camera`, its unknowns free in every candidate) for camera-on-flange data whose
-    target-relative pose comes from PnP: predictions (and so the held-out errors) are of what the
-    camera reports. ``camera="auto"`` makes the camera model part of the cross-validated choice:
-    every parameter set is tried with each of the four models, so the nested held-out figures
-    include that choice.
+    T = np.asarray(T)
+    return {
+        "xyz_mm": [float(v) for v in T[:3, 3]],
+        "rpy_deg": [float(v) for v in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)],
+    }
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DataCalibration:
+    """What :func:`calibrate_data` returns (lengths mm, angles rad unless named)."""
+
+    model: Model
+    """The calibrated model, fitted on all poses with the chosen parameter set."""
+    nominal: Robot
+    choice: Candidate
+    report: dict
+    """JSON-ready: everything ``jaxcal calibrate --json`` writes (see :func:`calibrate_data`)."""
+    per_pose: dict
+    """Per pose: ``rows`` (data rows), position errors (mm) ``heldout``, ``train``,
+    ``frames_only_heldout``, ``frames_only_train`` (``(K, M)`` for several points), rotation
+    errors (deg) ``*_rot``; ``frames_only``: the frames-only robot."""
+    deltas: dict
+    """name -> (value, standard error, unit) of every estimated parameter (DH errors relative to
+    the nominal table; frame twists relative to the closed-form guess)."""
+
+    @property
+    def robot(self) -> Robot:
+        return measured_robot(self.model)
+
+    @property
+    def cv_table(self) -> list:
+        return self.report["cv"]
+
+    def to_json(self) -> str:
+        return json.dumps(self.report, indent=2)
+
+
+def _layout_for(robot, opts, n_points, cameras) -> Layout:
+    return make_layout(robot, opts, n_points, camera=cameras[-1])
+
+
+def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, progress=None, **kw) -> DataCalibration:
+    """Calibrate from measured data with K-fold (and nested) cross-validation.
+
+    **Arguments**: ``data`` a :class:`jaxcal.Measurements` (from :func:`jaxcal.read_measurements`,
+    or built from arrays); options as :class:`jaxcal.Options` or keywords, the defaults shared
+    with :func:`calibrate`. ``progress(done, total, stage)`` is called as fits complete.
+
+    **Returns** a :class:`DataCalibration` whose ``report`` holds ``train_rms_mm``,
+    ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_median_mm``, ``heldout_rot_rms_deg``
+    (nested cross-validation unless ``nested`` is false), ``frames_only_*`` (the same with
+    nominal DH and fitted frames), ``choice``, ``cv`` (one row per candidate), ``parameters``
+    (values, standard errors, units), ``unidentifiable``, ``combinations``,
+    ``condition_number``, ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``,
+    ``camera_model``, ``camera_parameters``, ``base``, ``tool`` and, for points, ``points``.
     """
-    if camera not in CAMERA_CHOICES:
-        raise DataError(f"--camera-model must be one of {', '.join(CAMERA_CHOICES)}, got {camera!r}")
-    if camera != "none" and position_only:
-        raise DataError(f"the camera model {camera!r} needs full poses (the camera's axes); the data are "
-                        f"position-only")
-    models = CAMERA_MODELS if camera == "auto" else (camera,)
-    candidates = [dataclasses.replace(c, camera=mdl, name=f"{c.name}, camera {mdl}" if camera == "auto" else c.name)
-                  for mdl in models for c in parse_params(params, robot, ridge_mm)]
-    q = np.asarray(q, dtype=np.float64)
-    measured = np.asarray(measured, dtype=np.float64)
-    if "quadratic" in models:
-        check_target_in_front(measured, "quadratic" + (" (tried by --camera-model auto)" if camera == "auto" else ""),
-                              rows)
-    K = len(q)
-    setup = make_setup(robot, q, measured, position_only=position_only, candidates=candidates,
-                       estimate_base=estimate_base, estimate_tool=estimate_tool, method=method,
-                       camera=models[-1])
-    fid = fold_ids(K, folds, seed)
-    rpp = 3 if position_only else 6
+    opts = make_options(options, kw, camera_auto=True)
+    q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
+    rows_in_file = np.arange(1, len(q) + 1) if getattr(data, "rows", None) is None else np.asarray(data.rows)
+    cameras = CAMERA_MODELS if opts.camera == "auto" else (opts.camera,)
+    candidates = [
+        dataclasses.replace(c, camera=m, name=f"{c.name}, camera {m}" if opts.camera == "auto" else c.name)
+        for m in cameras
+        for c in parse_params(opts.params, robot, opts.ridge_mm)
+    ]
+    layout = _layout_for(robot, opts, n_points, cameras)
+    if "quadratic" in cameras:
+        check_target_in_front(
+            target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows_in_file
+        )
+    K, F = len(q), opts.folds
+    fid = fold_ids(K, F, opts.seed)
+    union = set().union(*(c.dh for c in candidates))
+    wanted = list(layout.frames) + list(layout.cameras) + sorted(union)
+    needed = core.generic_rank(nominal_model(robot, layout), layout, K, wanted)
+    check_enough_poses(K, layout, needed)
     n_train = K - int(np.bincount(fid).max())
-    if n_train * rpp < setup.n_needed:
-        raise DataError(f"too few poses for {folds}-fold cross-validation: training sets of {n_train} poses x {rpp} "
-                        f"rows = {n_train * rpp} equations for {setup.n_needed} parameters; use fewer folds or "
-                        f"more poses")
-    outer = np.stack([fid != o for o in range(folds)])
+    if n_train * layout.rows < needed:
+        raise DataError(
+            f"too few poses for {F}-fold cross-validation: training sets of {n_train} poses x "
+            f"{layout.rows} rows = {n_train * layout.rows} equations for {needed} parameters; use fewer "
+            f"folds or more poses",
+            option="folds",
+        )
+    nested = len(candidates) > 1 and K <= opts.nested_max_poses
+    outer = np.stack([fid != o for o in range(F)])
     inner, inner_of = [], []
-    if len(candidates) > 1:
-        for o in range(folds):
+    if nested:
+        for o in range(F):
             idx = np.flatnonzero(outer[o])
-            if len(idx) < folds:
-                raise DataError(f"too few poses ({K}) for nested {folds}-fold cross-validation")
-            sub = fold_ids(len(idx), folds, seed + 1 + o)
-            for i in range(folds):
+            sub = fold_ids(len(idx), F, opts.seed + 1 + o)
+            for i in range(F):
                 msk = np.zeros(K, bool)
                 msk[idx[sub != i]] = True
                 inner.append(msk)
                 inner_of.append(o)
-    masks = np.concatenate([outer, np.array(inner).reshape(-1, K), np.ones((1, K), bool)])
-    res = fit_many(setup, masks, candidates)
-    meas_b = measured[None]
-    # frames only (stage A) and candidates (stage B): errors of every pose under every fit
-    fpe, fre = pose_errors(res["frames"]["pred"], meas_b)               # (S, K)
-    pe, re = pose_errors(res["pred"], measured[None, None])             # (S, C, K)
-    held_outer = ~outer
-    scores, cv_table = [], []
-    for c, cand in enumerate(candidates):
-        st = _pooled(pe[:folds, c], re[:folds, c], held_outer)
-        tr = _pooled(pe[:folds, c], re[:folds, c], outer)
-        scores.append(st["pos_rms_mm"])
-        cv_table.append({"name": cand.name, "heldout_rms_mm": st["pos_rms_mm"], "heldout_max_mm": st["pos_max_mm"],
-                         "heldout_rot_rms_deg": st["rot_rms_deg"], "train_rms_mm": tr["pos_rms_mm"],
-                         "converged": bool(res["ok"][:folds, c].all())})
-    c_final = _choose(scores, candidates)
-    # nested: per outer fold, choose on its inner folds, evaluate on the outer held-out fold
-    nested_pe, nested_re = np.zeros(K), np.zeros(K)
-    nested_choice = []
-    for o in range(folds):
-        if len(candidates) > 1:
-            rows_o = [folds + j for j, oo in enumerate(inner_of) if oo == o]
-            ho_o = ~masks[rows_o] & outer[o]
-            sc = [_rms(pe[rows_o, c][ho_o]) for c in range(len(candidates))]
-            c_o = _choose(sc, candidates)
-        else:
-            c_o = 0
-        nested_choice.append(candidates[c_o].name)
-        nested_pe[~outer[o]] = pe[o, c_o, ~outer[o]]
-        nested_re[~outer[o]] = re[o, c_o, ~outer[o]]
-    f_pe, f_re = np.zeros(K), np.zeros(K)
-    for o in range(folds):
-        f_pe[~outer[o]] = fpe[o, ~outer[o]]
-        f_re[~outer[o]] = fre[o, ~outer[o]]
+    masks = np.concatenate([outer, np.array(inner, bool).reshape(-1, K), np.ones((1, K), bool)])
+    S = len(masks)
+    ref = core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
+    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
+    ref_all = core.member(ref, S - 1)
+    J0, pos0 = core.analyse(ref_all, layout, q)
+    check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
+    ident = core.identify(J0, layout)
+    fw = masks.astype(float)
+    q_, t_ = q, target
 
-    # the final model: all poses, chosen candidate
-    S = len(masks) - 1
-    delta, B, X = res["delta"][S, c_final], res["B"][S, c_final], res["X"][S, c_final]
-    cal = robot.replace(dh=np.asarray(robot.dh) + delta, base=B, tool=X, name=f"{robot.name}-calibrated")
-    frames_only = robot.replace(base=res["frames"]["B"][S], tool=res["frames"]["X"][S])
-    sig = res["sigmas"][S]
-    chosen_camera = candidates[c_final].camera
-    cam = res["camera"][S, c_final][:n_params(chosen_camera)]
-    deltas, cond = standard_errors(setup, cal, candidates[c_final], sig, res["B_init"][S], res["X_init"][S], delta,
-                                   cam, chosen_camera)
-    cam_names = camera_param_names(chosen_camera)
-    names = setup.names
-    active_dh = [names[i] for i in setup.free[:setup.n_dh_free] if i in candidates[c_final].dh]
-    tr_pe, tr_re = pe[S, c_final], re[S, c_final]
+    # stage A: frames only, all poses, then every training set from there
+    C, T = len(candidates), S - 1
+    chunk = core.chunk_size(max(T * C, C, S), K, layout, opts.memory_mb)
+    run = dict(J0=J0, chunk=chunk, memory_mb=opts.memory_mb, progress=progress)
+    unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), S, 0)
+    pa = np.repeat(prior_of(layout, ident, None, frames_only=True)[None], S, 0)
+    a_all = core.run_members(cfg, core.take(ref, [T]), q_, t_, fw[[T]], unit[[T]], pa[[T]], **run, label="frames only")
+    a_folds = core.run_members(
+        cfg,
+        core.take(ref, np.arange(T)),
+        q_,
+        t_,
+        fw[:T],
+        unit[:T],
+        pa[:T],
+        x0=core.relative_x(core.take(ref, np.arange(T)), layout, a_all["model"]),
+        **run,
+        label="frames only, training sets",
+    )
+    a = {k: np.concatenate([a_folds[k], a_all[k]]) for k in ("x", "converged", "pos_err", "rot_err")}
+    refB = jax.tree.map(lambda u, v: np.concatenate([u, v]), a_folds["model"], a_all["model"])
+    sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
+    if opts.sigma_pos_mm is not None:
+        sig[:, 0] = opts.sigma_pos_mm
+    if opts.sigma_rot_rad is not None:
+        sig[:, 1] = opts.sigma_rot_rad
+
+    # stage B: every candidate on all poses, then on every training set from there (the same
+    # optimum, reached in a few steps)
+    priors = np.stack([prior_of(layout, ident, c) for c in candidates])
+    w_all = core.weights_of(layout, sig[[T]])
+    allp = core.run_members(
+        cfg,
+        core.take(refB, np.full(C, T)),
+        q_,
+        t_,
+        np.repeat(fw[[T]], C, 0),
+        np.repeat(w_all, C, 0),
+        priors,
+        opts.loss_scale,
+        **run,
+        label="candidates, all poses",
+    )
+    pick = np.repeat(np.arange(T), C)
+    models_b = core.take(refB, pick)
+    start = core.relative_x(models_b, layout, core.take(allp["model"], np.tile(np.arange(C), T)))
+    b = core.run_members(
+        cfg,
+        models_b,
+        q_,
+        t_,
+        fw[pick],
+        core.weights_of(layout, sig[pick]),
+        np.tile(priors, (T, 1)),
+        opts.loss_scale,
+        x0=start,
+        **run,
+        label="cross-validation",
+    )
+    pe = b["pos_err"].reshape(T, C, K, -1)
+    re = np.degrees(b["rot_err"].reshape(T, C, K))
+    held = ~outer
+    cv_table, scores = [], []
+    for c, cand in enumerate(candidates):
+        h_pe, t_pe = pe[:F, c][held], pe[:F, c][outer]
+        cv_table.append(
+            {
+                "name": cand.name,
+                "heldout_rms_mm": _rms(h_pe),
+                "heldout_max_mm": float(h_pe.max()),
+                "heldout_rot_rms_deg": None if n_points else _rms(re[:F, c][held]),
+                "train_rms_mm": _rms(t_pe),
+                "converged": bool(b["converged"].reshape(T, C)[:F, c].all()),
+            }
+        )
+        scores.append(_rms(h_pe))
+    c_final = choose(scores, candidates)
+    nested_pe, nested_re = np.zeros(pe.shape[2:]), np.zeros(K)
+    nested_choice = []
+    for o in range(F):
+        if nested:
+            rows_o = [F + j for j, oo in enumerate(inner_of) if oo == o]
+            ho = ~masks[rows_o] & outer[o]
+            c_o = choose([_rms(pe[rows_o, c][ho]) for c in range(C)], candidates)
+        else:
+            c_o = c_final
+        nested_choice.append(candidates[c_o].name)
+        nested_pe[held[o]] = pe[o, c_o][held[o]]
+        nested_re[held[o]] = re[o, c_o][held[o]]
+    f_pe = np.zeros_like(nested_pe)
+    f_re = np.zeros(K)
+    for o in range(F):
+        f_pe[held[o]] = a["pos_err"][o][held[o]]
+        f_re[held[o]] = np.degrees(a["rot_err"][o][held[o]])
+
+    # the final model: all poses, the chosen candidate
+    cand = candidates[c_final]
+    prior = priors[c_final]
+    fin = {k: v[[c_final]] for k, v in allp.items() if k != "model"}
+    full = core.wrapped(core.member(allp["model"], c_final), robot)
+    x_rel = core.relative_x(ref_all, layout, full)  # DH to the nominal table, frames to the guess
+    model = full
+    if cand.camera != layout.camera:  # the chosen camera model is a prefix of the largest
+        model = Model(
+            full.robot, full.points, np.asarray(full.camera_params)[: camera_size(cand.camera)], camera=cand.camera
+        )
+    st = core.fit_statistics(
+        J0, w_all[0], fw[T], fin["norms"][0], loss=opts.loss, loss_scale=opts.loss_scale, rows=layout.rows
+    )
+    cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
+    active = list(estimated(prior))
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    names, units = layout.names(), layout.units()
+    deltas = {names[i]: (float(x_rel[i]), float(se[i]), units[i]) for i in active}
+    cam_names = [names[i] for i in layout.cameras[: camera_size(cand.camera)]]
+    cond = core.condition_number(st["normal"], active)
+    frames_only = core.described(core.member(refB, T), robot).robot
+    tr_pe, tr_re = fin["pos_err"][0], np.degrees(fin["rot_err"][0])
+    rot = n_points == 0
+    train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], n_points=n_points)
+    why = judge(robot, q, target, n_points, layout, opts, train, x_rel, active)
     rep = {
-        "robot": robot.name, "poses": K, "position_only": position_only, "method": method, "folds": folds,
-        "seed": seed, "estimate_base": estimate_base, "estimate_tool": estimate_tool,
-        "choice": candidates[c_final].name, "choice_rule": "lowest K-fold held-out position RMS; a simpler set "
-        "within 1% wins", "nested_choices": nested_choice,
-        "train_rms_mm": _rms(tr_pe), "train_max_mm": float(tr_pe.max()),
-        "train_rot_rms_deg": None if position_only else _rms(tr_re),
-        "heldout_rms_mm": _rms(nested_pe), "heldout_max_mm": float(nested_pe.max()),
-        "heldout_median_mm": float(np.median(nested_pe)),
-        "heldout_rot_rms_deg": None if position_only else _rms(nested_re),
-        "frames_only_train_rms_mm": _rms(fpe[S]), "frames_only_train_max_mm": float(fpe[S].max()),
-        "frames_only_train_rot_rms_deg": None if position_only else _rms(fre[S]),
-        "frames_only_heldout_rms_mm": _rms(f_pe), "frames_only_heldout_max_mm": float(f_pe.max()),
-        "frames_only_heldout_median_mm": float(np.median(f_pe)),
-        "frames_only_heldout_rot_rms_deg": None if position_only else _rms(f_re),
+        "robot": robot.name,
+        "data": getattr(data, "source", "arrays"),
+        "units": list(getattr(data, "units", ("mm", "rad"))),
+        "ignored_columns": list(getattr(data, "ignored", ())),
+        "poses": K,
+        "position_only": n_points > 0,
+        "points": n_points,
+        "method": opts.method,
+        "folds": F,
+        "seed": opts.seed,
+        "estimate_base": opts.estimate_base,
+        "estimate_tool": opts.estimate_tool,
+        "choice": cand.name,
+        "choice_rule": "lowest K-fold held-out position RMS; a simpler set within 1% wins",
+        "nested": nested,
+        "nested_choices": nested_choice,
+        "train_rms_mm": _rms(tr_pe),
+        "train_max_mm": float(tr_pe.max()),
+        "train_rot_rms_deg": _rms(tr_re) if rot else None,
+        "heldout_rms_mm": _rms(nested_pe),
+        "heldout_max_mm": float(nested_pe.max()),
+        "heldout_median_mm": float(np.median(np.sqrt(np.mean(nested_pe**2, -1)))),
+        "heldout_rot_rms_deg": _rms(nested_re) if rot else None,
+        "frames_only_train_rms_mm": _rms(a["pos_err"][T]),
+        "frames_only_train_max_mm": float(a["pos_err"][T].max()),
+        "frames_only_train_rot_rms_deg": _rms(np.degrees(a["rot_err"][T])) if rot else None,
+        "frames_only_heldout_rms_mm": _rms(f_pe),
+        "frames_only_heldout_max_mm": float(f_pe.max()),
+        "frames_only_heldout_median_mm": float(np.median(np.sqrt(np.mean(f_pe**2, -1)))),
+        "frames_only_heldout_rot_rms_deg": _rms(f_re) if rot else None,
         "cv": cv_table,
-        "camera_model": chosen_camera, "camera_model_option": camera,
+        "camera_model": cand.camera,
+        "camera_model_option": opts.camera,
         "camera_parameters": {k: {"value": deltas[k][0], "std_error": deltas[k][1]} for k in cam_names} or None,
-        "sigma_pos_mm": float(sig[0]), "sigma_rot_deg": None if position_only else float(np.degrees(sig[1])),
-        "parameters": {k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items()
-                       if k not in cam_names},
-        "estimated_dh": active_dh,
-        "unidentifiable": list(setup.ident.fixed_names),
-        "combinations": list(setup.ident.combinations),
+        "sigma_pos_mm": float(sig[T, 0]),
+        "sigma_rot_deg": float(np.degrees(sig[T, 1])) if rot else None,
+        "parameters": {
+            k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items() if k not in cam_names
+        },
+        "estimated_dh": [names[i] for i in active if i < layout.n_kin],
+        "unidentifiable": [n for n in ident.fixed_names if names.index(n) < layout.n_kin],
+        "not_estimated": {n: why for n, why in ident.reasons().items()},
+        "combinations": list(ident.combinations),
         "condition_number": cond,
-        "converged": bool(res["ok"][S, c_final]), "steps": int(res["steps"][S, c_final]),
-        "cv_fits_converged": int(res["ok"].sum() + res["frames"]["ok"].sum()),
-        "cv_fits": int(res["ok"].size + res["frames"]["ok"].size),
-        "base": frame_doc(B), "tool": frame_doc(X),
+        "converged": bool(fin["converged"][0]),
+        "steps": int(fin["steps"][0]),
+        "cv_fits_converged": int(np.sum(a["converged"]) + np.sum(b["converged"]) + np.sum(allp["converged"])),
+        "cv_fits": int(S + T * C + C),
+        "base": frame_doc(model.robot.base),
+        "tool": frame_doc(model.robot.tool),
+        "plausible": not why,
+        "implausible": why or None,
+        "notes": list(still_joint_notes(robot, q)),
     }
-    rows = np.arange(1, K + 1) if rows is None else np.asarray(rows)
-    per_pose = {"rows": rows, "frames_only_heldout": f_pe, "heldout": nested_pe, "frames_only_train": fpe[S],
-                "train": tr_pe, "frames_only_heldout_rot": f_re, "heldout_rot": nested_re,
-                "frames_only": frames_only}
-    return DataCalibration(robot=cal, nominal=robot, choice=candidates[c_final], report=rep, cv_table=cv_table,
-                           per_pose=per_pose, deltas=deltas)
+    if n_points:
+        rep["points_mm"] = np.asarray(model.points).tolist()
+        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.mean(nested_pe**2, 0))]
+    per_pose = {
+        "rows": rows_in_file,
+        "frames_only_heldout": _squeeze(f_pe),
+        "heldout": _squeeze(nested_pe),
+        "frames_only_train": _squeeze(a["pos_err"][T]),
+        "train": _squeeze(tr_pe),
+        "frames_only_heldout_rot": f_re,
+        "heldout_rot": nested_re,
+        "frames_only": frames_only,
+    }
+    return DataCalibration(
+        model=core.described(model, robot), nominal=robot, choice=cand, report=rep, per_pose=per_pose, deltas=deltas
+    )
+
+
+def _squeeze(a):
+    a = np.asarray(a)
+    return a[..., 0] if a.ndim == 2 and a.shape[-1] == 1 else a

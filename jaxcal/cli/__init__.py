@@ -1,27 +1,30 @@
-"""The ``jaxcal`` command line. Each sub-command lives in its own module and registers itself
-on the shared Typer ``app`` when imported below."""
+"""The ``jaxcal`` command line: each command parses its arguments, calls the library, and
+prints. One module per command."""
 
 from __future__ import annotations
 
-from ._app import app, console, err_console
-
-# --- sub-command modules (one line each) ---
-from . import _verify  # noqa: F401,E402
-from . import _calibrate  # noqa: F401,E402
-from . import _montecarlo  # noqa: F401,E402
-from . import _reproduce  # noqa: F401,E402
-# --- end of sub-command modules ---
+from . import _calibrate, _compensate, _info, _montecarlo, _reproduce, _verify  # noqa: F401  (register commands)
+from ._app import app, err_console, say_error, use_compilation_cache
 
 
 def main():
-    """Entry point: typed jaxcal errors print as one line, without a traceback, exit code 2."""
-    from ..errors import JaxcalError
+    """Entry point: a jaxcal error prints as one line, exit code 2 (3 for a fit that is not a
+    calibration); Ctrl-C as one line, 130."""
+    from ..errors import ImplausibleFitError, JaxcalError
 
     try:
+        use_compilation_cache()
         app()
+    except SystemExit as e:
+        if e.code == 130:  # typer's exit for Ctrl-C, silent by itself
+            err_console.print("interrupted: nothing was written", highlight=False)
+        raise
     except JaxcalError as e:
-        # soft_wrap: one line however long (rich would wrap at the terminal width); markup off so
-        # that brackets in the message ([tool].xyz, measured[3]) are printed as they are
+        # one line however long (rich would wrap at the terminal width); markup off so that
+        # brackets in the message ([tool].xyz, measured[3]) are printed as they are
         err_console.print("[red]error:[/red] ", end="", highlight=False)
-        err_console.print(str(e), highlight=False, markup=False, soft_wrap=True)
-        raise SystemExit(2)
+        err_console.print(say_error(str(e), e.option), highlight=False, markup=False, soft_wrap=True)
+        raise SystemExit(3 if isinstance(e, ImplausibleFitError) else 2) from None
+    except KeyboardInterrupt:
+        err_console.print("interrupted: nothing was written", highlight=False)
+        raise SystemExit(130) from None

@@ -1,17 +1,91 @@
-"""The Typer application and console shared by every ``jaxcal`` sub-command module."""
+"""The Typer application shared by every ``jaxcal`` command: consoles, progress display, the
+persistent compilation cache, and how library errors are said on the command line."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+from pathlib import Path
 
 import typer
 from rich.console import Console
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
-                  help="Calibrate the DH parameters of serial robot arms (JAX, float64).")
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Calibrate the geometry of serial robot arms (JAX, float64).",
+)
 console = Console()
 err_console = Console(stderr=True)
 
+FLAGS = {"camera": "--camera-model", "json_out": "--json", "data": "DATA", "robot": "ROBOT"}
+"""Library option names whose command-line spelling is not ``--`` + the name with dashes."""
+
+
+def flag(option: str) -> str:
+    return FLAGS.get(option, "--" + option.replace("_", "-"))
+
+
+def say_error(message: str, option: str | None) -> str:
+    """A library error in the command line's words: the option's name, where the message starts
+    with it or names it in parentheses, becomes its flag."""
+    if not option:
+        return message
+    if message.startswith(option):
+        message = flag(option) + message[len(option) :]
+    message = re.sub(rf'\b{option}="([^"]*)"', lambda m: f"{flag(option)} {m.group(1)}", message)
+    return message.replace(f"({option})", f"({flag(option)})")
+
+
+def use_compilation_cache() -> None:
+    """Keep JAX's compiled functions in the user's cache folder (``$XDG_CACHE_HOME/jaxcal/xla``,
+    or ``JAX_COMPILATION_CACHE_DIR``), so a second run of a command does not compile again."""
+    import jax
+
+    if jax.config.jax_compilation_cache_dir:
+        return
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    path = Path(root) / "jaxcal" / "xla"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return  # a read-only home: compile every time, as without the cache
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
+
 
 def load_robot_arg(robot: str):
-    """A robot TOML path or a preset name."""
-    from ..presets import PRESETS, preset
-    from ..robot_io import load_robot
+    """A robot file (TOML or URDF) or a preset name."""
+    from ..robot import PRESETS, load_robot, preset
 
     return preset(robot) if robot in PRESETS else load_robot(robot)
+
+
+@contextlib.contextmanager
+def progress(what: str):
+    """A ``progress(done, total, stage)`` callback drawing rich's progress bar on a terminal;
+    silent in pipes and CI (rich draws nothing where the console is not a terminal)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    if not console.is_terminal:
+        yield None
+        return
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    )
+    tasks: dict[str, int] = {}
+
+    def update(done: int, total: int, stage: str) -> None:
+        if stage not in tasks:
+            tasks[stage] = bar.add_task(f"{what}: {stage}", total=total)
+        bar.update(tasks[stage], completed=done, total=total)
+
+    with bar:
+        yield update

@@ -22,26 +22,32 @@ def reproduce(
     repeats: int = typer.Option(30, "--repeats", help="timed runs per method"),
 ):
     """Reproduce the paper's simulation experiment on its Table 1 arm (Table 2, Figs. 3-6)."""
-    from ..experiments.reproduce import METHODS, run_reproduce
+    from .._io import check_writable
+    from ..experiments import run_reproduce
 
-    from ..errors import DataError
-
-    if not (noise_mm >= 0 and noise_rad >= 0):
-        raise DataError(f"--noise-mm and --noise-rad must be >= 0, got {noise_mm}, {noise_rad}")
-    if pairs < 1 or inspect < 1 or repeats < 1:
-        raise DataError(f"--pairs, --inspect and --repeats must be >= 1, got {pairs}, {inspect}, {repeats}")
+    check_writable(out / "summary.json", "out")
     with console.status("starting") as status:
-        s = run_reproduce(out, seed=seed, sigma_pos=noise_mm, sigma_rot=noise_rad, n_pairs=pairs,
-                          n_inspect=inspect, repeats=repeats, progress=lambda m: status.update(m))
+        s = run_reproduce(
+            out,
+            seed=seed,
+            sigma_pos=noise_mm,
+            sigma_rot=noise_rad,
+            n_pairs=pairs,
+            n_inspect=inspect,
+            repeats=repeats,
+            progress=lambda m: status.update(m),
+        )
     t = Table(title=f"Table 2 (injected = paper's 'traditional' column), noise {noise_mm:g} mm / {noise_rad:g} rad")
-    cols = ["parameter", "true"] + list(METHODS)
+    METHODS = list(s["time_s"])
+    cols = ["parameter", "true"] + METHODS
     short = {"elimination": "elim.", "elimination-literal": "elim. literal"}
     for c in cols:
         t.add_column(short.get(c, c), justify="right")
     with open(out / "table2.csv") as f:
         for row in csv.DictReader(f):
-            mark = {"yes": "", "combination": " *"}.get(row["identifiable"], " (fixed)" if "fixed" in
-                                                          row["identifiable"] else " (in *)")
+            mark = {"yes": "", "combination": " *"}.get(
+                row["identifiable"], " (fixed)" if "fixed" in row["identifiable"] else " (in *)"
+            )
             t.add_row(row["parameter"] + mark, *(f"{float(row[c]):.6g}" for c in cols[1:]))
     console.print(t)
     s2 = Table(title="Inspection set and timing")
@@ -49,11 +55,22 @@ def reproduce(
         s2.add_column(c, justify="right")
     s2.add_row("nominal", f"{s['inspection_rms_mm']['nominal']:.4g}", "", "", "", "")
     for mth in METHODS:
-        s2.add_row(mth, f"{s['inspection_rms_mm'][mth]:.3g}", f"{s['max_param_error'][mth]:.3g}",
-                   f"{s['time_s'][mth] * 1e3:.3f}", f"{s['compile_s'][mth]:.2f}",
-                   f"{s['num_steps'][mth]}" + ("" if mth in ("linear", "elimination-literal") else
-                                               (" (converged)" if s["converged"][mth] else " (NOT converged)")))
+        s2.add_row(
+            mth,
+            f"{s['inspection_rms_mm'][mth]:.3g}",
+            f"{s['max_param_error'][mth]:.3g}",
+            f"{s['time_s'][mth] * 1e3:.3f}",
+            f"{s['compile_s'][mth]:.2f}",
+            f"{s['num_steps'][mth]}"
+            + (
+                ""
+                if mth in ("linear", "elimination-literal")
+                else (" (converged)" if s["converged"][mth] else " (NOT converged)")
+            ),
+        )
     console.print(s2)
-    console.print(f"* identifiable combination; fixed parameters are not identifiable (rank "
-                  f"{s['identifiable']['rank']}/{s['identifiable']['of']}). Wrote {out}/: table2.csv, "
-                  "fig3_x.png, fig4_y.png, fig5_z.png, fig6_time.png, summary.json")
+    console.print(
+        f"* identifiable combination; fixed parameters are not identifiable (rank "
+        f"{s['identifiable']['rank']}/{s['identifiable']['of']}). Wrote {out}/: table2.csv, "
+        "fig3_x.png, fig4_y.png, fig5_z.png, fig6_time.png, summary.json"
+    )

@@ -10,93 +10,110 @@ never used in calibration.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import statistics
-import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..calibrate import _sigmas, _solve_batch, identify
-from ..design import design_poses
+from .._io import write_atomic
+from ..calibration import Options, calibrate_batch, identify
 from ..error_model import perturb
 from ..kinematics import fk
-from ..presets import paper_6r
-from ..simulate import sample_poses, simulate
-from ..solvers import elimination
-from .machine import machine_info
+from ..robot import preset
+from ..simulation import sample_poses, simulate
+from ..solvers import design_poses, step_conditions
+from ._timing import machine_info, timed
 
 # Table 2, per joint, in jaxcal's order (theta, d, a, alpha); rad and mm.
-TABLE2_TRADITIONAL = np.array([
-    [0.00533251466, 0.03632714664, 0.04655832461, -0.00304622132],
-    [0.00795465466, 0.07986544668, -0.04672446465, 0.00346976216],
-    [0.00625973164, 0.02673468355, -0.03672479864, 0.00354361779],
-    [0.00254346944, 0.03179612134, 0.03489742168, -0.00386434867],
-    [0.00379643685, -0.05153420564, 0.03798613486, 0.00296120547],
-    [0.00272526803, 0.05345746395, 0.02604359755, 0.00364679616]])
-TABLE2_PAPER_METHOD = np.array([
-    [0.0053513684, 0.0365462379, 0.0426131686, -0.0030531436],
-    [0.0079457325, 0.0794546871, -0.0464634195, 0.0035372149],
-    [0.0062458734, 0.0269664734, -0.0646795362, 0.0035704687],
-    [0.0025095875, 0.0313465435, 0.0344986135, -0.0038144762],
-    [0.0038745186, -0.0575135439, 0.0374644675, 0.0029486467],
-    [0.0027892526, 0.0532546387, 0.0267691487, 0.0036670627]])
+TABLE2_TRADITIONAL = np.array(
+    [
+        [0.00533251466, 0.03632714664, 0.04655832461, -0.00304622132],
+        [0.00795465466, 0.07986544668, -0.04672446465, 0.00346976216],
+        [0.00625973164, 0.02673468355, -0.03672479864, 0.00354361779],
+        [0.00254346944, 0.03179612134, 0.03489742168, -0.00386434867],
+        [0.00379643685, -0.05153420564, 0.03798613486, 0.00296120547],
+        [0.00272526803, 0.05345746395, 0.02604359755, 0.00364679616],
+    ]
+)
+TABLE2_PAPER_METHOD = np.array(
+    [
+        [0.0053513684, 0.0365462379, 0.0426131686, -0.0030531436],
+        [0.0079457325, 0.0794546871, -0.0464634195, 0.0035372149],
+        [0.0062458734, 0.0269664734, -0.0646795362, 0.0035704687],
+        [0.0025095875, 0.0313465435, 0.0344986135, -0.0038144762],
+        [0.0038745186, -0.0575135439, 0.0374644675, 0.0029486467],
+        [0.0027892526, 0.0532546387, 0.0267691487, 0.0036670627],
+    ]
+)
 METHODS = ("linear", "gn", "elimination", "elimination-literal")
 
 
-def _timed(fn, repeats):
-    t0 = time.perf_counter()
-    out = jax.block_until_ready(fn())
-    first = time.perf_counter() - t0
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn())
-        runs.append(time.perf_counter() - t0)
-    return out, first, runs
-
-
-def run_reproduce(out_dir, *, seed: int = 0, sigma_pos: float = 0.0, sigma_rot: float = 0.0,
-                  n_pairs: int = 4, n_abs: int = 2, n_inspect: int = 30, repeats: int = 30,
-                  progress=None) -> dict:
+def run_reproduce(
+    out_dir,
+    *,
+    seed: int = 0,
+    sigma_pos: float = 0.0,
+    sigma_rot: float = 0.0,
+    n_pairs: int = 4,
+    n_abs: int = 2,
+    n_inspect: int = 30,
+    repeats: int = 30,
+    progress=None,
+) -> dict:
     """Run the experiment, write ``table2.csv``, ``fig3_x.png``, ``fig4_y.png``, ``fig5_z.png``,
     ``fig6_time.png`` and ``summary.json`` into ``out_dir``; return the summary."""
     from .. import plots
+    from ..errors import DataError
 
+    for name, v in (("noise_mm", sigma_pos), ("noise_rad", sigma_rot)):
+        if not (np.isfinite(v) and v >= 0):
+            raise DataError(f"{name} must be >= 0, got {v}", option=name)
+    for name, v in (("pairs", n_pairs), ("inspect", n_inspect), ("repeats", repeats)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise DataError(f"{name} must be an integer >= 1, got {v!r}", option=name)
     step = progress or (lambda s: None)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    robot = paper_6r()
+    robot = preset("paper-6r")
     noisy = sigma_pos > 0 or sigma_rot > 0
-    sp, sr = _sigmas(False, sigma_pos if noisy else None, sigma_rot if noisy else None)
+    # known frames (the paper has none); noise-free data weighted 1 mm : 1 mrad
+    sp, sr = (sigma_pos, sigma_rot) if noisy else (1.0, 1e-3)
     k_design, k_val = jax.random.split(jax.random.PRNGKey(seed))
     q = np.asarray(design_poses(k_design, robot, n_pairs=n_pairs, n_abs=n_abs))
     q_val = np.asarray(sample_poses(k_val, robot, (n_inspect,)))
     x_true = TABLE2_TRADITIONAL.ravel()
     step("simulating measurements")
-    sim = simulate(robot, n_robots=1, q=q, q_val=q_val, x_true=x_true, seed=seed + 1,
-                   sigma_pos=sigma_pos, sigma_rot=sigma_rot)
-    ident = identify(robot, q)
-    plan = elimination.make_plan(robot, q)
-    Q, M = jnp.asarray(sim.q), jnp.asarray(sim.measured)
+    sim = simulate(
+        robot, n_robots=1, q=q, q_val=q_val, x_true=x_true, seed=seed + 1, sigma_pos=sigma_pos, sigma_rot=sigma_rot
+    )
+    Q, M = sim.q, sim.measured
     m = 4 * robot.n_joints
 
     def core(method):
-        if method in ("linear", "gn"):
-            return lambda: _solve_batch(robot, Q, M, jnp.float64(sp), jnp.float64(sr), method=method,
-                                            free=tuple(ident.base), m=m, position_only=False, base=False,
-                                            tool=False, rtol=1e-8, atol=1e-10, max_steps=50)
-        return lambda: elimination.solve_batch(robot, Q, M, jnp.float64(sp), jnp.float64(sr), plan=plan,
-                                               literal=method == "elimination-literal")
+        opts = Options(
+            method=method,
+            params="all",
+            estimate_base=False,
+            estimate_tool=False,
+            sigma_pos_mm=sp,
+            sigma_rot_rad=sr,
+            max_steps=20 if method.startswith("elimination") else 50,
+        )
+        ident = identify(robot, q, opts)
+        return ident, lambda: calibrate_batch(robot, Q, M, opts, ident=ident)
 
     est, ok, nsteps, first_s, runs_s = {}, {}, {}, {}, {}
     for method in METHODS:
         step(f"calibrating: {method} (compile, then {repeats} timed runs)")
-        (x, conv, ns), first, runs = _timed(core(method), repeats)
-        est[method], ok[method], nsteps[method] = np.asarray(x[0]), bool(conv[0]), int(ns[0])
+        ident, call = core(method)
+        res, first, runs = timed(call, repeats)
+        est[method], ok[method], nsteps[method] = np.asarray(res.x[0]), bool(res.converged[0]), int(res.num_steps[0])
         first_s[method], runs_s[method] = first, runs
+    ident = identify(robot, q, Options(estimate_base=False, estimate_tool=False))
 
     step("evaluating on the inspection poses")
     C = ident.combination_matrix
@@ -107,31 +124,49 @@ def run_reproduce(out_dir, *, seed: int = 0, sigma_pos: float = 0.0, sigma_rot: 
     for method in METHODS:
         model = perturb(robot, jnp.asarray(est[method]))
         dev[method] = np.asarray(fk(model, jnp.asarray(q_val)))[:, :3, 3] - p_true
-    rms = {k: float(np.sqrt(np.mean(np.sum(v ** 2, -1)))) for k, v in dev.items()}
+    rms = {k: float(np.sqrt(np.mean(np.sum(v**2, -1)))) for k, v in dev.items()}
     max_err = {k: float(np.abs(est[k][base] - target).max()) for k in METHODS}
 
     _write_table(out / "table2.csv", robot, ident, x_true, est)
     for i, (axis, fname) in enumerate((("x", "fig3_x.png"), ("y", "fig4_y.png"), ("z", "fig5_z.png"))):
-        plots.axis_deviation(out / fname, axis, {k: v[:, i] for k, v in dev.items()},
-                             title=f"Deviation in {axis} of the end position on {n_inspect} inspection poses"
-                                   f" (noise {sigma_pos:g} mm, {sigma_rot:g} rad)")
+        plots.axis_deviation(
+            out / fname,
+            axis,
+            {k: v[:, i] for k, v in dev.items()},
+            title=f"Deviation in {axis} of the end position on {n_inspect} inspection poses"
+            f" (noise {sigma_pos:g} mm, {sigma_rot:g} rad)",
+        )
     compile_s = {k: max(first_s[k] - statistics.median(runs_s[k]), 0.0) for k in METHODS}
-    plots.timing(out / "fig6_time.png", {k: [t * 1e3 for t in v] for k, v in runs_s.items()}, compile_s,
-                 title=f"Calibration time, {len(q)} poses, {repeats} runs each")
+    plots.timing(
+        out / "fig6_time.png",
+        {k: [t * 1e3 for t in v] for k, v in runs_s.items()},
+        compile_s,
+        title=f"Calibration time, {len(q)} poses, {repeats} runs each",
+    )
     summary = {
-        "robot": robot.name, "n_calibration_poses": int(len(q)), "n_inspection_poses": n_inspect,
+        "robot": robot.name,
+        "n_calibration_poses": int(len(q)),
+        "n_inspection_poses": n_inspect,
         "design": {"n_pairs": n_pairs, "n_abs": n_abs},
-        "noise": {"sigma_pos_mm": sigma_pos, "sigma_rot_rad": sigma_rot}, "seed": seed,
-        "inspection_rms_mm": rms, "max_param_error": max_err,
+        "noise": {"sigma_pos_mm": sigma_pos, "sigma_rot_rad": sigma_rot},
+        "seed": seed,
+        "inspection_rms_mm": rms,
+        "max_param_error": max_err,
         "time_s": {k: statistics.median(v) for k, v in runs_s.items()},
         "time_s_min_max": {k: [min(v), max(v)] for k, v in runs_s.items()},
-        "compile_s": compile_s, "converged": ok, "num_steps": nsteps,
-        "identifiable": {"rank": ident.rank, "of": m, "fixed": [ident.names[i] for i in ident.fixed],
-                         "combinations": list(ident.combinations)},
-        "elimination_step_conditions": elimination.step_conditions(robot, q),
+        "compile_s": compile_s,
+        "converged": ok,
+        "num_steps": nsteps,
+        "identifiable": {
+            "rank": ident.rank,
+            "of": m,
+            "fixed": [ident.names[i] for i in ident.fixed],
+            "combinations": list(ident.combinations),
+        },
+        "elimination_step_conditions": step_conditions(robot, q),
         "machine": machine_info(),
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    write_atomic(out / "summary.json", json.dumps(summary, indent=2, default=float))
     return summary
 
 
@@ -140,26 +175,48 @@ def _write_table(path, robot, ident, x_true, est):
     fixed = set(ident.fixed)
     C = ident.combination_matrix
     in_combination = {b for k, b in enumerate(ident.base) if np.count_nonzero(np.abs(C[k]) > 1e-12) > 1}
-    status = lambda i: ("no (fixed at 0; see combination)" if i in fixed else
-                        "only in combination (see below)" if i in in_combination else "yes")
+    status = lambda i: (
+        "no (fixed at 0; see combination)"
+        if i in fixed
+        else "only in combination (see below)"
+        if i in in_combination
+        else "yes"
+    )
     rows = []
     for i, name in enumerate(names):
         j, p = divmod(i, 4)
-        rows.append({"joint": j + 1, "parameter": name, "unit": "rad" if p in (0, 3) else "mm",
-                     "identifiable": status(i),
-                     "true": x_true[i], "paper_traditional": TABLE2_TRADITIONAL[j, p],
-                     "paper_method": TABLE2_PAPER_METHOD[j, p], **{m: est[m][i] for m in METHODS}})
+        rows.append(
+            {
+                "joint": j + 1,
+                "parameter": name,
+                "unit": "rad" if p in (0, 3) else "mm",
+                "identifiable": status(i),
+                "true": x_true[i],
+                "paper_traditional": TABLE2_TRADITIONAL[j, p],
+                "paper_method": TABLE2_PAPER_METHOD[j, p],
+                **{m: est[m][i] for m in METHODS},
+            }
+        )
     C = ident.combination_matrix
     for k, b in enumerate(ident.base):
         coeffs = C[k]
         if np.count_nonzero(np.abs(coeffs) > 1e-12) > 1:
             label = next((c for c in ident.combinations if c.startswith(names[b])), names[b])
-            rows.append({"joint": "", "parameter": label, "unit": "mm/rad", "identifiable": "combination",
-                         "true": coeffs @ x_true, "paper_traditional": coeffs @ TABLE2_TRADITIONAL.ravel(),
-                         "paper_method": coeffs @ TABLE2_PAPER_METHOD.ravel(),
-                         **{m: est[m][b] for m in METHODS}})
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (repr(float(v)) if isinstance(v, (float, np.floating)) else v) for k, v in r.items()})
+            rows.append(
+                {
+                    "joint": "",
+                    "parameter": label,
+                    "unit": "mm/rad",
+                    "identifiable": "combination",
+                    "true": coeffs @ x_true,
+                    "paper_traditional": coeffs @ TABLE2_TRADITIONAL.ravel(),
+                    "paper_method": coeffs @ TABLE2_PAPER_METHOD.ravel(),
+                    **{m: est[m][b] for m in METHODS},
+                }
+            )
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (repr(float(v)) if isinstance(v, (float, np.floating)) else v) for k, v in r.items()})
+    write_atomic(path, buf.getvalue())

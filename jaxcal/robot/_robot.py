@@ -1,6 +1,7 @@
 """The robot model: a DH table as an equinox Module, with base and tool frames.
 
-Units inside jaxcal are millimetres and radians; :mod:`jaxcal.robot_io` converts at the edges.
+Units inside jaxcal are millimetres and radians; the file readers convert at the edges and
+remember the file's units, so data files and written models follow them.
 """
 
 from __future__ import annotations
@@ -10,10 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._config import as_f64
-from .errors import RobotFileError
+from .._config import as_f64
+from ..errors import RobotFileError
 
 CONVENTIONS = ("sdh", "mdh")
+LENGTH_UNITS = {"mm": 1.0, "m": 1000.0}
+ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 JOINT_TYPES = ("R", "P")
 DH_NAMES = ("theta", "d", "a", "alpha")
 
@@ -39,9 +42,25 @@ class Robot(eqx.Module):
     convention: str = eqx.field(static=True)
     joint_types: tuple[str, ...] = eqx.field(static=True)
     name: str = eqx.field(static=True, default="robot")
+    joint_names: tuple[str, ...] = eqx.field(static=True, default=())
+    """Names of the joints (data columns may use them); ``q1..qn`` unless the file names them."""
+    units: tuple[str, str] = eqx.field(static=True, default=("mm", "rad"))
+    """``(length, angle)`` units of the file the robot came from: data files are read in them
+    unless told otherwise, and a calibrated robot is written in them."""
 
-    def __init__(self, dh, *, convention="sdh", joint_types=None, base=None, tool=None,
-                 q_limits=None, name="robot"):
+    def __init__(
+        self,
+        dh,
+        *,
+        convention="sdh",
+        joint_types=None,
+        base=None,
+        tool=None,
+        q_limits=None,
+        name="robot",
+        joint_names=None,
+        units=("mm", "rad"),
+    ):
         dh = as_f64(dh, "dh")
         if dh.ndim != 2 or dh.shape[1] != 4:
             raise RobotFileError(f"dh must have shape (n_joints, 4) = (theta, d, a, alpha), got {dh.shape}")
@@ -75,6 +94,17 @@ class Robot(eqx.Module):
         self.convention = convention
         self.joint_types = joint_types
         self.name = str(name)
+        joint_names = tuple(f"q{i + 1}" for i in range(n)) if joint_names is None else tuple(map(str, joint_names))
+        if len(joint_names) != n or len(set(joint_names)) != n:
+            raise RobotFileError(f"joint_names must be {n} distinct names, got {joint_names}")
+        self.joint_names = joint_names
+        units = tuple(units)
+        if len(units) != 2 or units[0] not in LENGTH_UNITS or units[1] not in ANGLE_UNITS:
+            raise RobotFileError(
+                f"units must be (length, angle) with length in {list(LENGTH_UNITS)} and angle "
+                f"in {list(ANGLE_UNITS)}, got {units}"
+            )
+        self.units = units
 
     # -- views --------------------------------------------------------------------------
     @property
@@ -98,8 +128,18 @@ class Robot(eqx.Module):
         return self.dh[..., 3]
 
     @property
-    def revolute_mask(self) -> Float[Array, "n"]:
+    def revolute_mask(self) -> Float[Array, " n"]:
         return jnp.array([t == "R" for t in self.joint_types], dtype=jnp.float64)
+
+    def reach(self) -> float:
+        """A rough size of the arm in mm: the DH lengths, the tool offset and the prismatic
+        strokes added up (the scale that judges residuals and parameter changes)."""
+        dh = np.asarray(self.dh)
+        lim = np.asarray(self.q_limits)
+        stroke = sum(float(lim[i, 1] - lim[i, 0]) for i, t in enumerate(self.joint_types) if t == "P")
+        return float(
+            np.abs(dh[:, 1]).sum() + np.abs(dh[:, 2]).sum() + np.linalg.norm(np.asarray(self.tool)[:3, 3]) + stroke
+        )
 
     def param_names(self) -> list[str]:
         """Names of the 4n DH parameters in the order of :meth:`dh` flattened row-major."""
@@ -107,10 +147,38 @@ class Robot(eqx.Module):
 
     def replace(self, **kw) -> "Robot":
         """A validated copy with some fields replaced (never mutates ``self``; not for jit)."""
-        args = dict(dh=self.dh, convention=self.convention, joint_types=self.joint_types,
-                    base=self.base, tool=self.tool, q_limits=self.q_limits, name=self.name)
+        args = dict(
+            dh=self.dh,
+            convention=self.convention,
+            joint_types=self.joint_types,
+            base=self.base,
+            tool=self.tool,
+            q_limits=self.q_limits,
+            name=self.name,
+            joint_names=self.joint_names,
+            units=self.units,
+        )
         args.update(kw)
         return Robot(**args)
+
+    def with_meta(self, name: str = "robot", joint_names=None, units=("mm", "rad")) -> "Robot":
+        """The same kinematics (arrays untouched, any leading batch axes kept) with other
+        descriptive fields, without validating again. Compiled functions are specialised on
+        the static fields: stripping the description lets robots of one structure share them."""
+        new = object.__new__(Robot)
+        for f in ("dh", "base", "tool", "q_limits", "convention", "joint_types"):
+            object.__setattr__(new, f, getattr(self, f))
+        n = len(self.joint_types)
+        object.__setattr__(new, "name", name)
+        object.__setattr__(
+            new, "joint_names", tuple(f"q{i + 1}" for i in range(n)) if joint_names is None else tuple(joint_names)
+        )
+        object.__setattr__(new, "units", tuple(units))
+        return new
+
+    def stripped(self) -> "Robot":
+        """:meth:`with_meta` with the default description: the structure alone."""
+        return self.with_meta()
 
     def with_dh_delta(self, delta: Float[Array, "n 4"]) -> "Robot":
         return eqx.tree_at(lambda r: r.dh, self, self.dh + delta)

@@ -28,14 +28,15 @@ from pathlib import Path
 import numpy as np
 import tomli_w
 
-from .errors import RobotFileError
-from .lie import matrix_to_rpy, rpy_to_matrix
-from .robot import Robot
+from .._io import write_atomic
+from ..errors import RobotFileError
+from ..lie import matrix_to_rpy, rpy_to_matrix
+from ._robot import ANGLE_UNITS as ANGLE
+from ._robot import LENGTH_UNITS as LENGTH
+from ._robot import Robot
 
-LENGTH = {"mm": 1.0, "m": 1000.0}
-ANGLE = {"rad": 1.0, "deg": math.pi / 180.0}
-TOP_KEYS = {"name", "convention", "length_unit", "angle_unit", "joints", "tool", "base"}
-JOINT_KEYS = {"theta", "d", "a", "alpha", "type", "limits"}
+TOP_KEYS = {"name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration"}
+JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits"}
 FRAME_KEYS = {"xyz", "rpy"}
 
 
@@ -82,7 +83,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
     joints = doc.get("joints")
     if not isinstance(joints, list) or not joints:
         raise RobotFileError(f"{source}: needs at least one [[joints]] table")
-    dh, types, limits = [], [], []
+    dh, types, limits, names = [], [], [], []
     for i, j in enumerate(joints, start=1):
         if not isinstance(j, dict):
             raise RobotFileError(f"{source}: joint {i} is not a table")
@@ -92,11 +93,21 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
         missing = [k for k in ("theta", "d", "a", "alpha") if k not in j]
         if missing:
             raise RobotFileError(f"{source}: joint {i}: missing {', '.join(missing)}")
+        jname = j.get("name", f"q{i}")
+        if not isinstance(jname, str) or not jname:
+            raise RobotFileError(f"{source}: joint {i}: name must be a non-empty string, got {jname!r}")
+        names.append(jname)
         jt = j.get("type", "R")
         if jt not in ("R", "P"):
             raise RobotFileError(f"{source}: joint {i}: type must be 'R' or 'P', got {jt!r}")
-        dh.append([_num(j["theta"], f"joint {i} theta") * au, _num(j["d"], f"joint {i} d") * lu,
-                   _num(j["a"], f"joint {i} a") * lu, _num(j["alpha"], f"joint {i} alpha") * au])
+        dh.append(
+            [
+                _num(j["theta"], f"joint {i} theta") * au,
+                _num(j["d"], f"joint {i} d") * lu,
+                _num(j["a"], f"joint {i} a") * lu,
+                _num(j["alpha"], f"joint {i} alpha") * au,
+            ]
+        )
         types.append(jt)
         lim = j.get("limits", None)
         scale = au if jt == "R" else lu
@@ -111,8 +122,17 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
     name = doc.get("name", "robot")
     if not isinstance(name, str):
         raise RobotFileError(f"{source}: name must be a string")
-    return Robot(np.array(dh), convention=conv, joint_types=types, base=base, tool=tool,
-                 q_limits=np.array(limits), name=name)
+    return Robot(
+        np.array(dh),
+        convention=conv,
+        joint_types=types,
+        base=base,
+        tool=tool,
+        q_limits=np.array(limits),
+        name=name,
+        joint_names=names,
+        units=(lu_name, au_name),
+    )
 
 
 def load_robot(path) -> Robot:
@@ -128,24 +148,44 @@ def load_robot(path) -> Robot:
     return robot_from_dict(doc, source=str(path))
 
 
-def robot_to_dict(robot: Robot) -> dict:
-    """A TOML-ready document in mm and rad (full float precision)."""
-    dh = np.asarray(robot.dh)
-    lim = np.asarray(robot.q_limits)
-    doc = {"name": robot.name, "convention": robot.convention, "length_unit": "mm", "angle_unit": "rad",
-           "joints": [{"theta": float(r[0]), "d": float(r[1]), "a": float(r[2]), "alpha": float(r[3]),
-                       "type": t, "limits": [float(lim[i, 0]), float(lim[i, 1])]}
-                      for i, (r, t) in enumerate(zip(dh, robot.joint_types))]}
+def robot_to_dict(robot: Robot, *, comment: dict | None = None) -> dict:
+    """A TOML-ready document in the robot's own units (``robot.units``, full float precision);
+    ``comment`` adds a ``[calibration]`` table that says how the values were obtained."""
+    lu_name, au_name = robot.units
+    lu, au = LENGTH[lu_name], ANGLE[au_name]
+    dh = np.asarray(robot.dh) / np.array([au, lu, lu, au])
+    lim = np.asarray(robot.q_limits) / np.array([[au if t == "R" else lu] for t in robot.joint_types])
+    doc = {
+        "name": robot.name,
+        "convention": robot.convention,
+        "length_unit": lu_name,
+        "angle_unit": au_name,
+        "joints": [
+            {
+                "name": robot.joint_names[i],
+                "theta": float(r[0]),
+                "d": float(r[1]),
+                "a": float(r[2]),
+                "alpha": float(r[3]),
+                "type": t,
+                "limits": [float(lim[i, 0]), float(lim[i, 1])],
+            }
+            for i, (r, t) in enumerate(zip(dh, robot.joint_types))
+        ],
+    }
     for key in ("tool", "base"):
         T = np.asarray(getattr(robot, key))
         if not np.allclose(T, np.eye(4), atol=0, rtol=0):
-            doc[key] = {"xyz": [float(v) for v in T[:3, 3]],
-                        "rpy": [float(v) for v in np.asarray(matrix_to_rpy(T[:3, :3]))]}
+            doc[key] = {
+                "xyz": [float(v) / lu for v in T[:3, 3]],
+                "rpy": [float(v) / au for v in np.asarray(matrix_to_rpy(T[:3, :3]))],
+            }
+    if comment:
+        doc["calibration"] = dict(comment)
     return doc
 
 
-def save_robot(robot: Robot, path) -> None:
-    """Write a robot TOML file (mm, rad)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(tomli_w.dumps(robot_to_dict(robot)))
+def save_robot(robot: Robot, path, *, comment: dict | None = None) -> None:
+    """Write a robot TOML file in the robot's own units, atomically (a reader never sees half a
+    file, and an existing file is replaced only once the new one is complete)."""
+    write_atomic(path, tomli_w.dumps(robot_to_dict(robot, comment=comment)))

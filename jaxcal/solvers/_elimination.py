@@ -4,14 +4,14 @@ Error model (eq. 10, adjoint form): the spatial error twist of a pose is
 $\\xi(q) = \\sum_i J_i(q) x_i$, with joint ``i``'s columns $J_i = \\mathrm{Ad}(T_i)\\,\\mathrm{vee}(\\Omega_i)$
 (:func:`jaxcal.error_model.twist_jacobian`). In SDH, the ``theta_i``/``d_i`` columns are twists
 about/along ``z_{i-1}`` and depend only on ``q_1..q_{i-1}``; the ``a_i``/``alpha_i`` columns
-depend on ``q_1..q_i``. A pair of poses sharing ``q_1..q_{n-2}`` (:mod:`jaxcal.design`) therefore
+depend on ``q_1..q_i``. A pair of poses sharing ``q_1..q_{n-2}`` (:func:`design_poses`) therefore
 has a difference $D = \\xi' - \\xi''$ (eq. 11) in which every column of joints ``1..n-2`` and the
 ``theta_{n-1}``, ``d_{n-1}`` columns vanish *exactly*; what is left are the 6 unknowns
 ``(theta_n, d_n, a_n, alpha_n, a_{n-1}, alpha_{n-1})`` plus later joints, already known. Steps
 ``n = N..2`` solve these blocks back to front (keep joint ``n``, discard ``n-1``, except
 ``a_1, alpha_1`` kept at step 2); joint 1's ``theta``, ``d`` come from undifferenced poses.
 
-Two variants, both pure, jit-able and vmapped over robots by :func:`solve_batch`:
+Two variants, both pure, jit-able and vmapped over robots by :func:`eliminate_batch`:
 
 * **literal** (``literal=True``): one pass around the nominal model, ``D`` from the paper's
   first-order ``dT T^{-1}`` (``vee(T_meas T^{-1} - I)``), every step's full 6-column block solved
@@ -34,20 +34,16 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import jaxlie
 import numpy as np
 
-from ..design import Layout, infer_layout
 from ..error_model import param_names, perturb, twist_jacobian
 from ..errors import DataError
 from ..identifiability import analyze
 from ..kinematics import fk
 from ..lie import inv_transform, skew, vee
-from . import _small_linalg as small
 from ..robot import Robot
-
-__all__ = ["Plan", "StepInfo", "calibrate_design_batch", "make_plan", "solve", "solve_batch", "step_conditions"]
-
+from . import _small_linalg as small
+from ._elimination_design import PairLayout, infer_layout
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,10 +67,10 @@ class StepInfo:
 
 
 @dataclasses.dataclass(frozen=True)
-class Plan:
+class EliminationPlan:
     """Static description of an elimination solve: layout, steps, identifiable set."""
 
-    layout: Layout
+    layout: PairLayout
     steps: tuple[StepInfo, ...]
     """Differencing steps ``n = N..2``, then the absolute step (joint 1)."""
     names: tuple[str, ...]
@@ -93,10 +89,10 @@ class Plan:
         for s in self.steps:
             lab = f"n={s.joint}" if s.joint > 1 else "abs"
             out = [nm[j] for j in s.columns if j not in s.free]
-            lines.append(f"{lab:>5s} {s.cond_raw:10.3g} {s.cond_scaled:12.3g} {s.cond_free:10.3g}  "
-                         + (", ".join(out) or "-"))
-        lines.append("not identified by the design (held at 0): "
-                     + (", ".join(nm[j] for j in self.fixed) or "none"))
+            lines.append(
+                f"{lab:>5s} {s.cond_raw:10.3g} {s.cond_scaled:12.3g} {s.cond_free:10.3g}  " + (", ".join(out) or "-")
+            )
+        lines.append("not identified by the design (held at 0): " + (", ".join(nm[j] for j in self.fixed) or "none"))
         return "\n".join(lines)
 
 
@@ -105,14 +101,14 @@ def _cond(A) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
-def _blocks(robot: Robot, q, layout: Layout):
+def _blocks(robot: Robot, q, layout: PairLayout):
     """Nominal step blocks ``(joint, columns, A)`` as NumPy arrays, ``A`` stacked ``(rows, 6 or 2)``."""
     J = np.asarray(twist_jacobian(robot, jnp.asarray(q)))
     out = []
     for n in layout.steps:
         r0, r1 = layout.rows(n)
         cols = tuple(4 * (n - 1) + k for k in range(4)) + (4 * (n - 2) + 2, 4 * (n - 2) + 3)
-        A = (J[r0:r1:2] - J[r0 + 1:r1:2])[..., list(cols)].reshape(-1, len(cols))
+        A = (J[r0:r1:2] - J[r0 + 1 : r1 : 2])[..., list(cols)].reshape(-1, len(cols))
         out.append((n, cols, A))
     a0, a1 = layout.abs_rows()
     rows = slice(a0, a1) if layout.n_abs else slice(None)
@@ -120,7 +116,7 @@ def _blocks(robot: Robot, q, layout: Layout):
     return out
 
 
-def make_plan(robot: Robot, q, layout: Layout | None = None, *, rtol: float = 1e-8) -> Plan:
+def make_plan(robot: Robot, q, layout: PairLayout | None = None, *, rtol: float = 1e-8) -> EliminationPlan:
     """Analyse a design ``q`` ``(K, N)`` on the nominal ``robot`` (NumPy, outside jit): each
     step's columns, base columns (rank test with relative threshold ``rtol`` on unit-norm
     columns) and condition numbers."""
@@ -136,17 +132,34 @@ def make_plan(robot: Robot, q, layout: Layout | None = None, *, rtol: float = 1e
         owned = cols[:4] + (cols[4:] if n == 2 else ()) if n > 1 else cols
         norms = np.linalg.norm(A, axis=0)
         scaled = _cond(A / norms) if np.all(norms > 1e-10 * norms.max()) else float("inf")
-        steps.append(StepInfo(joint=n, columns=cols, free=free, owned=owned, cond_raw=_cond(A),
-                              cond_scaled=scaled, cond_free=float(ident.condition_number)))
-    return Plan(layout=layout, steps=tuple(steps), names=names)
+        steps.append(
+            StepInfo(
+                joint=n,
+                columns=cols,
+                free=free,
+                owned=owned,
+                cond_raw=_cond(A),
+                cond_scaled=scaled,
+                cond_free=float(ident.condition_number),
+            )
+        )
+    return EliminationPlan(layout=layout, steps=tuple(steps), names=names)
 
 
-def step_conditions(robot: Robot, q, layout: Layout | None = None) -> list[dict]:
+def step_conditions(robot: Robot, q, layout: PairLayout | None = None) -> list[dict]:
     """Per-step condition numbers of design ``q`` on the nominal model, as dicts (for reports)."""
     plan = make_plan(robot, q, layout)
-    return [{"joint": s.joint, "columns": [plan.names[j] for j in s.columns], "cond_raw": s.cond_raw,
-             "cond_scaled": s.cond_scaled, "cond_base": s.cond_free,
-             "held_at_zero": [plan.names[j] for j in s.columns if j not in s.free]} for s in plan.steps]
+    return [
+        {
+            "joint": s.joint,
+            "columns": [plan.names[j] for j in s.columns],
+            "cond_raw": s.cond_raw,
+            "cond_scaled": s.cond_scaled,
+            "cond_base": s.cond_free,
+            "held_at_zero": [plan.names[j] for j in s.columns if j not in s.free],
+        }
+        for s in plan.steps
+    ]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -159,8 +172,8 @@ def _pose_cov(p, sigma_pos, sigma_rot):
     S = skew(p)
     St = jnp.swapaxes(S, -1, -2)
     eye = jnp.broadcast_to(jnp.eye(3), S.shape)
-    top = jnp.concatenate([sigma_pos ** 2 * eye + sigma_rot ** 2 * S @ St, sigma_rot ** 2 * S], -1)
-    bot = jnp.concatenate([sigma_rot ** 2 * St, sigma_rot ** 2 * eye], -1)
+    top = jnp.concatenate([sigma_pos**2 * eye + sigma_rot**2 * S @ St, sigma_rot**2 * S], -1)
+    bot = jnp.concatenate([sigma_rot**2 * St, sigma_rot**2 * eye], -1)
     return jnp.concatenate([top, bot], -2)
 
 
@@ -182,7 +195,9 @@ def _normal_solve(A, b):
     return jnp.linalg.solve(A.T @ A, A.T @ b)  # literal: one pass, no loop, a plain inverse
 
 
-def _sweep(model: Robot, q, measured, plan: Plan, literal: bool, sigma_pos, sigma_rot, stacked: bool = False):
+def _sweep(
+    model: Robot, q, measured, plan: EliminationPlan, literal: bool, sigma_pos, sigma_rot, stacked: bool = False
+):
     """One back-to-front pass of the elimination around ``model``: returns the update ``dx``.
 
     ``stacked=True`` (a diagnostic, not the paper's method) solves the same whitened differenced
@@ -193,6 +208,8 @@ def _sweep(model: Robot, q, measured, plan: Plan, literal: bool, sigma_pos, sigm
     if literal:
         xi = vee(E - jnp.eye(4))  # the paper's first-order dT T^-1
     else:
+        import jaxlie
+
         xi = jaxlie.SE3.from_matrix(E).log()
     J = twist_jacobian(model, q)
     cov = _pose_cov(T[:, :3, 3], sigma_pos, sigma_rot)
@@ -203,10 +220,10 @@ def _sweep(model: Robot, q, measured, plan: Plan, literal: bool, sigma_pos, sigm
         cols = st.columns if literal else st.free
         if st.joint > 1:
             r0, r1 = lay.rows(st.joint)
-            A = J[r0:r1:2] - J[r0 + 1:r1:2]
-            b = xi[r0:r1:2] - xi[r0 + 1:r1:2]
+            A = J[r0:r1:2] - J[r0 + 1 : r1 : 2]
+            b = xi[r0:r1:2] - xi[r0 + 1 : r1 : 2]
             if not literal:
-                A, b = _whiten(cov[r0:r1:2] + cov[r0 + 1:r1:2], A, b[..., None])
+                A, b = _whiten(cov[r0:r1:2] + cov[r0 + 1 : r1 : 2], A, b[..., None])
                 b = b[..., 0]
         else:
             a0, a1 = lay.abs_rows()
@@ -232,11 +249,22 @@ def _sweep(model: Robot, q, measured, plan: Plan, literal: bool, sigma_pos, sigm
     return dx
 
 
-def solve(robot: Robot, q, measured, *, plan: Plan, literal: bool = False, sigma_pos=1.0, sigma_rot=1e-3,
-          max_steps: int = 20, tol: float = 1e-10, stacked: bool = False):
+def eliminate(
+    robot: Robot,
+    q,
+    measured,
+    *,
+    plan: EliminationPlan,
+    literal: bool = False,
+    sigma_pos=1.0,
+    sigma_rot=1e-3,
+    max_steps: int = 20,
+    tol: float = 1e-10,
+    stacked: bool = False,
+):
     """Elimination calibration of one robot's data.
 
-    **Arguments**: ``q`` ``(K, N)`` a design (:mod:`jaxcal.design`) whose layout and base columns
+    **Arguments**: ``q`` ``(K, N)`` a design (:func:`design_poses`) whose layout and base columns
     ``plan`` describes (:func:`make_plan` on the nominal robot); ``measured`` ``(K, 4, 4)`` full
     poses; ``literal`` selects the paper's one-pass variant; ``sigma_pos`` (mm), ``sigma_rot``
     (rad) the measurement noise used to whiten the robust variant's pairs; ``max_steps`` and
@@ -268,28 +296,71 @@ def solve(robot: Robot, q, measured, *, plan: Plan, literal: bool = False, sigma
 
 
 @eqx.filter_jit
-def solve_batch(robot: Robot, q, measured, sigma_pos, sigma_rot, *, plan: Plan, literal: bool = False,
-                max_steps: int = 20, tol: float = 1e-10, stacked: bool = False):
-    """:func:`solve` vmapped over robots: ``q`` ``(R, K, N)``, ``measured`` ``(R, K, 4, 4)``;
+def eliminate_batch(
+    robot: Robot,
+    q,
+    measured,
+    sigma_pos,
+    sigma_rot,
+    *,
+    plan: EliminationPlan,
+    literal: bool = False,
+    max_steps: int = 20,
+    tol: float = 1e-10,
+    stacked: bool = False,
+):
+    """:func:`eliminate` vmapped over robots: ``q`` ``(R, K, N)``, ``measured`` ``(R, K, 4, 4)``;
     one compiled call. ``sigma_pos``/``sigma_rot`` are scalars (traced: no recompilation)."""
-    fn = lambda q_, m_: solve(robot, q_, m_, plan=plan, literal=literal, sigma_pos=sigma_pos,
-                              sigma_rot=sigma_rot, max_steps=max_steps, tol=tol, stacked=stacked)
+    fn = lambda q_, m_: eliminate(
+        robot,
+        q_,
+        m_,
+        plan=plan,
+        literal=literal,
+        sigma_pos=sigma_pos,
+        sigma_rot=sigma_rot,
+        max_steps=max_steps,
+        tol=tol,
+        stacked=stacked,
+    )
     return jax.vmap(fn)(q, measured)
 
 
-def calibrate_design_batch(robot: Robot, q, measured, sigma_pos, sigma_rot, *, literal: bool = False,
-                           max_steps: int = 20, tol: float = 1e-10, position_only: bool = False,
-                           base: bool = False, tool: bool = False):
-    """Entry point used by :func:`jaxcal.calibrate` (``method="elimination"`` /
+def calibrate_design_batch(
+    robot: Robot,
+    q,
+    measured,
+    sigma_pos,
+    sigma_rot,
+    *,
+    literal: bool = False,
+    max_steps: int = 20,
+    tol: float = 1e-10,
+    position_only: bool = False,
+    base: bool = False,
+    tool: bool = False,
+):
+    """Entry point used by :func:`jaxcal.calibrate_batch` (``method="elimination"`` /
     ``"elimination-literal"``): checks that ``q`` ``(R, K, N)`` is an elimination design (layout
-    inferred), builds the :class:`Plan` on the nominal model from the first design, and runs
-    :func:`solve_batch`. **Returns** ``(x, ok, num_steps, plan)``."""
+    inferred), builds the :class:`EliminationPlan` on the nominal model from the first design, and runs
+    :func:`eliminate_batch`. **Returns** ``(x, ok, num_steps, plan)``."""
     if position_only or base or tool:
-        raise DataError("the elimination method needs full-pose measurements and known base/tool frames "
-                        "(position_only, estimate_base and estimate_tool are not supported)")
+        raise DataError(
+            "the elimination method needs full-pose measurements and known base/tool frames "
+            "(position_only, estimate_base and estimate_tool are not supported)"
+        )
     q = np.asarray(q, dtype=np.float64)
     layout = infer_layout(q, robot.n_joints)
     plan = make_plan(robot, q[0], layout)
-    x, ok, steps = solve_batch(robot, jnp.asarray(q), jnp.asarray(measured), jnp.float64(sigma_pos),
-                               jnp.float64(sigma_rot), plan=plan, literal=literal, max_steps=max_steps, tol=tol)
+    x, ok, steps = eliminate_batch(
+        robot,
+        jnp.asarray(q),
+        jnp.asarray(measured),
+        jnp.float64(sigma_pos),
+        jnp.float64(sigma_rot),
+        plan=plan,
+        literal=literal,
+        max_steps=max_steps,
+        tol=tol,
+    )
     return x, ok, steps, plan

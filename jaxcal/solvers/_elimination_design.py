@@ -9,7 +9,7 @@ A design for an ``N``-joint arm is one ``(K, N)`` array of joint values laid out
 
 ``K = 2 (N - 1) n_pairs + n_abs``. Every pose lies within ``robot.q_limits``. Any pose array
 with this structure can be measured with :func:`jaxcal.simulate.simulate` (``q=``) and solved by
-:mod:`jaxcal.solvers.elimination`; :func:`infer_layout` recovers the layout from the array.
+the elimination solver (:mod:`jaxcal.solvers`); :func:`infer_layout` recovers the layout from the array.
 """
 
 from __future__ import annotations
@@ -21,14 +21,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .errors import DataError
-from .robot import Robot
-
-__all__ = ["Layout", "design_poses", "infer_layout", "check_design"]
+from ..errors import DataError
+from ..robot import Robot
 
 
 @dataclasses.dataclass(frozen=True)
-class Layout:
+class PairLayout:
     """Where each step's pairs sit in a design (hashable: usable as a static jit argument)."""
 
     n_joints: int
@@ -56,8 +54,9 @@ class Layout:
         return self.n_poses - self.n_abs, self.n_poses
 
 
-def design_poses(key, robot: Robot, *, n_pairs: int = 4, n_abs: int = 2, vary_later: bool = True,
-                 batch_shape=()) -> Float[Array, "*batch K n"]:
+def design_poses(
+    key, robot: Robot, *, n_pairs: int = 4, n_abs: int = 2, vary_later: bool = True, batch_shape=()
+) -> Float[Array, "*batch K n"]:
     """Draw an elimination design (uniform within ``robot.q_limits``), seeded by ``key``.
 
     **Arguments**: ``n_pairs`` pairs per step; ``n_abs`` absolute poses; ``vary_later``: the
@@ -86,7 +85,7 @@ def design_poses(key, robot: Robot, *, n_pairs: int = 4, n_abs: int = 2, vary_la
     return jnp.concatenate(blocks, -2)
 
 
-def check_design(q, layout: Layout) -> None:
+def check_design(q, layout: PairLayout) -> None:
     """Raise :class:`DataError` unless ``q`` ``(..., K, N)`` has ``layout``'s pair structure: the
     two poses of a step-``n`` pair are equal in joints ``1..n-2`` and differ in joints ``n-1``
     and ``n``."""
@@ -96,24 +95,26 @@ def check_design(q, layout: Layout) -> None:
         raise DataError(f"design must have shape (..., {layout.n_poses}, {N}), got {q.shape}")
     for n in layout.steps:
         r0, r1 = layout.rows(n)
-        a, b = q[..., r0:r1:2, :], q[..., r0 + 1:r1:2, :]
-        if not np.array_equal(a[..., :n - 2], b[..., :n - 2]):
+        a, b = q[..., r0:r1:2, :], q[..., r0 + 1 : r1 : 2, :]
+        if not np.array_equal(a[..., : n - 2], b[..., : n - 2]):
             raise DataError(f"step {n}: the poses of a pair must share joints 1..{n - 2} exactly")
         if np.any(a[..., n - 2] == b[..., n - 2]) or np.any(a[..., n - 1] == b[..., n - 1]):
             raise DataError(f"step {n}: the poses of a pair must differ in joints {n - 1} and {n}")
 
 
-def infer_layout(q, n_joints: int) -> Layout:
+def infer_layout(q, n_joints: int) -> PairLayout:
     """The layout of a design ``q`` ``(..., K, N)`` (all members checked): the largest ``n_pairs`` whose structure
     :func:`check_design` accepts. Raises :class:`DataError` if none does."""
     q = np.asarray(q)
     K = q.shape[-2]
     for p in range(K // (2 * (n_joints - 1)), 0, -1):
-        lay = Layout(n_joints, p, K - 2 * (n_joints - 1) * p)
+        lay = PairLayout(n_joints, p, K - 2 * (n_joints - 1) * p)
         try:
             check_design(q, lay)
             return lay
         except DataError:
             continue
-    raise DataError("q is not an elimination design (pairs sharing joints 1..n-2, per step n = N..2, "
-                    "then absolute poses): draw one with jaxcal.design.design_poses")
+    raise DataError(
+        "q is not an elimination design (pairs sharing joints 1..n-2, per step n = N..2, "
+        "then absolute poses): draw one with jaxcal.solvers.design_poses"
+    )

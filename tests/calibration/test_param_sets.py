@@ -1,9 +1,9 @@
-"""Candidate parameter sets for `jaxcal calibrate --params` (jaxcal.param_sets)."""
+"""Candidate parameter sets (the `params` option)."""
 
 import pytest
 
 from jaxcal import DataError, preset
-from jaxcal.param_sets import parse_params
+from jaxcal.calibration import parse_params
 
 
 def test_parse_params():

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 import jaxcal
-from jaxcal.calibrate import calibrate, calibrate_batch
-from jaxcal.simulate import simulate
+from jaxcal.calibration import calibrate, calibrate_batch
+from jaxcal.simulation import simulate
 
 ROBOT = jaxcal.preset("paper-6r")
 SIM = simulate(ROBOT, n_poses=60, n_val=100, seed=3, sigma_pos=0.02, sigma_rot=2e-5)
 Q, CLEAN = SIM.q[0], SIM.measured[0]
-KW = dict(sigma_pos_mm=0.02, sigma_rot_rad=2e-5)
+KW = dict(sigma_pos_mm=0.02, sigma_rot_rad=2e-5, estimate_base=False, estimate_tool=False)
 
 
 def _inject(measured, frac=0.1, seed=7):
@@ -46,16 +46,16 @@ def test_robust_fit_survives_outliers(clean_fit, method, loss):
     plain = calibrate(ROBOT, Q, BAD, method=method, **KW)
     robust = calibrate(ROBOT, Q, BAD, method=method, loss=loss, **KW)
     clean, p, r = val_rms(clean_fit.robot), val_rms(plain.robot), val_rms(robust.robot)
-    assert clean < 0.05                       # the clean fit itself is good (noise 0.02 mm)
-    assert p > 10 * clean                     # outliers really do spoil the plain fit
-    assert r <= 1.5 * clean, (clean, p, r)    # the robust fit does not
+    assert clean < 0.05  # the clean fit itself is good (noise 0.02 mm)
+    assert p > 10 * clean  # outliers really do spoil the plain fit
+    assert r <= 1.5 * clean, (clean, p, r)  # the robust fit does not
     assert robust.converged and robust.loss == loss and not robust.degraded
     assert plain.degraded and not clean_fit.degraded and clean_fit.outliers == ()
     assert robust.outliers == tuple(IDX) and plain.outliers == tuple(IDX)
 
 
 def test_position_only_huber():
-    kw = dict(position_only=True, sigma_pos_mm=0.02)
+    kw = dict(position_only=True, sigma_pos_mm=0.02, estimate_base=False, estimate_tool=False)
     clean = val_rms(calibrate(ROBOT, Q, CLEAN, **kw).robot)
     robust = calibrate(ROBOT, Q, BAD, loss="huber", **kw)
     assert val_rms(robust.robot) <= 1.5 * clean and robust.outliers == tuple(IDX)
@@ -84,5 +84,5 @@ def test_given_loss_scale():
 
 def test_noise_free_no_spurious_outliers():
     sim = simulate(ROBOT, q=Q, seed=1)  # same pose count: no recompilation
-    r = calibrate(ROBOT, sim.q[0], sim.measured[0], loss="huber")
+    r = calibrate(ROBOT, sim.q[0], sim.measured[0], loss="huber", estimate_base=False, estimate_tool=False)
     assert r.outliers == () and not r.degraded and r.converged

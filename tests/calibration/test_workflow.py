@@ -1,18 +1,25 @@
-"""Real-data calibration machinery on simulated data: folds, the base/tool initial guess, the
-cross-validated choice of parameter set, recovery of the true robot."""
+"""The real-data workflow (`calibrate_data`) on simulated data: folds, the base/tool initial
+guess, the cross-validated choice of parameter set, camera models, recovery of the true robot."""
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import random_transform
 from numpy.testing import assert_allclose, assert_array_equal
 
-from jaxcal import DataError, fk, preset
-from jaxcal.crossval import calibrate_measurements, fold_ids
+from jaxcal import DataError, Measurements, fk, preset
+from jaxcal.calibration import calibrate_data, fold_ids
+from jaxcal.calibration._initial import initial_frames
+from jaxcal.calibration._workflow import choose
 from jaxcal.error_model import perturb
-from jaxcal.initial_guess import initial_frames
-from jaxcal.simulate import simulate
+from jaxcal.simulation import simulate
 
-from conftest import random_transform
+
+def calibrate_measurements(robot, q, measured, *, position_only=False, **kw):
+    """The workflow on arrays (positions when ``position_only``)."""
+    meas = np.asarray(measured)
+    return calibrate_data(robot, Measurements(q, meas[:, None, :3, 3] if position_only else meas), **kw)
 
 
 def test_folds_deterministic_balanced_and_cover_every_pose():
@@ -21,7 +28,7 @@ def test_folds_deterministic_balanced_and_cover_every_pose():
     assert not np.array_equal(f, fold_ids(23, 5, seed=4))
     assert sorted(np.bincount(f)) == [4, 4, 5, 5, 5]
     for bad in (1, 24):
-        with pytest.raises(DataError, match="--folds must be between 2 and the number of poses"):
+        with pytest.raises(DataError, match="folds must be between 2 and the number of poses"):
             fold_ids(23, bad, seed=0)
 
 
@@ -30,20 +37,32 @@ def test_initial_frames_exact_on_nominal_robot(rng, position_only):
     """Noise-free data of the nominal DH with unknown base and tool: the closed-form guess is exact."""
     r = preset("panda")
     B, X = random_transform(rng, 500.0), random_transform(rng, 100.0)
-    q = np.asarray(simulate(r, n_poses=30, seed=1).q[0])
+    lim = np.asarray(r.q_limits)
+    q = lim[:, 0] + rng.uniform(size=(30, r.n_joints)) * (lim[:, 1] - lim[:, 0])
     meas = np.asarray(fk(r.replace(base=B, tool=np.asarray(r.tool) @ X), q))
-    Bh, Xh = initial_frames(r, q, meas, position_only=position_only)
-    assert_allclose(Bh, B, atol=1e-8)
+    guess = eqx.filter_jit(initial_frames)
     if position_only:
-        assert_allclose(Xh[:3, 3], X[:3, 3], atol=1e-8)  # the tool rotation does not move the point
+        Bh, _, pts = guess(r, q, meas[:, None, :3, 3], n_points=1)
+        assert_allclose(pts[0], X[:3, 3], atol=1e-8)  # the tool rotation does not move the point
     else:
+        Bh, Xh, _ = guess(r, q, meas)
         assert_allclose(Xh, X, atol=1e-8)
+    assert_allclose(Bh, B, atol=1e-8)
 
 
 def _sim(robot, x_dh, B, X, *, n=60, sp=0.05, sr=2e-4, seed=0):
     m = 4 * robot.n_joints
-    sim = simulate(robot.replace(base=B, tool=np.asarray(robot.tool) @ X), n_poses=n, n_val=40, seed=seed,
-                   x_true=np.r_[x_dh, np.zeros(12)][:m + 12], sigma_pos=sp, sigma_rot=sr, base=True, tool=True)
+    sim = simulate(
+        robot.replace(base=B, tool=np.asarray(robot.tool) @ X),
+        n_poses=n,
+        n_val=40,
+        seed=seed,
+        x_true=np.r_[x_dh, np.zeros(12)][: m + 12],
+        sigma_pos=sp,
+        sigma_rot=sr,
+        base=True,
+        tool=True,
+    )
     return sim
 
 
@@ -51,18 +70,18 @@ def test_recovers_true_robot_and_honest_heldout(rng):
     """DH errors + unknown frames: the calibrated model matches the true robot on poses it never saw,
     to about the noise level; frames only does not."""
     r = preset("panda")
-    x_dh = np.asarray(simulate(r, seed=5).x_true[0])[: 4 * r.n_joints] * 4   # ~0.02 rad, ~0.2 mm
+    x_dh = np.asarray(simulate(r, seed=5).x_true[0])[: 4 * r.n_joints] * 4  # ~0.02 rad, ~0.2 mm
     B, X = random_transform(rng, 500.0), random_transform(rng, 100.0)
     sim = _sim(r, x_dh, B, X)
-    res = calibrate_measurements(r, sim.q[0], sim.measured[0], position_only=False, params="all", folds=3)
+    res = calibrate_measurements(r, sim.q[0], sim.measured[0], params="all", folds=3)
     true_val, q_val = sim.true_val[0], sim.q_val[0]
     err = np.linalg.norm(np.asarray(fk(res.robot, q_val))[:, :3, 3] - true_val[:, :3, 3], axis=1)
     fo = res.per_pose["frames_only"]
     err_fo = np.linalg.norm(np.asarray(fk(fo, q_val))[:, :3, 3] - true_val[:, :3, 3], axis=1)
     rep = res.report
     assert rep["converged"] and rep["cv_fits_converged"] == rep["cv_fits"]
-    assert np.sqrt(np.mean(err ** 2)) < 0.1          # true model error, mm (noise 0.05 mm per axis)
-    assert np.sqrt(np.mean(err_fo ** 2)) > 1.0
+    assert np.sqrt(np.mean(err**2)) < 0.1  # true model error, mm (noise 0.05 mm per axis)
+    assert np.sqrt(np.mean(err_fo**2)) > 1.0
     # held-out error = model error + noise; noise alone is sqrt(3) * 0.05 = 0.087 mm RMS
     assert 0.07 < rep["heldout_rms_mm"] < 0.15
     assert rep["frames_only_heldout_rms_mm"] > 5 * rep["heldout_rms_mm"]
@@ -71,8 +90,11 @@ def test_recovers_true_robot_and_honest_heldout(rng):
     # standard errors are honest: most identified DH errors within 3 sigma of the truth
     # (a base-set estimate carries absorbed fixed errors, so compare only joints 2..6)
     names = r.param_names()
-    z = [abs(p["value"] - x_dh[names.index(k)]) / p["std_error"] for k, p in rep["parameters"].items()
-         if k in names and k[-1] in "23456"]
+    z = [
+        abs(p["value"] - x_dh[names.index(k)]) / p["std_error"]
+        for k, p in rep["parameters"].items()
+        if k in names and k[-1] in "23456"
+    ]
     assert np.mean(np.array(z) < 3) > 0.9
 
 
@@ -81,7 +103,7 @@ def test_cv_prefers_simple_model_when_dh_is_exact(rng):
     r = preset("panda")
     B, X = random_transform(rng, 500.0), random_transform(rng, 100.0)
     sim = _sim(r, np.zeros(28), B, X, n=40, sp=0.5, sr=2e-3, seed=2)
-    res = calibrate_measurements(r, sim.q[0], sim.measured[0], position_only=False, params="auto", folds=4)
+    res = calibrate_measurements(r, sim.q[0], sim.measured[0], params="auto", folds=4)
     assert res.report["choice"] != "all"
     assert res.report["heldout_rms_mm"] < 1.1 * res.report["frames_only_heldout_rms_mm"]
 
@@ -91,13 +113,14 @@ def test_camera_models_recovered_from_simulated_camera(rng):
     long, a principal-point shear, a lateral scale): the linear model recovers A and predicts
     held-out poses far better than the plain model; the depth model recovers a pure depth scale."""
     from jaxcal.camera import apply_camera
+
     r = preset("panda")
     x_dh = np.asarray(simulate(r, seed=5).x_true[0])[: 4 * r.n_joints] * 2
     B, X = random_transform(rng, 500.0), random_transform(rng, 100.0)
     sim = _sim(r, x_dh, B, X, n=60, sp=0.05, sr=2e-4, seed=3)
-    c = np.array([0.01, 0.004, -0.003, 0.002, 0.002, -0.003, 0.001, 0.002])   # depth, anisotropy, off-diagonal
+    c = np.array([0.01, 0.004, -0.003, 0.002, 0.002, -0.003, 0.001, 0.002])  # depth, anisotropy, off-diagonal
     meas = np.asarray(apply_camera(np.asarray(sim.measured[0]), c, "linear"))
-    kw = dict(position_only=False, params="all", folds=3)
+    kw = dict(params="all", folds=3)
     lin = calibrate_measurements(r, sim.q[0], meas, camera="linear", **kw).report
     without = calibrate_measurements(r, sim.q[0], meas, **kw).report
     got = np.array([v["value"] for v in lin["camera_parameters"].values()])
@@ -111,17 +134,18 @@ def test_camera_models_recovered_from_simulated_camera(rng):
     assert abs(dep["camera_parameters"]["camera_depth_scale"]["value"] - 0.01) < 1e-3
     with pytest.raises(DataError, match="camera model 'depth' needs full poses"):
         calibrate_measurements(r, sim.q[0], meas, position_only=True, camera="depth")
-    with pytest.raises(DataError, match="--camera-model must be one of none, depth, linear, quadratic"):
-        calibrate_measurements(r, sim.q[0], meas, position_only=False, camera="fisheye")
+    with pytest.raises(DataError, match="camera must be one of none, depth, linear, quadratic, auto"):
+        calibrate_measurements(r, sim.q[0], meas, camera="fisheye")
 
 
 def test_choice_ignores_failed_fits_and_refuses_when_all_failed():
-    from jaxcal.crossval import Candidate, _choose
+    from jaxcal.calibration import Candidate
+
     c = [Candidate("frames", ()), Candidate("offsets", (0,)), Candidate("all", (0, 1, 2))]
-    assert _choose([np.nan, 2.0, 1.0], c) == 2          # nan first: min() would otherwise return nan
-    assert _choose([1.005, np.nan, 1.0], c) == 0        # simpler within 1 %
+    assert choose([np.nan, 2.0, 1.0], c) == 2  # nan first: min() would otherwise return nan
+    assert choose([1.005, np.nan, 1.0], c) == 0  # simpler within 1 %
     with pytest.raises(DataError, match="every candidate parameter set .* failed to fit"):
-        _choose([np.nan, np.inf, np.nan], c)
+        choose([np.nan, np.inf, np.nan], c)
 
 
 def test_quadratic_camera_model_recovered_on_franka_geometry(rng):
@@ -132,6 +156,7 @@ def test_quadratic_camera_model_recovered_on_franka_geometry(rng):
     from jaxcal.camera import apply_camera
     from jaxcal.lie import make_transform, rpy_to_matrix
     from jaxcal.measurements import franka_csv_path, read_measurements
+
     r = preset("panda")
     q = read_measurements(franka_csv_path(), r, length_unit="m").q
     B = np.asarray(make_transform(rpy_to_matrix(np.radians([-0.1, 0.61, -0.02])), np.array([-656.0, 589.0, 7.2])))
@@ -140,30 +165,32 @@ def test_quadratic_camera_model_recovered_on_franka_geometry(rng):
     true = perturb(r.replace(base=B, tool=X), jnp.asarray(x_dh))
     T = np.array(fk(true, q))
     z = -np.einsum("ki,ki->k", T[:, :3, 2], T[:, :3, 3])
-    assert z.min() > 100.0                                   # the geometry the model needs
+    assert z.min() > 100.0  # the geometry the model needs
     T[:, :3, 3] += rng.normal(0, 0.05, (len(q), 3))
     c = np.r_[0.005, 0.002, 0.004, -0.002, -0.01, 0.001, 0.003, 0.003, rng.normal(0, 0.01, 9)]
     meas = np.asarray(apply_camera(T, c, "quadratic"))
-    kw = dict(position_only=False, params="all", folds=3)
+    kw = dict(params="all", folds=3)
     quad = calibrate_measurements(r, q, meas, camera="quadratic", **kw).report
-    lin = calibrate_measurements(r, q, meas, camera="linear", **kw).report
     auto = calibrate_measurements(r, q, meas, camera="auto", **kw).report
+    lin = {row["name"]: row for row in auto["cv"]}["all, camera linear"]
     # auto: the camera model is chosen by cross-validation (the nested figures include the choice)
     assert auto["camera_model"] == "quadratic" and auto["camera_model_option"] == "auto"
     assert auto["choice"] == "all, camera quadratic" and set(auto["nested_choices"]) == {"all, camera quadratic"}
     assert [c["name"] for c in auto["cv"]] == [f"all, camera {m}" for m in ("none", "depth", "linear", "quadratic")]
     assert_allclose(auto["heldout_rms_mm"], quad["heldout_rms_mm"], rtol=1e-6)
     assert list(auto["camera_parameters"]) == list(quad["camera_parameters"])
-    plain = calibrate_measurements(r, q, T, camera="auto", **kw).report     # a camera without distortion
+    plain = calibrate_measurements(r, q, T, camera="auto", **kw).report  # a camera without distortion
     assert plain["camera_model"] == "none" and plain["camera_parameters"] is None
     got = np.array([v["value"] for v in quad["camera_parameters"].values()])
     se = np.array([v["std_error"] for v in quad["camera_parameters"].values()])
     assert list(quad["camera_parameters"])[8:] == [f"camera_Q_{a}_{f}" for a in "xyz" for f in ("uu", "vv", "uv")]
     assert np.all(se > 0) and np.all(np.abs(got - c) < 5 * se + 1e-6)
     assert_allclose(got, c, atol=2e-3)
-    assert quad["heldout_rms_mm"] < 0.15                     # noise alone: sqrt(3) * 0.05 = 0.087 mm
+    assert quad["heldout_rms_mm"] < 0.15  # noise alone: sqrt(3) * 0.05 = 0.087 mm
     assert lin["heldout_rms_mm"] > 2 * quad["heldout_rms_mm"]
     behind = meas.copy()
-    behind[7, :3, 3] *= -1                                   # pose 7: target behind the camera
-    with pytest.raises(DataError, match="model quadratic needs the target in front of the camera.*pose 7 has z = -"):
+    behind[7, :3, 3] *= -1  # pose 7: target behind the camera
+    with pytest.raises(
+        DataError, match=r"model quadratic needs the target in front of the camera.*pose 7 \(data row 8\) has z = -"
+    ):
         calibrate_measurements(r, q, behind, camera="quadratic", **kw)

@@ -1,17 +1,15 @@
-"""`jaxcal calibrate` / `jaxcal compensate` on the command line: bad input gives one clear line and
-exit code 2 (through the real entry point `jaxcal.cli.main`); compensation output."""
-
+"""The command line (through the real entry point `jaxcal.cli.main`): bad input gives one clear
+line and exit code 2; a unit mismatch is refused with its evidence; compensation output."""
 
 import numpy as np
 import pytest
+from helpers import run_cli  # noqa: E402
 
 from jaxcal import fk, preset
 from jaxcal.error_model import perturb
-from jaxcal.measurements import UnitWarning, write_measurements
-from jaxcal.robot_io import load_robot, save_robot
-from jaxcal.simulate import simulate
-
-from conftest import run_cli  # noqa: E402
+from jaxcal.measurements import write_measurements
+from jaxcal.robot import load_robot, save_robot
+from jaxcal.simulation import simulate
 
 
 @pytest.fixture(scope="module")
@@ -37,23 +35,34 @@ def _replace_field(line, col, value):
 
 
 BAD = {
-    "missing column": (lambda h, rows: [h.replace(",z,", ",")] + [",".join(r.split(",")[:9] + r.split(",")[10:])
-                                                                  for r in rows],
-                       "missing column(s) 'z'"),
-    "extra column": (lambda h, rows: [h + ",temp"] + [r + ",20" for r in rows], "unknown column(s) 'temp'"),
-    "joint count": (lambda h, rows: [h.replace("q7,", "")] + [",".join(r.split(",")[:6] + r.split(",")[7:])
-                                                              for r in rows],
-                    "robot has 7 joints, file has q1..q6"),
-    "non-numeric": (lambda h, rows: [h] + rows[:2] + [_replace_field(rows[2], 8, "12,5x")] + rows[3:],
-                    "row 3 (line 4): 15 fields"),
-    "non-numeric value": (lambda h, rows: [h] + rows[:2] + [_replace_field(rows[2], 8, "abc")] + rows[3:],
-                          "row 3 (line 4), column 'y': not a number: 'abc'"),
-    "non-finite": (lambda h, rows: [h] + [_replace_field(rows[0], 1, "nan")] + rows[1:],
-                   "row 1 (line 2), column 'q2': value 'nan' is not finite"),
-    "non-unit quaternion": (lambda h, rows: [h] + rows[:4] + [_replace_field(rows[4], 10, "3.0")] + rows[5:],
-                            "row 5 (line 6): quaternion (qw, qx, qy, qz) has norm"),
-    "too few poses": (lambda h, rows: [h] + rows[:5], "too few poses: 5 poses x 6 rows = 30 equations for 34 "
-                                                      "parameters; need at least 6 poses"),
+    "missing column": (
+        lambda h, rows: [h.replace(",z,", ",")] + [",".join(r.split(",")[:9] + r.split(",")[10:]) for r in rows],
+        "missing column(s) 'z'",
+    ),
+    "joint count": (
+        lambda h, rows: [h.replace("q7,", "")] + [",".join(r.split(",")[:6] + r.split(",")[7:]) for r in rows],
+        "robot has 7 joints, file has q1..q6",
+    ),
+    "non-numeric": (
+        lambda h, rows: [h] + rows[:2] + [_replace_field(rows[2], 8, "12,5x")] + rows[3:],
+        "row 3 (line 4): 15 fields",
+    ),
+    "non-numeric value": (
+        lambda h, rows: [h] + rows[:2] + [_replace_field(rows[2], 8, "abc")] + rows[3:],
+        "row 3 (line 4), column 'y': not a number: 'abc'",
+    ),
+    "non-finite": (
+        lambda h, rows: [h] + [_replace_field(rows[0], 1, "nan")] + rows[1:],
+        "row 1 (line 2), column 'q2': value 'nan' is not finite",
+    ),
+    "non-unit quaternion": (
+        lambda h, rows: [h] + rows[:4] + [_replace_field(rows[4], 10, "3.0")] + rows[5:],
+        "row 5 (line 6): quaternion (qw, qx, qy, qz) has norm",
+    ),
+    "too few poses": (
+        lambda h, rows: [h] + rows[:5],
+        "too few poses: 5 poses x 6 rows = 30 equations for 34 parameters; need at least 6 poses",
+    ),
     "empty": (lambda h, rows: [""], "file is empty"),
 }
 
@@ -68,13 +77,16 @@ def test_calibrate_bad_input(tmp_path, monkeypatch, capsys, panda_data, case):
     assert "Traceback" not in err and err.strip().startswith("error:")
 
 
-@pytest.mark.parametrize("args, msg", [
-    (["--method", "newton"], "--method must be one of gn, lm, linear"),
-    (["--params", "theta,beta"], "unknown parameter or set 'beta'"),
-    (["--folds", "40"], "--folds must be between 2 and the number of poses (12)"),
-    (["--length-unit", "inch"], "length_unit must be one of 'mm', 'm', got 'inch'"),
-    (["--ridge", "-1", "--params", "all"], "--ridge must be positive"),
-])
+@pytest.mark.parametrize(
+    "args, msg",
+    [
+        (["--method", "newton"], "--method must be one of gn, lm, linear"),
+        (["--params", "theta,beta"], "unknown parameter or set 'beta'"),
+        (["--folds", "40"], "--folds must be between 2 and the number of poses (12)"),
+        (["--length-unit", "inch"], "--length-unit must be one of 'mm', 'm', got 'inch'"),
+        (["--ridge", "-1", "--params", "all"], "--ridge-mm must be a finite positive number"),
+    ],
+)
 def test_calibrate_bad_options(tmp_path, monkeypatch, capsys, panda_data, args, msg):
     p = _write(tmp_path, panda_data, "good.csv")
     code, _, err = run_cli(monkeypatch, capsys, "calibrate", "panda", p, *args)
@@ -88,15 +100,30 @@ def test_calibrate_missing_files(tmp_path, monkeypatch, capsys, panda_data):
     assert code == 2 and "robot file not found" in err
 
 
-def test_calibrate_warns_metres_read_as_mm(tmp_path, monkeypatch, capsys, panda_data):
-    """Positions written in metres but read as mm: a UnitWarning with the evidence (then the data are
-    refused by the fit or calibrated badly; the warning is the point)."""
+def test_calibrate_refuses_metres_read_as_mm(tmp_path, monkeypatch, capsys, panda_data):
+    """Positions written in metres but read as mm: an error with the evidence and the option that
+    fixes it, exit 2, and no model written."""
     h, rows = panda_data[0], panda_data[1:]
-    scaled = [",".join(f if not 7 <= i <= 9 else repr(float(f) / 1000) for i, f in enumerate(r.split(",")))
-              for r in rows]
+    scaled = [
+        ",".join(f if not 7 <= i <= 9 else repr(float(f) / 1000) for i, f in enumerate(r.split(","))) for r in rows
+    ]
     p = _write(tmp_path, [h] + scaled)
-    with pytest.warns(UnitWarning, match="did you mean length_unit='m' \\(--length-unit m\\)"):
-        run_cli(monkeypatch, capsys, "calibrate", "panda", p, "--folds", "3", "--params", "frames")
+    code, _, err = run_cli(
+        monkeypatch,
+        capsys,
+        "calibrate",
+        "panda",
+        p,
+        "--folds",
+        "3",
+        "--params",
+        "frames",
+        "--out-robot",
+        tmp_path / "cal.toml",
+    )
+    msg = " ".join(err.split())
+    assert code == 2 and "metres read as millimetres" in msg and "--length-unit" in msg, err
+    assert not (tmp_path / "cal.toml").exists()
 
 
 def test_compensate_cli(tmp_path, monkeypatch, capsys):
@@ -108,11 +135,20 @@ def test_compensate_cli(tmp_path, monkeypatch, capsys):
     t = tmp_path / "targets.csv"
     t.write_text("q1,q2,q3,q4,q5,q6\n" + "".join(",".join(repr(float(v)) for v in row) + "\n" for row in q))
     code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "cal.toml", t)
-    assert code == 2 and "nominal robot is needed (--nominal)" in " ".join(err.split())
-    code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "cal.toml", t, "--nominal", "paper-6r",
-                             "--out", tmp_path / "out.csv")
+    assert code == 2 and "the nominal robot is needed" in " ".join(err.split())
+    code, out, err = run_cli(
+        monkeypatch,
+        capsys,
+        "compensate",
+        tmp_path / "cal.toml",
+        t,
+        "--nominal",
+        "paper-6r",
+        "--out",
+        tmp_path / "out.csv",
+    )
     assert code == 0, err
-    assert "converged: 6/6" in out
+    assert "reached: 6/6" in out
     lines = (tmp_path / "out.csv").read_text().splitlines()
     assert lines[0].startswith("q1,q2,q3,q4,q5,q6,pos_residual_mm")
     qc = np.array([[float(v) for v in ln.split(",")[:6]] for ln in lines[1:]])

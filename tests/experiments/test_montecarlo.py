@@ -6,13 +6,26 @@ import numpy as np
 import pytest
 
 import jaxcal
-from jaxcal.experiments.montecarlo import run_montecarlo
+from jaxcal.calibration import calibrate_batch, identify
+from jaxcal.experiments import crlb_batch, run_montecarlo
+from jaxcal.simulation import simulate
+
+DH = dict(estimate_base=False, estimate_tool=False)
 
 
 @pytest.fixture(scope="module")
 def gn_study():
-    return run_montecarlo(jaxcal.preset("paper-6r"), n_robots=300, n_poses=30, n_val=20, sigma_pos=0.02,
-                          sigma_rot=2e-5, method="gn", seed=11, repeats=1)
+    return run_montecarlo(
+        jaxcal.preset("paper-6r"),
+        n_robots=300,
+        n_poses=30,
+        n_val=20,
+        sigma_pos=0.02,
+        sigma_rot=2e-5,
+        method="gn",
+        seed=11,
+        repeats=1,
+    )
 
 
 def test_gn_variance_within_10_percent_of_crlb(gn_study):
@@ -30,18 +43,13 @@ def test_validation_error_at_noise_level(gn_study):
 def test_a_badly_weighted_estimator_is_detected():
     """Same data, but rotation rows weighted 100x too strongly: no longer the ML estimator,
     so its variance exceeds the CRLB; the efficiency measure must show it."""
-    from jaxcal.calibrate import calibrate_batch, identify
-    from jaxcal.experiments.montecarlo import _crlb_batch
-    from jaxcal.simulate import simulate
-
     robot = jaxcal.preset("paper-6r")
     sim = simulate(robot, n_robots=200, n_poses=30, seed=11, sigma_pos=0.02, sigma_rot=2e-5)
-    ident = identify(robot, sim.q[0])
-    res = calibrate_batch(robot, sim.q, sim.measured, sigma_pos_mm=0.02, sigma_rot_rad=2e-7, ident=ident)
+    ident = identify(robot, sim.q[0], **DH)
+    res = calibrate_batch(robot, sim.q, sim.measured, sigma_pos_mm=0.02, sigma_rot_rad=2e-7, ident=ident, **DH)
     err = res.x[:, list(ident.base)] - sim.x_true @ ident.combination_matrix.T
-    cov = _crlb_batch(robot, sim.q, ident, position_only=False, base=False, tool=False, sigma_pos=0.02,
-                      sigma_rot=2e-5)
-    eff = np.diag(cov) / np.mean(err ** 2, 0)
+    cov = crlb_batch(robot, sim.q, ident, res.layout, sigma_pos=0.02, sigma_rot=2e-5)
+    eff = np.diag(cov) / np.mean(err**2, 0)
     assert eff.mean() < 0.8
 
 
@@ -51,12 +59,20 @@ def test_cli_montecarlo_writes_json(tmp_path):
     from jaxcal.cli import app
 
     out = tmp_path / "mc.json"
-    r = CliRunner().invoke(app, ["montecarlo", "paper-6r", "--robots", "8", "--poses", "20", "--repeats", "1",
-                                 "--json", str(out)])
+    r = CliRunner().invoke(
+        app, ["montecarlo", "paper-6r", "--robots", "8", "--poses", "20", "--repeats", "1", "--json", str(out)]
+    )
     assert r.exit_code == 0, r.output
     d = json.loads(out.read_text())
-    for key in ("robots_per_second", "compile_seconds", "param_rms_error", "crlb_efficiency",
-                "crlb_efficiency_mean", "validation_pos_rms_mm", "machine"):
+    for key in (
+        "robots_per_second",
+        "compile_seconds",
+        "param_rms_error",
+        "crlb_efficiency",
+        "crlb_efficiency_mean",
+        "validation_pos_rms_mm",
+        "machine",
+    ):
         assert key in d
     assert d["n_robots"] == 8 and d["robots_per_second"] > 0
 
@@ -65,8 +81,17 @@ def test_montecarlo_elimination_uses_its_pair_design():
     """--method elimination draws the pair design (n_poses sets the pairs per step) and
     recovers noise-free truths with zero error on the held parameter."""
 
-    out = run_montecarlo(jaxcal.preset("paper-6r"), n_robots=4, n_poses=22, n_val=10, sigma_pos=0.0,
-                         sigma_rot=0.0, method="elimination", seed=3, repeats=1)
+    out = run_montecarlo(
+        jaxcal.preset("paper-6r"),
+        n_robots=4,
+        n_poses=22,
+        n_val=10,
+        sigma_pos=0.0,
+        sigma_rot=0.0,
+        method="elimination",
+        seed=3,
+        repeats=1,
+    )
     assert out["n_poses"] == 2 * 5 * 2 + 2  # 2 pairs per step x 5 steps + 2 absolute poses
     assert out["converged_fraction"] == 1.0
     assert out["validation_pos_rms_mm"] < 1e-4  # only the d3 truth error's second-order trace
@@ -75,19 +100,20 @@ def test_montecarlo_elimination_uses_its_pair_design():
 def test_batched_crlb_equals_per_robot_crlb():
     """The Monte Carlo CRLB (all robots' Jacobians stacked) against identifiability.crlb robot by
     robot: both use base_covariance, so this checks the stacking, the row weights and the mean."""
-    from jaxcal.calibrate import identify
     from jaxcal.error_model import identification_jacobian
-    from jaxcal.experiments.montecarlo import _crlb_batch
     from jaxcal.identifiability import crlb, row_sigmas
-    from jaxcal.simulate import simulate
+    from jaxcal.model import Layout
+
     robot = jaxcal.preset("puma560")
     for position_only in (False, True):
         q = simulate(robot, n_robots=4, n_poses=30, seed=3).q
-        ident = identify(robot, q[0], position_only=position_only)
-        sig = row_sigmas(30, position_only=position_only, sigma_pos_mm=0.02,
-                         sigma_rot_rad=None if position_only else 2e-5)
-        ref = np.mean([crlb(np.asarray(identification_jacobian(robot, qr, position_only=position_only)), sig, ident)
-                       for qr in q], axis=0)
-        got = _crlb_batch(robot, q, ident, position_only=position_only, base=False, tool=False, sigma_pos=0.02,
-                          sigma_rot=2e-5)
+        ident = identify(robot, q[0], n_points=int(position_only), **DH)
+        sig = row_sigmas(
+            30, position_only=position_only, sigma_pos_mm=0.02, sigma_rot_rad=None if position_only else 2e-5
+        )
+        ref = np.mean(
+            [crlb(np.asarray(identification_jacobian(robot, qr, position_only=position_only)), sig, ident) for qr in q],
+            axis=0,
+        )
+        got = crlb_batch(robot, q, ident, Layout.of(robot, n_points=int(position_only)), sigma_pos=0.02, sigma_rot=2e-5)
         np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())

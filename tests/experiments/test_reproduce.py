@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from jaxcal.experiments.reproduce import TABLE2_TRADITIONAL, run_reproduce
+from jaxcal.experiments import run_reproduce
+from jaxcal.experiments._reproduce import TABLE2_TRADITIONAL
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from jaxcal import RobotFileError, Robot, fk, load_robot, presets, save_robot
+from jaxcal import Robot, RobotFileError, fk, load_robot, save_robot
+from jaxcal.robot import PRESETS, preset
 
 PAPER_TOML = """
 name = "paper-6r"
@@ -48,9 +49,9 @@ rpy = [0.0, 90.0, 0.0]
 """
 
 
-@pytest.mark.parametrize("name", list(presets.PRESETS))
+@pytest.mark.parametrize("name", list(PRESETS))
 def test_roundtrip_presets(name, tmp_path, rng):
-    r = presets.preset(name)
+    r = preset(name)
     save_robot(r, tmp_path / "r.toml")
     r2 = load_robot(tmp_path / "r.toml")
     assert r2.convention == r.convention and r2.joint_types == r.joint_types and r2.name == r.name
@@ -63,25 +64,28 @@ def test_units_m_deg_convert_to_mm_rad(tmp_path, rng):
     p = tmp_path / "paper.toml"
     p.write_text(PAPER_TOML)
     r = load_robot(p)
-    ref = presets.paper_6r()
+    ref = preset("paper-6r")
     assert_allclose(np.asarray(r.dh), np.asarray(ref.dh), atol=1e-12)
     tool = np.asarray(r.tool)
     assert_allclose(tool[:3, 3], [0, 0, 100.0])
     assert_allclose(tool[:3, :3], [[0, 0, 1], [0, 1, 0], [-1, 0, 0]], atol=1e-15)  # Ry(90 deg)
 
 
-@pytest.mark.parametrize("edit,msg", [
-    (lambda s: s.replace('convention = "sdh"', 'convention = "xyz"'), "convention"),
-    (lambda s: s.replace('length_unit = "m"', 'length_unit = "inch"'), "length_unit"),
-    (lambda s: s.replace("a = 0.580", "a = 'long'"), "joint 2 a"),
-    (lambda s: s.replace("a = 0.580\n", ""), "joint 2: missing a"),
-    (lambda s: s.replace("a = 0.580", "a = 0.58\nlength = 3"), "joint 2: unknown key"),
-    (lambda s: "colour = 'red'\n" + s, "unknown top-level key"),
-    (lambda s: s.replace("xyz = [0.0, 0.0, 0.1]", "xyz = [0.0, 0.1]"), "[tool].xyz"),
-    (lambda s: s.replace("a = 0.580", "a = nan"), "not finite"),
-    (lambda s: s.split("[[joints]]")[0] + "joints = 3\n", "at least one [[joints]]"),
-    (lambda s: s.replace("[[joints]]", "[[joints]\n", 1), "not valid TOML"),
-])
+@pytest.mark.parametrize(
+    "edit,msg",
+    [
+        (lambda s: s.replace('convention = "sdh"', 'convention = "xyz"'), "convention"),
+        (lambda s: s.replace('length_unit = "m"', 'length_unit = "inch"'), "length_unit"),
+        (lambda s: s.replace("a = 0.580", "a = 'long'"), "joint 2 a"),
+        (lambda s: s.replace("a = 0.580\n", ""), "joint 2: missing a"),
+        (lambda s: s.replace("a = 0.580", "a = 0.58\nlength = 3"), "joint 2: unknown key"),
+        (lambda s: "colour = 'red'\n" + s, "unknown top-level key"),
+        (lambda s: s.replace("xyz = [0.0, 0.0, 0.1]", "xyz = [0.0, 0.1]"), "[tool].xyz"),
+        (lambda s: s.replace("a = 0.580", "a = nan"), "not finite"),
+        (lambda s: s.split("[[joints]]")[0] + "joints = 3\n", "at least one [[joints]]"),
+        (lambda s: s.replace("[[joints]]", "[[joints]\n", 1), "not valid TOML"),
+    ],
+)
 def test_bad_files_name_the_problem(tmp_path, edit, msg):
     p = tmp_path / "bad.toml"
     p.write_text(edit(PAPER_TOML))

@@ -1,0 +1,45 @@
+"""Writing output files safely: checked before the work starts, written whole or not at all."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from .errors import DataError
+
+
+def check_writable(path, what: str = "output") -> Path:
+    """Raise :class:`DataError` now, before any computation, if ``path`` cannot be written: its
+    parent exists as a file, a directory is in the way, or the folder is not writable."""
+    path = Path(path)
+    if path.is_dir():
+        raise DataError(f"{what} {path}: is a directory", option=what)
+    parent = path.parent
+    for p in (parent, *parent.parents):
+        if p.exists():
+            if not p.is_dir():
+                raise DataError(f"{what} {path}: {p} is a file, not a folder", option=what)
+            if not os.access(p, os.W_OK | os.X_OK):
+                raise DataError(f"{what} {path}: folder {p} is not writable", option=what)
+            break
+    return path
+
+
+def write_atomic(path, data: str | bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``: a reader
+    (or a crash, or Ctrl-C) never leaves half a file, and an existing file is kept until the new
+    one is complete."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mode = "wb" if isinstance(data, bytes) else "w"
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode, **({} if mode == "wb" else {"encoding": "utf-8", "newline": ""})) as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

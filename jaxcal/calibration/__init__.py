@@ -1,0 +1,16 @@
+"""Calibration: one fit (:func:`calibrate`), many data sets of one robot at once
+(:func:`calibrate_batch`), and the real-data workflow with cross-validation
+(:func:`calibrate_data`, behind ``jaxcal calibrate``), all on the one engine."""
+
+from ._options import GAUGE as GAUGE
+from ._options import Options as Options
+from ._param_sets import Candidate as Candidate
+from ._param_sets import parse_params as parse_params
+from ._single import BatchResult as BatchResult
+from ._single import CalibrationResult as CalibrationResult
+from ._single import calibrate as calibrate
+from ._single import calibrate_batch as calibrate_batch
+from ._single import identify as identify
+from ._workflow import DataCalibration as DataCalibration
+from ._workflow import calibrate_data as calibrate_data
+from ._workflow import fold_ids as fold_ids

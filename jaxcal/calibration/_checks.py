@@ -1,0 +1,130 @@
+"""Checks of calibration data before anything is fitted: shapes, finite values, rigid poses,
+and evidence of a length unit that is not the robot's."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._config import as_f64
+from ..errors import DataError
+from ..robot import Robot
+
+
+def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None):
+    """Validate ``q`` and the measurements; return ``(q, target, n_points)`` as float64 NumPy
+    arrays (copies: the caller's arrays are never touched).
+
+    Measurements as users have them: positions ``(K, 3)``, points ``(K, M, 3)`` (several points
+    on the tool per pose) or poses ``(K, 4, 4)`` (``position_only=True`` keeps their
+    translations); with a leading data-set axis when ``batched``.
+    """
+    if not isinstance(robot, Robot):
+        raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}", option="robot")
+    q = np.array(as_f64(q, "q"))
+    measured = np.array(as_f64(measured, "measured"))
+    lead = 2 if batched else 1
+    shape_q = "(R, K, n)" if batched else "(K, n)"
+    if q.ndim != lead + 1 or q.shape[-1] != robot.n_joints:
+        raise DataError(f"q must have shape {shape_q} with n = {robot.n_joints} joints, got {q.shape}", option="q")
+    K = q.shape[:-1]
+    if measured.shape == K + (4, 4):
+        kind = "poses"
+    elif measured.shape == K + (3,):
+        kind = "positions"
+        measured = measured[..., None, :]
+    elif measured.ndim == lead + 2 and measured.shape[:lead] == K and measured.shape[-1] == 3:
+        kind = "points"
+    else:
+        raise DataError(
+            f"measured must have shape {K + (4, 4)} (poses), {K + (3,)} (positions) or "
+            f"{K + ('M', 3)} (M points per pose), one per row of q; got {measured.shape}",
+            option="measured",
+        )
+    for name, arr in (("q", q), ("measured", measured)):
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            idx = tuple(int(i) for i in np.argwhere(bad)[0])
+            raise DataError(f"{name}: non-finite value at index {idx}", option=name)
+    check_angles(robot, q)
+    if kind == "poses":
+        bad_row = np.abs(measured[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(-1) > 1e-9
+        if bad_row.any():
+            idx = tuple(int(i) for i in np.argwhere(bad_row)[0])
+            raise DataError(
+                f"measured{list(idx)}: bottom row is {measured[idx][3].tolist()}, not [0, 0, 0, 1]", option="measured"
+            )
+        if position_only:
+            return q, measured[..., None, :3, 3], 1
+        R = measured[..., :3, :3]
+        err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max((-1, -2))
+        bad_rot = (err > 1e-6) | (np.linalg.det(R) < 0)
+        if bad_rot.any():
+            idx = tuple(int(i) for i in np.argwhere(bad_rot)[0])
+            raise DataError(
+                f"measured{list(idx)}: rotation is not a proper rotation matrix (|R R^T - I| = "
+                f"{err[idx]:.3g}); {int(bad_rot.sum())} such pose(s); use position_only=True if "
+                "only positions were measured",
+                option="measured",
+            )
+        return q, measured, 0
+    return q, measured, measured.shape[-2]
+
+
+def check_angles(robot: Robot, q) -> None:
+    """Refuse joint angles that look like degrees: revolute values beyond both a full turn and
+    the joint limits in most poses (a few such poses are left to the fit and its checks)."""
+    revolute = np.array([t == "R" for t in robot.joint_types])
+    if not revolute.any() or q.shape[-2] < 3:
+        return
+    lim = np.abs(np.asarray(robot.q_limits)).max(axis=1)
+    over = (np.abs(q) > np.maximum(2 * np.pi, lim) * 1.05) & revolute
+    frac = over.any(-1).mean(-1)
+    if np.any(frac > 0.5):
+        idx = tuple(int(i) for i in np.argwhere(over)[0])
+        unit = robot.units[1]
+        raise DataError(
+            f"q: joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the poses have a "
+            f"revolute joint beyond a full turn and its limits (q{list(idx)} = {q[idx]:.6g} rad); the "
+            f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"',
+            option="angle_unit",
+        )
+
+
+def positions_of(target, n_points: int):
+    """Measured positions ``(..., K, 3)``: the tool origin of poses, the first point of points."""
+    return target[..., :3, 3] if n_points == 0 else target[..., 0, :]
+
+
+def check_units(robot: Robot, q, target, n_points: int, *, batched: bool, model_positions) -> None:
+    """Refuse a length-unit mismatch: the spread of the measured points (RMS distance to their
+    centroid, independent of the unknown measurement frame) must be within 3x of the nominal
+    model's at the same joint values; metres read as mm give 1000x. ``model_positions`` are the
+    nominal model's tool positions at ``q``."""
+    Q = q if batched else q[None]
+    P_mea = positions_of(target if batched else target[None], n_points)
+    P_mod = model_positions if batched else model_positions[None]
+    if Q.shape[1] < 2:
+        return
+
+    def spread(P):
+        return np.sqrt(np.mean(np.sum((P - P.mean(-2, keepdims=True)) ** 2, -1), -1))
+
+    s_mod, s_mea = spread(np.asarray(P_mod)), spread(P_mea)
+    lu = robot.units[0]
+    for i, (a, b) in enumerate(zip(s_mod, s_mea)):
+        if a > 1.0 and not (a / 3.0 <= b <= 3.0 * a):
+            where = f" (data set {i})" if batched else ""
+            ratio = b / a
+            guess, fix = (
+                ("metres read as millimetres", ' length_unit="m"')
+                if ratio < 0.01
+                else ("millimetres read as metres", ' length_unit="mm"')
+                if ratio > 100
+                else ("a unit or scale that is not the robot's", " the unit they were written in")
+            )
+            raise DataError(
+                f"measured{where}: positions spread {b:.4g} mm around their centroid, the nominal "
+                f"model's {a:.4g} mm at the same joint values ({ratio:.3g}x): lengths look like {guess} "
+                f"; the robot's lengths are in {lu}; read the data with{fix}",
+                option="length_unit",
+            )

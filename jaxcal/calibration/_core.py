@@ -1,0 +1,452 @@
+"""The fitting machinery shared by every calibration workflow: the parameter layout and its
+identifiable set, many fits in one compiled, vmapped solve run in memory-bounded chunks, the
+frames-only first stage, and the statistics of a fit.
+
+Every fit of a workflow (each data set of a batch, each cross-validation training set and
+parameter set) runs through one compiled function, :func:`run_members`: the members differ only
+in arrays (reference model, pose weights, row weights, prior weights), never in what is
+compiled. A parameter set is a prior (:data:`jaxcal.solvers.PIN` holds a parameter), a training
+set a pose weight of 0 or 1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..identifiability import Identifiability, analyze
+from ..kinematics import fk
+from ..lie import so3_log
+from ..model import Layout, Model, apply, errors, jacobian, predict
+from ..robot import Robot
+from ..solvers import PIN, fit, outlier_threshold, robust_scale, robust_weights
+from ._initial import initial_frames
+
+UNIT_WEIGHTS = (1.0, math.radians(1.0))
+SIGMA_FLOOR = (1e-3, 1e-6)
+"""Smallest estimated noise (mm, rad): with noise-free data the weighted residual is rounding
+error, and larger weights would make the solver's tolerances unreachable."""
+"""``(sigma_pos mm, sigma_rot rad)`` of the frames-only stage: 1 mm against 1 degree."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    """What one compiled member solve is specialised on (hashable). Every parameter of the layout
+    is a free variable of the solve; which ones move is data (the prior, :data:`PIN` holding the
+    others), so nothing about the poses or the parameter set changes what is compiled."""
+
+    layout: Layout
+    method: str = "gn"
+    max_steps: int = 50
+    rtol: float = 1e-8
+    atol: float = 1e-8
+    loss: str = "l2"
+    shared_data: bool = False
+    """Every member fits the same ``q``/``target`` (cross-validation: members differ by mask)."""
+
+
+def _member(cfg: Config, model: Model, q, target, pose_w, weights, prior, loss_scale, norms0, x0):
+    lay = cfg.layout
+    sol = fit(
+        model,
+        lay,
+        tuple(range(lay.size)),
+        q,
+        target,
+        weights=weights,
+        pose_weights=pose_w,
+        prior=prior,
+        method=cfg.method,
+        max_steps=cfg.max_steps,
+        rtol=cfg.rtol,
+        atol=cfg.atol,
+        loss=cfg.loss,
+        loss_scale=loss_scale,
+        column_norms=norms0,
+        x0=jnp.where(prior >= PIN, 0.0, x0),
+    )
+    x = jnp.where(prior >= PIN, 0.0, sol.x)  # held parameters exactly at 0
+    cal = apply(model, lay, x)
+    e = errors(cal, q, target)
+    M = max(lay.n_points, 1)
+    pos = jnp.linalg.norm(e[:, : 3 * M].reshape(-1, M, 3), axis=-1)
+    rot = jnp.linalg.norm(e[:, 3:], axis=-1) if lay.n_points == 0 else jnp.zeros(q.shape[0])
+    return dict(
+        x=x,
+        converged=sol.converged,
+        steps=sol.steps,
+        pos_err=pos,
+        rot_err=rot,
+        norms=jnp.linalg.norm(e * weights, axis=-1),
+        model=cal,
+    )
+
+
+@eqx.filter_jit
+def _members(cfg: Config, models, q, target, pose_w, weights, prior, loss_scale, norms0, x0):
+    data_axis = None if cfg.shared_data else 0
+    if pose_w.shape[0] == 1:  # one member: no batching transform to trace
+        one = lambda a: a[0]
+        out = _member(
+            cfg,
+            jax.tree.map(one, models),
+            q if cfg.shared_data else q[0],
+            target if cfg.shared_data else target[0],
+            pose_w[0],
+            weights[0],
+            prior[0],
+            loss_scale[0],
+            norms0[0],
+            x0[0],
+        )
+        return jax.tree.map(lambda a: a[None], out)
+    return jax.vmap(
+        lambda m, q_, t_, pw, w, p, ls, n0, s: _member(cfg, m, q_, t_, pw, w, p, ls, n0, s),
+        in_axes=(0, data_axis, data_axis, 0, 0, 0, 0, 0, 0),
+    )(models, q, target, pose_w, weights, prior, loss_scale, norms0, x0)
+
+
+MAX_CHUNK = 64
+"""Most members per compiled call: a vmapped solve runs until its slowest member is done, so
+smaller chunks waste less on easy members; and a workflow pads its small calls to one chunk."""
+
+
+def pose_bucket(n: int) -> int:
+    """``n`` poses rounded up so that data sets of similar size share one compiled solve (the added
+    poses weigh nothing): a power of two up to 1024 poses, where compiling dominates the solve,
+    then a multiple of an eighth of the power of two below (at most 12.5 % padding)."""
+    if n <= 1024:
+        return max(16, 1 << (max(n, 1) - 1).bit_length())
+    step = 1 << (n.bit_length() - 4)
+    return -(-n // step) * step
+
+
+def pad_poses(a, K: int, axis: int):
+    """``a`` with its pose axis filled up to ``K`` poses by repeating the first (valid values)."""
+    a = np.asarray(a)
+    extra = K - a.shape[axis]
+    if extra <= 0:
+        return a
+    first = np.take(a, [0], axis=axis)
+    return np.concatenate([a, np.repeat(first, extra, axis=axis)], axis=axis)
+
+
+def chunk_size(n_members: int, n_poses: int, layout: Layout, memory_mb: float) -> int:
+    """Members per compiled call within ``memory_mb`` (the Jacobian and its few working copies
+    dominate, ``n_poses x rows x parameters`` doubles each), a power of two so that batches of
+    similar size share one compiled solve."""
+    per = 8.0 * n_poses * layout.rows * (layout.size + 8) * 8
+    cap = int(max(1, min(MAX_CHUNK, memory_mb * 2**20 // per)))
+    cap = 2 ** int(np.floor(np.log2(cap)))
+    return int(min(cap, 2 ** int(np.ceil(np.log2(max(n_members, 1))))))
+
+
+def _chunk_args(cfg: Config, models, q, target, pose_w, weights, prior, ls, n0, x0, idx):
+    m_, pw, w, p, l_, n_, s_, *data = take(
+        [models, pose_w, weights, prior, ls, n0, x0] + ([] if cfg.shared_data else [q, target]), idx
+    )
+    q_, t_ = (q, target) if cfg.shared_data else data
+    return (m_, np.asarray(q_), np.asarray(t_), pw, w, p, l_, n_, s_)
+
+
+def run_members(
+    cfg: Config,
+    models: Model,
+    q,
+    target,
+    pose_w,
+    weights,
+    prior,
+    loss_scale=None,
+    *,
+    J0,
+    x0=None,
+    chunk: int | None = None,
+    memory_mb: float = 1024.0,
+    progress=None,
+    label: str = "fitting",
+) -> dict:
+    """Fit every member (leading axis of ``models``, ``pose_w``, ``weights``, ``prior``; and of
+    ``q``/``target`` unless ``cfg.shared_data``) in chunks of one compiled, vmapped solve.
+
+    ``prior`` ``(B, m)`` covers every parameter of the layout (:data:`PIN`: held). ``J0`` is a
+    Jacobian ``(K, rows, m)`` of the data at the reference (:func:`analyse`): the start's column
+    scaling comes from it, each member's own weights applied. ``x0`` ``(B, m)``: starting points
+    relative to each member's reference (default 0).
+
+    Chunks have a fixed size (``chunk``, default :func:`chunk_size`; the last is padded by
+    repeating its last member), so one compile serves every chunk, and memory is bounded by
+    ``memory_mb`` whatever the member count.
+    ``progress(done, total, label)`` is called after each chunk. Returns NumPy arrays with the
+    member axis first.
+    """
+    B = int(pose_w.shape[0])
+    K = int(pose_w.shape[1])
+    ls = np.full(B, np.nan) if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))
+    Kp = pose_bucket(K)
+    c = chunk_size(B, Kp, cfg.layout, memory_mb) if chunk is None else chunk
+    n0 = column_norms(J0, weights, pose_w, prior)
+    x0 = np.zeros(np.shape(prior)) if x0 is None else np.asarray(x0)
+    axis = 0 if cfg.shared_data else 1
+    q, target = pad_poses(q, Kp, axis), pad_poses(target, Kp, axis)
+    pose_w = np.concatenate([np.asarray(pose_w, float), np.zeros((B, Kp - K))], 1)
+    outs = []
+    for start in range(0, B, c):
+        idx = np.minimum(np.arange(start, start + c), B - 1)
+        args = _chunk_args(cfg, models, q, target, pose_w, weights, prior, ls, n0, x0, idx)
+        outs.append(jax.tree.map(np.asarray, _members(cfg, *args)))
+        if progress is not None:
+            progress(min(start + c, B), B, label)
+    out = jax.tree.map(lambda *a: np.concatenate(a)[:B], *outs)
+    for k in ("pos_err", "rot_err", "norms"):  # the padding poses out again
+        out[k] = out[k][:, :K]
+    return out
+
+
+@eqx.filter_jit
+def _starts(robot: Robot, q, target, masks, *, layout: Layout, shared: bool):
+    def one(q_, t_, w):
+        B, X, pts = initial_frames(
+            robot, q_, t_, w, n_points=layout.n_points, estimate_base=layout.base, estimate_tool=layout.tool
+        )
+        r = eqx.tree_at(lambda r: (r.base, r.tool), robot, (B, robot.tool @ X))
+        return Model(r, pts, None, camera=layout.camera)
+
+    axis = None if shared else 0
+    return jax.vmap(one, in_axes=(axis, axis, 0))(q, target, masks)
+
+
+def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool) -> Model:
+    """A reference model per member (leading axis of ``masks (B, K)``): the robot with the
+    closed-form guess of its frames (:mod:`._initial`) from the member's poses, when estimated."""
+    K = np.shape(masks)[1]
+    Kp = pose_bucket(K)
+    axis = 0 if shared else 1
+    masks = np.concatenate([np.asarray(masks, float), np.zeros((np.shape(masks)[0], Kp - K))], 1)
+    models = _starts(robot, pad_poses(q, Kp, axis), pad_poses(target, Kp, axis), masks, layout=layout, shared=shared)
+    return jax.tree.map(np.asarray, models)
+
+
+def broadcast_model(model: Model, n: int) -> Model:
+    """``n`` copies of ``model`` along a new leading axis (members sharing one reference)."""
+    return jax.tree.map(lambda a: jnp.broadcast_to(a, (n,) + jnp.shape(a)), model)
+
+
+def wrapped(model: Model, nominal: Robot) -> Model:
+    """``model`` with every DH angle (theta and alpha) within half a turn of the nominal one: the
+    same kinematics, and offsets in (-pi, pi] a controller can take."""
+    dh = np.array(model.robot.dh, copy=True)
+    nom = np.asarray(nominal.dh)
+    for k in (0, 3):
+        d = dh[..., k] - nom[..., k]
+        dh[..., k] = nom[..., k] + (np.pi - np.mod(np.pi - d, 2 * np.pi))
+    r = eqx.tree_at(lambda r: r.dh, model.robot, dh)
+    return Model(r, model.points, model.camera_params, camera=model.camera)
+
+
+def described(model: Model, robot: Robot) -> Model:
+    """``model`` with ``robot``'s name, joint names and file units (compiled functions work on
+    the structure alone, :meth:`jaxcal.Robot.stripped`)."""
+    r = model.robot.with_meta(robot.name, robot.joint_names, robot.units)
+    return Model(r, model.points, model.camera_params, camera=model.camera)
+
+
+def member(models: Model, i: int) -> Model:
+    """Member ``i`` of a batch of models."""
+    return jax.tree.map(lambda a: np.asarray(a)[i], models)
+
+
+def column_norms(J0, weights, pose_w, prior) -> np.ndarray:
+    """``(B, m)`` norms of each member's weighted Jacobian columns (and prior rows) at the start,
+    from one Jacobian ``J0 (K, rows, m)``."""
+    S = np.asarray(J0) ** 2  # (K, rows, m)
+    w2 = np.asarray(weights) ** 2  # (B, rows)
+    return np.sqrt(np.einsum("bk,br,krj->bj", np.asarray(pose_w), w2, S) + np.asarray(prior) ** 2)
+
+
+def sigmas_from(pos_err, rot_err, masks, n_points: int):
+    """RMS per coordinate (mm) and per axis (rad) of each member's errors over its mask, floored
+    at :data:`SIGMA_FLOOR`;
+    ``(B, 2)``. Position-only data get a rotation sigma of 1 (unused)."""
+    masks = np.asarray(masks, float)
+    M = max(n_points, 1)
+    n = masks.sum(-1)
+    sp = np.sqrt(np.sum(masks[:, :, None] * pos_err**2, (1, 2)) / (3 * M * n))
+    sr = np.sqrt(np.sum(masks * rot_err**2, 1) / (3 * n)) if n_points == 0 else np.ones_like(sp)
+    return np.stack([np.maximum(sp, SIGMA_FLOOR[0]), np.maximum(sr, SIGMA_FLOOR[1])], -1)
+
+
+def weights_of(layout: Layout, sigmas) -> np.ndarray:
+    """Row weights ``(B, rows)`` from ``(B, 2)`` sigmas."""
+    sigmas = np.atleast_2d(sigmas)
+    if layout.n_points == 0:
+        return np.c_[np.repeat(1 / sigmas[:, :1], 3, 1), np.repeat(1 / sigmas[:, 1:], 3, 1)]
+    return np.repeat(1 / sigmas[:, :1], layout.rows, 1)
+
+
+@eqx.filter_jit
+def _nominal(model: Model, layout: Layout, q):
+    pred = predict(model, q)
+    pos = pred[..., :3, 3] if layout.n_points == 0 else pred[..., 0, :]
+    return jacobian(model, layout, q), pos
+
+
+def analyse(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray]:
+    """``(J (K, rows, m), tool positions (K, 3))`` of the model at the poses ``q``: the Jacobian
+    of the identifiability analysis and the column scaling, the positions of the unit check."""
+    K = np.shape(q)[0]
+    J, pos = _nominal(model, layout, pad_poses(q, pose_bucket(K), 0))
+    return np.asarray(J)[:K], np.asarray(pos)[:K]
+
+
+def identify(J, layout: Layout, *, rtol: float = 1e-8) -> Identifiability:
+    """Identifiability of every parameter of ``layout`` from the Jacobian ``J`` (:func:`analyse`),
+    the frames offered first (they keep what they can absorb), then the DH errors, then the
+    camera."""
+    frames, cams = list(layout.frames), list(layout.cameras)
+    kin = list(range(layout.n_kin))
+    return analyze(np.asarray(J).reshape(-1, layout.size), layout.names(), rtol=rtol, priority=frames + kin + cams)
+
+
+def generic_rank(model: Model, layout: Layout, n_poses: int, columns) -> int:
+    """Rank of ``columns`` of the Jacobian on a generic pose set (seeded, uniform within the joint
+    limits, at least 60 poses): what a pose set must identify to count as enough data. Evaluated
+    in blocks of ``n_poses`` poses, so the data's compiled Jacobian serves."""
+    lim = np.asarray(model.robot.q_limits)
+    rng = np.random.default_rng(0)
+    n_poses = n_poses if n_poses > 0 else 60
+    blocks = []
+    for _ in range(-(-60 // n_poses)):
+        qg = lim[:, 0] + rng.uniform(size=(n_poses, len(lim))) * (lim[:, 1] - lim[:, 0])
+        blocks.append(analyse(model, layout, qg)[0].reshape(-1, layout.size))
+    J = np.concatenate(blocks)[:, list(columns)]
+    return analyze(J, [str(c) for c in columns]).rank
+
+
+def relative_x(reference, layout: Layout, model: Model) -> np.ndarray:
+    """``x`` of ``model`` relative to ``reference`` (a :class:`Model`, or a robot with no points;
+    either may carry a leading batch axis) in the layout of ``layout``: DH deltas, the frames'
+    translations and rotation vectors (the chart of :func:`jaxcal.error_model.perturb`), the
+    points' offsets and the camera unknowns' changes, so that ``apply(reference, layout, x)`` is
+    ``model``."""
+    if isinstance(reference, Robot):
+        reference = Model(reference, np.zeros((layout.n_points, 3)) if layout.n_points else None)
+    r0, r1 = reference.robot, model.robot
+    lead = np.broadcast_shapes(np.shape(r1.dh)[:-2], np.shape(r0.dh)[:-2])
+    out = [(np.asarray(r1.dh) - np.asarray(r0.dh)).reshape(lead + (-1,))]
+    if layout.base:  # the chart of jaxcal.error_model.perturb: translation, then turn about the origin
+        B0, B1 = np.asarray(r0.base), np.asarray(r1.base)
+        out.append(
+            np.concatenate(
+                [B1[..., :3, 3] - B0[..., :3, 3], so3_log(B1[..., :3, :3] @ np.swapaxes(B0[..., :3, :3], -1, -2))], -1
+            )
+        )
+    if layout.tool:
+        if layout.n_points == 0:
+            X0, X1 = np.asarray(r0.tool), np.asarray(r1.tool)
+            R0t = np.swapaxes(X0[..., :3, :3], -1, -2)
+            out.append(
+                np.concatenate(
+                    [
+                        np.einsum("...ij,...j->...i", R0t, X1[..., :3, 3] - X0[..., :3, 3]),
+                        so3_log(R0t @ X1[..., :3, :3]),
+                    ],
+                    -1,
+                )
+            )
+        else:
+            out.append((np.asarray(model.points) - np.asarray(reference.points)).reshape(lead + (-1,)))
+    cam = np.asarray(model.camera_params) - np.asarray(reference.camera_params)
+    out.append(cam.reshape(cam.shape[:-1] + (-1,))[..., : layout.n_camera])
+    return np.concatenate([np.broadcast_to(o, lead + o.shape[-1:]) for o in out], -1)
+
+
+def take(tree, idx):
+    """The members ``idx`` of a batch (a model, or a list of arrays), as NumPy arrays: no eager
+    JAX operation, so nothing is compiled for it."""
+    return jax.tree.map(lambda a: np.asarray(a)[idx], tree)
+
+
+def condition_number(normal, active) -> float:
+    """Condition number of the column-scaled weighted Jacobian of the ``active`` free parameters,
+    from its normal matrix."""
+    N = np.asarray(normal)[np.ix_(active, active)]
+    d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
+    ev = np.linalg.eigvalsh(N / np.outer(d, d))
+    return float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
+
+
+def fit_statistics(J0, weights, pose_w, norms, *, loss: str, loss_scale, rows: int) -> dict:
+    """What the standard errors and outlier report of one fit need, from its per-pose weighted
+    residual norms and the Jacobian ``J0 (K, rows, m)`` at its reference (first-order close to
+    the one at the solution: the fit moves the parameters by the calibration's small errors):
+    the robust ``scale``, the weighted normal matrix ``normal``, ``rss`` and ``n_rows``."""
+    norms, pose_w = np.asarray(norms), np.asarray(pose_w)
+    scale = float(loss_scale) if loss_scale is not None else float(robust_scale(norms, rows, pose_w))
+    w = pose_w * (robust_weights(norms, scale, rows, loss) if loss != "l2" else 1.0)
+    Jw = np.asarray(J0) * np.asarray(weights)[:, None]
+    return {
+        "scale": scale,
+        "normal": np.einsum("k,kri,krj->ij", w, Jw, Jw),
+        "rss": float(np.sum(w * norms**2)),
+        "n_rows": int(np.sum(pose_w > 0)) * rows,
+    }
+
+
+def covariance(normal, rss, n_rows, prior) -> tuple[np.ndarray, float]:
+    """Sandwich covariance of the free parameters, ``s^2 N^-1 (J^T J) N^-1`` with ``N = J^T J +
+    diag(p^2)`` (data and prior rows) and ``s^2`` the weighted residual variance; and ``s^2``."""
+    p = np.where(np.asarray(prior) >= PIN, 0.0, np.asarray(prior))
+    held = np.asarray(prior) >= PIN
+    N = normal + np.diag(p**2)
+    keep = ~held
+    cov = np.zeros_like(N)
+    if keep.any():
+        Nk = N[np.ix_(keep, keep)]
+        dof = max(float(n_rows) - keep.sum(), 1.0)
+        s2 = float(rss) / dof
+        Ni = np.linalg.pinv(Nk)
+        cov[np.ix_(keep, keep)] = s2 * Ni @ normal[np.ix_(keep, keep)] @ Ni
+        return cov, s2
+    return cov, float("nan")
+
+
+def residual_stats(pos_err, rot_err, mask=None, *, n_points: int) -> dict:
+    """Position RMS / max / median (mm, per pose: the norm over its points' errors) and rotation
+    RMS (deg) over the poses of ``mask``."""
+    pos_err = np.asarray(pos_err)
+    sel = np.ones(pos_err.shape[0], bool) if mask is None else np.asarray(mask, bool)
+    d = pos_err[sel]
+    per_point = np.sqrt(np.mean(d**2, 0)) if d.size else np.full(max(n_points, 1), np.nan)
+    out = {
+        "pos_rms_mm": float(np.sqrt(np.mean(d**2))) if d.size else float("nan"),
+        "pos_max_mm": float(d.max()) if d.size else float("nan"),
+        "pos_median_mm": float(np.median(d)) if d.size else float("nan"),
+    }
+    if n_points > 1:
+        out["points_rms_mm"] = [float(v) for v in per_point]
+    if n_points == 0:
+        out["rot_rms_deg"] = float(np.degrees(np.sqrt(np.mean(np.asarray(rot_err)[sel] ** 2))))
+    return out
+
+
+def robust_scale_batch(norms, rows: int, loss_scale=None) -> np.ndarray:
+    """Per data set robust scale of per-pose norms ``(R, K)``, or the given ``loss_scale``."""
+    if loss_scale is not None:
+        return np.full(np.shape(norms)[0], float(loss_scale))
+    return np.asarray(robust_scale(jnp.asarray(norms), rows))
+
+
+def outliers_of(norms, scale, rows: int) -> np.ndarray:
+    """Poses whose standardised residual norm exceeds :func:`jaxcal.solvers.outlier_threshold`."""
+    return np.asarray(norms) > outlier_threshold(rows) * np.asarray(scale)[..., None]
+
+
+def nominal_positions(robot: Robot, q):
+    """Tool positions of the nominal robot at ``q`` (any leading axes), for the unit check."""
+    return np.asarray(fk(robot, jnp.asarray(q)))[..., :3, 3]

@@ -1,0 +1,219 @@
+"""Whether a fit is a calibration at all, and what mistake in the input it most likely shows.
+
+A converged fit is not a calibration when its residuals or its parameter changes are far beyond
+what a geometric calibration produces (:func:`findings`). The thresholds, all options:
+
+- ``max_residual_mm`` (default 1 % of the robot's reach): the calibrated position RMS;
+- ``max_rotation_deg`` (2 deg): the calibrated rotation RMS, for poses;
+- ``max_length_change_mm`` (5 % of the reach): the largest change of a DH length;
+- ``max_angle_change_deg`` (20 deg): the largest change of a DH angle (offsets are first put in
+  (-180, 180]).
+
+Most such fits come from a mistake in the data file, and the likely ones can be tested: the data
+are read again as they would be without that mistake (:data:`MISTAKES`: two position columns
+swapped, a mirrored axis, a quaternion written x, y, z, w, two joint columns swapped, the joint
+order reversed, degrees read as radians, metres read as millimetres or the reverse), and the
+frames-only fit (nominal DH, base and tool estimated, all in one batch) is repeated on each. A
+mistake whose correction brings that residual down to a calibration's size is named, with the
+residual before and after (:func:`diagnose`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..model import Layout, Model
+from ..robot import Robot
+from . import _core as core
+
+MISTAKES = (
+    "swapped x, y",
+    "swapped x, z",
+    "swapped y, z",
+    "mirrored x",
+    "mirrored y",
+    "mirrored z",
+    "quaternion written x, y, z, w",
+    "joints reversed",
+    "degrees read as radians",
+    "metres read as millimetres",
+    "millimetres read as metres",
+)
+"""The input mistakes :func:`diagnose` tests, besides two adjacent joint columns swapped."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Thresholds:
+    """Plausibility limits (module docstring), resolved for one robot."""
+
+    residual_mm: float
+    rotation_deg: float
+    length_mm: float
+    angle_rad: float
+
+    @classmethod
+    def of(cls, robot: Robot, opts) -> "Thresholds":
+        reach = robot.reach()
+        return cls(
+            residual_mm=opts.max_residual_mm if opts.max_residual_mm is not None else 0.01 * reach,
+            rotation_deg=opts.max_rotation_deg,
+            length_mm=opts.max_length_change_mm if opts.max_length_change_mm is not None else 0.05 * reach,
+            angle_rad=np.radians(opts.max_angle_change_deg),
+        )
+
+
+def wrap_angle(a):
+    """Angles into (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(a), 2 * np.pi)
+
+
+def findings(stats: dict, x, layout: Layout, limits: Thresholds, *, free=None) -> list[str]:
+    """What makes a fit implausible as a calibration, each with its evidence (empty: plausible).
+    ``stats``: residual statistics of the fit; ``x``: its parameters relative to the nominal
+    robot (angles already wrapped)."""
+    out = []
+    if stats["pos_rms_mm"] > limits.residual_mm:
+        out.append(
+            f"the position residual is {stats['pos_rms_mm']:.4g} mm RMS after calibration, more than "
+            f"{limits.residual_mm:.3g} mm (max_residual_mm)"
+        )
+    if stats.get("rot_rms_deg") is not None and stats["rot_rms_deg"] > limits.rotation_deg:
+        out.append(
+            f"the rotation residual is {stats['rot_rms_deg']:.3g} deg RMS after calibration, more than "
+            f"{limits.rotation_deg:.3g} deg (max_rotation_deg)"
+        )
+    names = layout.names()
+    x = np.asarray(x)
+    kin = [(i, n) for i, n in enumerate(names[: layout.n_kin]) if free is None or i in free]
+    lengths = [(abs(x[i]), n) for i, n in kin if n.startswith(("d", "a")) and not n.startswith("alpha")]
+    angles = [(abs(x[i]), n) for i, n in kin if n.startswith(("theta", "alpha"))]
+    if lengths and max(lengths)[0] > limits.length_mm:
+        v, n = max(lengths)
+        out.append(f"{n} changes by {v:.4g} mm, more than {limits.length_mm:.3g} mm (max_length_change_mm)")
+    if angles and max(angles)[0] > limits.angle_rad:
+        v, n = max(angles)
+        out.append(
+            f"{n} changes by {np.degrees(v):.3g} deg, more than {np.degrees(limits.angle_rad):.3g} deg "
+            f"(max_angle_change_deg)"
+        )
+    return out
+
+
+def _variants(robot: Robot, q, target, n_points: int):
+    """``{name: (q, target)}``: the data read again without each mistake of :data:`MISTAKES`."""
+    out = {}
+    pos = (lambda t: t[..., :3, 3]) if n_points == 0 else (lambda t: t)
+
+    def with_pos(f):
+        t = np.array(target, copy=True)
+        if n_points == 0:
+            t[..., :3, 3] = f(t[..., :3, 3])
+        else:
+            t = f(t)
+        return t
+
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        perm = [0, 1, 2]
+        perm[a], perm[b] = b, a
+        out[f"swapped {'xyz'[a]}, {'xyz'[b]}"] = (q, with_pos(lambda p, perm=perm: p[..., perm]))
+    for a in range(3):
+        sign = np.ones(3)
+        sign[a] = -1.0
+        out[f"mirrored {'xyz'[a]}"] = (q, with_pos(lambda p, sign=sign: p * sign))
+    if n_points == 0:
+        from scipy.spatial.transform import Rotation
+
+        wxyz_read = Rotation.from_matrix(target[:, :3, :3]).as_quat()[:, [3, 0, 1, 2]]  # as it was read
+        t = np.array(target, copy=True)
+        t[:, :3, :3] = Rotation.from_quat(wxyz_read).as_matrix()  # its fields taken as x, y, z, w
+        out["quaternion written x, y, z, w"] = (q, t)
+    n = q.shape[1]
+    for j in range(n - 1):
+        perm = list(range(n))
+        perm[j], perm[j + 1] = j + 1, j
+        out[f"joints {j + 1} and {j + 2} swapped"] = (q[:, perm], target)
+    out["joints reversed"] = (q[:, ::-1], target)
+    rev = np.array([t == "R" for t in robot.joint_types])
+    out["degrees read as radians"] = (np.where(rev, np.radians(q), q), target)
+    out["metres read as millimetres"] = (q, with_pos(lambda p: p * 1000.0))
+    out["millimetres read as metres"] = (q, with_pos(lambda p: p / 1000.0))
+    del pos
+    return out
+
+
+def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thresholds, *, memory_mb: float = 1024.0):
+    """Test the likely input mistakes (module docstring).
+
+    **Returns** ``(before, ranked)``: ``before`` the frames-only ``(position RMS mm, rotation RMS
+    deg or None)`` of the data as given; ``ranked`` ``[(mistake, position RMS, rotation RMS),
+    ...]`` with each correction, best first (by :func:`badness`).
+    """
+    variants = {"as given": (q, target), **_variants(robot, q, target, n_points)}
+    names = list(variants)
+    Q = np.stack([v[0] for v in variants.values()])
+    T = np.stack([v[1] for v in variants.values()])
+    R, K = Q.shape[:2]
+    lay = dataclasses.replace(layout, camera="none")
+    kin = robot.stripped()
+    masks = np.ones((R, K))
+    ref = (
+        core.start_models(kin, lay, Q, T, masks, shared=False)
+        if lay.frames
+        else core.broadcast_model(Model(kin, np.zeros((n_points, 3)) if n_points else None), R)
+    )
+    J0 = core.analyse(core.member(ref, 0), lay, Q[0])[0]
+    ident = core.identify(J0, lay)
+    base = set(ident.base)
+    prior = np.array([0.0 if (i in base and i in lay.frames) else core.PIN for i in range(lay.size)])
+    cfg = core.Config(lay, "lm", 50, 1e-8, 1e-8, "l2", shared_data=False)
+    unit = core.weights_of(lay, np.array([core.UNIT_WEIGHTS]))
+    out = core.run_members(
+        cfg,
+        ref,
+        Q,
+        T,
+        masks,
+        np.repeat(unit, R, 0),
+        np.repeat(prior[None], R, 0),
+        J0=J0,
+        memory_mb=memory_mb,
+        label="checking likely mistakes",
+    )
+    pos = np.sqrt(np.mean(out["pos_err"] ** 2, axis=(1, 2)))
+    rot = np.degrees(np.sqrt(np.mean(out["rot_err"] ** 2, axis=1))) if n_points == 0 else np.full(R, np.nan)
+    pos, rot = np.where(np.isfinite(pos), pos, np.inf), np.where(np.isfinite(rot), rot, np.inf)
+    res = [(float(p), None if n_points else float(r)) for p, r in zip(pos, rot)]
+    ranked = sorted(((m, *r) for m, r in zip(names[1:], res[1:])), key=lambda t: badness(t[1], t[2], limits))
+    return res[0], ranked
+
+
+def badness(pos_mm: float, rot_deg: float | None, limits: Thresholds) -> float:
+    """The residual in units of its plausibility limit (the larger of position and rotation)."""
+    return max(pos_mm / limits.residual_mm, 0.0 if rot_deg is None else rot_deg / limits.rotation_deg)
+
+
+def _fmt(pos, rot) -> str:
+    return f"{pos:.4g} mm" + ("" if rot is None else f", {rot:.3g} deg")
+
+
+def explain(found: list[str], before, ranked, limits: Thresholds) -> str:
+    """One message: what is implausible, the likely cause it found (or the ones it ruled out).
+    A correction counts when it brings the frames-only residual within the limits and to less
+    than a fifth of the residual as given."""
+    head = "not a calibration: " + "; ".join(found)
+    b0 = badness(*before, limits)
+    fixes = [(m, p, r) for m, p, r in ranked if badness(p, r, limits) < min(1.0, 0.2 * b0)]
+    if fixes:
+        m, p, r = fixes[0]
+        return (
+            f"{head}. Likely cause: {m} (with that corrected, the frames-only RMS residual drops from "
+            f"{_fmt(*before)} to {_fmt(p, r)}). Check the data file's columns and units"
+        )
+    tried = ", ".join(m for m, *_ in ranked)
+    return (
+        f"{head}. None of the likely input mistakes explains it (tried: {tried}; the frames-only RMS residual "
+        f"is {_fmt(*before)}); check the robot model against the data, or raise the thresholds if the robot "
+        f"really is this far from its model"
+    )

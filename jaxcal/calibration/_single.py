@@ -1,0 +1,463 @@
+"""One fit of one data set (:func:`calibrate`) or of many data sets of one robot at once
+(:func:`calibrate_batch`), on the one engine (:mod:`jaxcal.solvers`).
+
+The pipeline: the closed-form guess of the frames; the identifiable (base) set over the poses,
+frames offered first; a frames-only fit (DH held), whose residual gives the noise weights when
+none are given; the fit of the chosen parameter set; residual statistics, outliers, standard
+errors. Both stages run through one compiled solve (:mod:`._core`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .._config import as_f64
+from ..camera import n_params as camera_size
+from ..errors import DataError, ImplausibleFitError
+from ..identifiability import Identifiability
+from ..kinematics import check_q
+from ..model import Layout, Model, measured_robot
+from ..robot import Robot
+from ..solvers import PIN, calibrate_design_batch
+from . import _core as core
+from . import _plausibility as plausibility
+from ._checks import as_target, check_units
+from ._options import ELIMINATION_METHODS, Options, make_options
+from ._param_sets import Candidate, parse_params
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CalibrationResult:
+    """What :func:`calibrate` returns (lengths mm, angles rad unless named)."""
+
+    model: Model
+    """The calibrated model: robot, measured points on the tool, camera unknowns."""
+    nominal: Robot
+    layout: Layout
+    x: np.ndarray
+    """``(m,)`` parameters relative to the nominal robot, named by :attr:`names`: ``apply(
+    Model(nominal), layout, x)`` is :attr:`model`."""
+    std_errors: np.ndarray
+    """``(m,)`` 1-sigma standard errors (0 for parameters held at 0)."""
+    identifiability: Identifiability
+    free: tuple[int, ...]
+    """Indices of the estimated parameters."""
+    converged: bool
+    num_steps: int
+    before: dict
+    """Residual statistics of the frames-only fit (nominal DH): ``pos_rms_mm``, ``pos_max_mm``,
+    ``pos_median_mm``, ``rot_rms_deg`` for poses."""
+    after: dict
+    """Residual statistics of the calibrated model."""
+    sigma_pos_mm: float
+    sigma_rot_rad: float | None
+    method: str
+    loss: str
+    outliers: tuple[int, ...]
+    """Poses whose standardised residual norm exceeds the outlier threshold."""
+    degraded: bool
+    """Outliers spoil this fit: a plain (L2) fit with outliers, or a robust fit with more than a
+    third of its poses outlying; try ``loss="huber"``."""
+    robust_scale: float
+    pos_errors_mm: np.ndarray
+    """``(K, M)`` position error of every measured point after calibration."""
+    options: Options
+    plausible: bool = True
+    """False: the fit is not a calibration (see :attr:`implausible`)."""
+    implausible: str = ""
+    """Why the fit is not a calibration, its evidence and the likely input mistake."""
+    notes: tuple[str, ...] = ()
+    """Warnings that do not make the fit implausible (a joint that never moves, ...)."""
+
+    @property
+    def robot(self) -> Robot:
+        """The calibrated robot (base and tool included)."""
+        return measured_robot(self.model)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.layout.names())
+
+    @property
+    def num_points(self) -> int:
+        return self.layout.n_points
+
+    def not_identified(self) -> dict[str, str]:
+        """``{parameter: why}`` for every parameter held at 0 by the identifiability analysis; a
+        joint that never moves in the data is named as a likely cause."""
+        still = [n.split(" never moves")[0] for n in self.notes if " never moves in the data" in n]
+        hint = f"; {' and '.join(still)} never move{'s' if len(still) == 1 else ''} in the data" if still else ""
+        return {k: v + hint for k, v in self.identifiability.reasons().items()}
+
+    def delta(self, name: str) -> float:
+        return float(self.x[self.names.index(name)])
+
+    def table(self) -> str:
+        held = set(range(len(self.x))) - set(self.free)
+        units = self.layout.units()
+        lines = [f"{'parameter':>14s} {'delta':>14s} {'std err':>11s} unit"]
+        for i, (n, v, s) in enumerate(zip(self.names, self.x, self.std_errors)):
+            lines.append(f"{n:>14s} {v:14.8g} {s:11.3g} {units[i]:4s}" + ("  (held at 0)" if i in held else ""))
+        return "\n".join(lines)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class BatchResult:
+    """What :func:`calibrate_batch` returns (leading axis: data sets)."""
+
+    x: np.ndarray
+    """``(R, m)`` parameters relative to the nominal robot."""
+    converged: np.ndarray
+    num_steps: np.ndarray
+    identifiability: Identifiability
+    layout: Layout
+    method: str
+    loss: str = "l2"
+    outlier_mask: np.ndarray | None = None
+    """``(R, K)``: gross residual (see :attr:`CalibrationResult.outliers`)."""
+    degraded: np.ndarray | None = None
+    nonfinite: np.ndarray | None = None
+    """``(R,)``: the solver gave non-finite values; ``x`` is 0 there, not converged."""
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.layout.names())
+
+    def outliers(self, i: int) -> tuple[int, ...]:
+        return tuple(int(k) for k in np.flatnonzero(self.outlier_mask[i]))
+
+
+def kinematic_set(opts: Options, robot: Robot) -> Candidate:
+    """The one parameter set of a single fit: ``params`` (``auto`` = ``all``) with ``ridge_mm``."""
+    spec = "all" if opts.params == "auto" else opts.params
+    return parse_params(spec, robot, opts.ridge_mm)[0]
+
+
+def make_layout(robot: Robot, opts: Options, n_points: int, camera: str | None = None) -> Layout:
+    camera = opts.camera if camera is None else camera
+    if n_points and camera != "none":
+        raise DataError(
+            f"the camera model {camera!r} needs full poses (the camera's axes); the data are position-only",
+            option="camera",
+        )
+    if n_points > 1 and not opts.estimate_tool:
+        raise DataError(
+            f"{n_points} points per pose: their positions on the tool are unknown and must be "
+            f"estimated (estimate_tool)",
+            option="estimate_tool",
+        )
+    return Layout.of(robot, base=opts.estimate_base, tool=opts.estimate_tool, n_points=n_points, camera=camera)
+
+
+def check_enough_poses(n_poses: int, layout: Layout, needed: int) -> None:
+    rows = layout.rows
+    if n_poses * rows < needed:
+        raise DataError(
+            f"too few poses: {n_poses} poses x {rows} rows = {n_poses * rows} equations for {needed} "
+            f"parameters; need at least {-(-needed // rows)} poses",
+            option="measured",
+        )
+
+
+def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, frames_only: bool = False):
+    """Prior weight of every parameter of the layout: :data:`PIN` (held at 0) for what the poses
+    cannot identify and what the candidate (``None``: frames only) does not estimate; a
+    candidate's DH errors its ridge weight (0 without); frames and the candidate camera model's
+    unknowns 0."""
+    base = set(ident.base)
+    out = np.zeros(layout.size)
+    cams = layout.cameras
+    for i in range(layout.size):
+        if i not in base:
+            out[i] = PIN
+        elif i < layout.n_kin:
+            out[i] = PIN if frames_only or cand is None or i not in cand.dh else cand.prior_weight(i)
+        elif i in cams:
+            k = i - cams[0]
+            out[i] = PIN if frames_only or cand is None or k >= camera_size(cand.camera) else 0.0
+    return out
+
+
+def estimated(prior) -> tuple[int, ...]:
+    return tuple(int(i) for i in np.flatnonzero(np.asarray(prior) < PIN))
+
+
+def judge(robot: Robot, q, target, n_points: int, layout: Layout, opts: Options, stats: dict, x, free) -> str:
+    """Empty when the fit is plausible as a calibration; else why not and the likely input
+    mistake (:mod:`._plausibility`). Raises :class:`jaxcal.ImplausibleFitError` with
+    ``strict``."""
+    limits = plausibility.Thresholds.of(robot, opts)
+    found = plausibility.findings(stats, x, layout, limits, free=free)
+    if not found:
+        return ""
+    before, ranked = plausibility.diagnose(robot, q, target, n_points, layout, limits, memory_mb=opts.memory_mb)
+    message = plausibility.explain(found, before, ranked, limits)
+    if opts.strict:
+        raise ImplausibleFitError(message)
+    return message
+
+
+def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
+    """A note per joint that never moves in the data: what depends on it is not identified, and
+    the model is only checked at that joint value."""
+    q = np.asarray(q)
+    span = q.max(0) - q.min(0)
+    tiny = np.where(np.array([t == "R" for t in robot.joint_types]), 1e-6, 1e-3)
+    return tuple(
+        f"joint {j + 1} ({robot.joint_names[j]}) never moves in the data (always {q[0, j]:.6g}): its "
+        f"parameters are not identified apart from its neighbours', and the model is only checked there"
+        for j in np.flatnonzero(span <= tiny)
+    )
+
+
+def nominal_model(robot: Robot, layout: Layout) -> Model:
+    """The nominal model of a layout: the robot (its structure alone: compiled functions are
+    shared by robots of one structure), its measured points at the tool origin."""
+    return Model(robot.stripped(), np.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+
+
+def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: int = 0, **kw) -> Identifiability:
+    """Identifiability of the parameters a calibration with these options would carry, over the
+    poses ``q (K, n)`` at the nominal robot (frames offered first, as in :func:`calibrate`);
+    ``n_points`` points per pose, 0 for poses."""
+    opts = make_options(options, kw, elimination=True)
+    layout = make_layout(robot, opts, n_points)
+    q = np.asarray(check_q(robot, as_f64(q, "q")))
+    if q.ndim != 2:
+        raise DataError(f"q must have shape (K, {robot.n_joints}), got {q.shape}", option="q")
+    return core.identify(core.analyse(nominal_model(robot, layout), layout, q)[0], layout)
+
+
+def calibrate(
+    robot: Robot,
+    q,
+    measured,
+    options: Options | None = None,
+    /,
+    *,
+    position_only: bool | None = None,
+    progress=None,
+    **kw,
+) -> CalibrationResult:
+    """Calibrate ``robot`` from joint values ``q (K, n)`` and measurements: positions ``(K, 3)``,
+    points ``(K, M, 3)`` (several points on the tool per pose) or poses ``(K, 4, 4)``
+    (``position_only=True`` uses only their translations); mm and rad.
+
+    **Options**: :class:`jaxcal.Options`, or its fields as keywords (``method="lm"``); the same
+    defaults as :func:`calibrate_data` and ``jaxcal calibrate``.
+
+    **Returns** a :class:`CalibrationResult`; ``converged`` is False (never silently) when the
+    solver did not meet its tolerances; ``not_identified()`` says which parameters were held at
+    0 and why.
+
+    **Raises** :class:`jaxcal.DataError` for bad input (shapes, non-finite values, poses that are
+    not rigid, lengths apparently not in mm, too few poses, bad options).
+    """
+    opts = make_options(options, kw)
+    q, target, n_points = as_target(robot, q, measured, batched=False, position_only=position_only)
+    layout = make_layout(robot, opts, n_points)
+    K = q.shape[0]
+    cand = kinematic_set(opts, robot)
+    wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
+    check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
+    masks = np.ones((1, K))
+    ref = (
+        core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
+        if layout.frames
+        else core.broadcast_model(nominal_model(robot, layout), 1)
+    )
+    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
+    check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
+    J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
+    check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
+    ident = core.identify(J0, layout)
+    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress)
+    unit = core.weights_of(layout, np.array([core.UNIT_WEIGHTS]))
+    a = core.run_members(
+        cfg,
+        ref,
+        q,
+        target,
+        masks,
+        unit,
+        prior_of(layout, ident, None, frames_only=True)[None],
+        **run,
+        label="frames only",
+    )
+    sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)[0]
+    if opts.sigma_pos_mm is not None:
+        sig[0] = opts.sigma_pos_mm
+    if opts.sigma_rot_rad is not None:
+        sig[1] = opts.sigma_rot_rad
+    prior = prior_of(layout, ident, cand)
+    weights = core.weights_of(layout, sig[None])
+    b = core.run_members(
+        cfg, a["model"], q, target, masks, weights, prior[None], opts.loss_scale, **run, label="calibrating"
+    )
+    if not np.all(np.isfinite(b["x"][0])):
+        raise DataError(
+            "the solver produced non-finite parameters; the data are probably inconsistent with the "
+            "robot (check units and joint order)"
+        )
+    model = core.described(core.wrapped(core.member(b["model"], 0), robot), robot)
+    st = core.fit_statistics(
+        J0, weights[0], masks[0], b["norms"][0], loss=opts.loss, loss_scale=opts.loss_scale, rows=layout.rows
+    )
+    cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    mask = core.outliers_of(b["norms"][0], st["scale"], layout.rows)
+    degraded = bool(mask.mean() > 1 / 3) if opts.loss != "l2" else bool(mask.any())
+    x = core.relative_x(robot, layout, model)
+    after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], n_points=n_points)
+    why = judge(robot, q, target, n_points, layout, opts, after, x, estimated(prior))
+    return CalibrationResult(
+        model=model,
+        nominal=robot,
+        layout=layout,
+        x=x,
+        std_errors=se,
+        identifiability=ident,
+        free=estimated(prior),
+        converged=bool(b["converged"][0]),
+        num_steps=int(b["steps"][0]),
+        before=core.residual_stats(a["pos_err"][0], a["rot_err"][0], n_points=n_points),
+        after=after,
+        sigma_pos_mm=float(sig[0]),
+        sigma_rot_rad=None if n_points else float(sig[1]),
+        method=opts.method,
+        loss=opts.loss,
+        outliers=tuple(int(i) for i in np.flatnonzero(mask)),
+        degraded=degraded,
+        robust_scale=st["scale"],
+        pos_errors_mm=b["pos_err"][0],
+        options=opts,
+        plausible=not why,
+        implausible=why,
+        notes=still_joint_notes(robot, q),
+    )
+
+
+def calibrate_batch(
+    robot: Robot,
+    q,
+    measured,
+    options: Options | None = None,
+    /,
+    *,
+    position_only: bool | None = None,
+    ident: Identifiability | None = None,
+    progress=None,
+    **kw,
+) -> BatchResult:
+    """:func:`calibrate` for ``R`` data sets of the same nominal robot: ``q (R, K, n)``,
+    measurements with the same leading axis. One compiled, vmapped solve run in chunks within
+    ``memory_mb`` (no Python loop over data sets inside a chunk). The identifiable set comes from
+    the first data set unless ``ident`` is given. A data set whose solve gives non-finite values
+    is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN."""
+    opts = make_options(options, kw, elimination=True)
+    q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
+    layout = make_layout(robot, opts, n_points)
+    R, K = q.shape[:2]
+    if ident is not None and tuple(ident.names) != tuple(layout.names()):
+        raise DataError(
+            f"ident is for parameters {ident.names[:3]}... ({len(ident.names)}), this calibration "
+            f"has {layout.size}: pass the analysis of the same robot and options",
+            option="ident",
+        )
+    check_units(robot, q, target, n_points, batched=True, model_positions=core.nominal_positions(robot, q))
+    if opts.method in ELIMINATION_METHODS:
+        return _elimination_batch(robot, q, target, n_points, layout, opts)
+    cand = kinematic_set(opts, robot)
+    wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
+    check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
+    check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
+    masks = np.ones((R, K))
+    ref = (
+        core.start_models(robot.stripped(), layout, q, target, masks, shared=False)
+        if layout.frames
+        else core.broadcast_model(nominal_model(robot, layout), R)
+    )
+    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
+    J0 = core.analyse(core.member(ref, 0), layout, q[0])[0]
+    if ident is None:
+        ident = core.identify(J0, layout)
+    prior1 = prior_of(layout, ident, cand)
+    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress)
+    given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
+    sig = np.tile([1.0, 1.0], (R, 1))
+    if layout.frames or not given:
+        unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), R, 0)
+        a = core.run_members(
+            cfg,
+            ref,
+            q,
+            target,
+            masks,
+            unit,
+            np.repeat(prior_of(layout, ident, None, frames_only=True)[None], R, 0),
+            **run,
+            label="frames only",
+        )
+        ref = a["model"]
+        sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
+    if opts.sigma_pos_mm is not None:
+        sig[:, 0] = opts.sigma_pos_mm
+    if opts.sigma_rot_rad is not None:
+        sig[:, 1] = opts.sigma_rot_rad
+    prior = np.repeat(prior1[None], R, 0)
+    b = core.run_members(
+        cfg, ref, q, target, masks, core.weights_of(layout, sig), prior, opts.loss_scale, **run, label="calibrating"
+    )
+    nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
+    x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
+    x[nonfinite] = 0.0
+    ok = np.asarray(b["converged"]) & ~nonfinite
+    scale = core.robust_scale_batch(b["norms"], layout.rows, opts.loss_scale)
+    mask = core.outliers_of(b["norms"], scale, layout.rows)
+    degraded = (mask.mean(-1) > 1 / 3) if opts.loss != "l2" else mask.any(-1)
+    return BatchResult(
+        x=x,
+        converged=ok,
+        num_steps=np.asarray(b["steps"]),
+        identifiability=ident,
+        layout=layout,
+        method=opts.method,
+        loss=opts.loss,
+        outlier_mask=mask,
+        degraded=degraded,
+        nonfinite=nonfinite,
+    )
+
+
+def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
+    if n_points or layout.base or layout.tool or layout.camera != "none":
+        raise DataError(
+            "the elimination method needs full-pose measurements and known base/tool frames: pass "
+            "estimate_base=False, estimate_tool=False",
+            option="method",
+        )
+    sp = opts.sigma_pos_mm or 1.0
+    sr = opts.sigma_rot_rad or 1e-3
+    x, ok, steps, plan = calibrate_design_batch(
+        robot, q, target, sp, sr, literal=opts.method == "elimination-literal", max_steps=opts.max_steps, tol=opts.atol
+    )
+    x, ok = np.array(x), np.array(ok)
+    nonfinite = ~np.all(np.isfinite(x), axis=-1)
+    x[nonfinite] = 0.0
+    ok[nonfinite] = False
+    ident = core.identify(core.analyse(Model(robot.stripped()), layout, q[0])[0], layout)
+    R, K = q.shape[:2]
+    return BatchResult(
+        x=x,
+        converged=ok,
+        num_steps=np.asarray(steps),
+        identifiability=ident,
+        layout=layout,
+        method=opts.method,
+        loss=opts.loss,
+        outlier_mask=np.zeros((R, K), bool),
+        degraded=np.zeros(R, bool),
+        nonfinite=nonfinite,
+    )

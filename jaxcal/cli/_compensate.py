@@ -1,0 +1,75 @@
+"""``jaxcal compensate``: joint commands that make the calibrated model reach targets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from ._app import app, console, load_robot_arg
+
+
+@app.command()
+def compensate(
+    calibrated: str = typer.Argument(..., help="calibrated robot file (e.g. from calibrate --out-robot)"),
+    targets: Path = typer.Argument(..., help="CSV with x, y, z [, qw, qx, qy, qz] and/or the joint columns"),
+    nominal: str = typer.Option(
+        None, help="nominal robot (file or preset): targets = where it puts the tool at the file's joint values"
+    ),
+    out: Path = typer.Option(None, help="write the compensated joint commands here (CSV)"),
+    length_unit: str = typer.Option(None, help="m | mm (default: the robot file's)"),
+    angle_unit: str = typer.Option(None, help="rad | deg (default: the robot file's); also the unit written to --out"),
+):
+    """Joint commands that make the calibrated model reach the targets (damped Newton IK), on
+    the branch of the nominal commands and checked against the joint limits."""
+    import numpy as np
+
+    from .._io import check_writable, write_atomic
+    from ..compensation import compensate_targets, read_targets
+    from ..measurements import unit_scale
+    from ..robot import ANGLE_UNITS, LENGTH_UNITS
+
+    if out is not None:
+        check_writable(out, "out")
+    cal = load_robot_arg(calibrated)
+    nom = load_robot_arg(nominal) if nominal is not None else None
+    tg = read_targets(targets, cal, length_unit=length_unit, angle_unit=angle_unit)
+    _, res = compensate_targets(cal, tg, nominal=nom)
+    table = Table(title=f"compensation of {len(res.q)} targets")
+    for col in ("", "position residual (mm)", "rotation residual (deg)"):
+        table.add_column(col, justify="right")
+    table.add_row("max", f"{res.pos_residual_mm.max():.3g}", f"{res.rot_residual_deg.max():.3g}")
+    table.add_row(
+        "RMS", f"{np.sqrt(np.mean(res.pos_residual_mm**2)):.3g}", f"{np.sqrt(np.mean(res.rot_residual_deg**2)):.3g}"
+    )
+    console.print(table)
+    n_ok, n_in = int(res.converged.sum()), int(res.within_limits.sum())
+    console.print(
+        f"reached: {n_ok}/{len(res.q)} (max {int(res.steps.max())} steps); within the joint limits: {n_in}/{len(res.q)}"
+    )
+    if tg.q is not None:
+        console.print(f"largest joint correction: {np.degrees(np.abs(res.q - tg.q).max()):.4g} deg")
+    bad = np.flatnonzero(~res.ok)
+    for k in bad[:10]:
+        why = "not reached" if not res.converged[k] else "outside the joint limits"
+        console.print(f"  row {int(tg.rows[k])}: {why}", highlight=False)
+    if out is not None:
+        lu = unit_scale(length_unit, LENGTH_UNITS, "length_unit", cal.units[0])[0]
+        au = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", cal.units[1])[0]
+        scale = np.array([au if t == "R" else lu for t in cal.joint_types])
+        header = list(cal.joint_names) + ["pos_residual_mm", "rot_residual_deg", "reached", "within_limits"]
+        lines = [",".join(header)]
+        for qk, ep, er, ok, inside in zip(
+            res.q / scale, res.pos_residual_mm, res.rot_residual_deg, res.converged, res.within_limits
+        ):
+            lines.append(
+                ",".join(
+                    [repr(float(v)) for v in qk] + [repr(float(ep)), repr(float(er)), str(int(ok)), str(int(inside))]
+                )
+            )
+        write_atomic(out, "\n".join(lines) + "\n")
+        console.print(f"compensated commands written to {out} (rows to send: reached and within_limits = 1)")
+    if bad.size:
+        console.print(f"[yellow]warning:[/yellow] {bad.size} target(s) not reached or outside the joint limits")
+        raise typer.Exit(1)

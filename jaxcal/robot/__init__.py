@@ -1,0 +1,13 @@
+"""Robot models: a DH table with base and tool frames, published presets, and robot files."""
+
+from ._presets import PRESETS as PRESETS
+from ._presets import preset as preset
+from ._robot import ANGLE_UNITS as ANGLE_UNITS
+from ._robot import CONVENTIONS as CONVENTIONS
+from ._robot import DH_NAMES as DH_NAMES
+from ._robot import LENGTH_UNITS as LENGTH_UNITS
+from ._robot import Robot as Robot
+from ._toml import load_robot as load_robot
+from ._toml import robot_from_dict as robot_from_dict
+from ._toml import robot_to_dict as robot_to_dict
+from ._toml import save_robot as save_robot

@@ -1,0 +1,277 @@
+r"""The one Gauss–Newton / Levenberg–Marquardt engine: optimistix on a residual whose Jacobian is
+given analytically.
+
+:func:`least_squares` wraps ``optx.least_squares`` for any residual that comes with its exact
+Jacobian (``jax.custom_jvp``, so optimistix never differentiates through forward kinematics;
+that made Gauss–Newton several times faster, ``benchmarks/bench_gn_batch.py``). :func:`fit` is
+the calibration solve built on it and used by every workflow:
+
+$$\min_y \sum_k w_k |W e_k(x)|^2 + \sum_j (p_j x_j)^2,\qquad x = \text{scatter}(\text{free}, y)$$
+
+``e_k`` the residual rows of pose ``k`` (:func:`jaxcal.model.residual_and_jacobian`), ``W`` the
+row weights ``1/sigma``, ``w_k`` per-pose weights (a cross-validation training mask, or robust
+weights), ``p_j`` prior weights on the free parameters:
+
+* ``0``: free;
+* ``1 / s_j``: a ridge (Tikhonov) prior of standard deviation ``s_j`` toward the reference model;
+* :data:`PIN`: held at the reference. One compiled solve then serves every parameter set.
+
+The free variables are scaled by the column norms of the weighted Jacobian at the start, so
+Levenberg–Marquardt's damping and the step tolerances see parameters of comparable size
+whatever their units (mm, rad, or a camera's dimensionless unknowns).
+
+## Robust losses (outliers)
+``loss="huber"`` or ``"cauchy"`` runs iteratively reweighted least squares (IRLS): ``rounds``
+outer rounds (``lax.fori_loop``, one compiled solve) around the solve. Round 0 is the plain (L2)
+fit; each later round weights every *pose* by ``rho'(u_k) / u_k`` of its standardised residual
+norm ``u_k = |W e_k| / s`` and refits, warm-started. ``s`` is the per-row noise scale:
+``loss_scale`` if given, else :func:`robust_scale`, ``median_k |W e_k| / sqrt(median chi2_dof)``
+(consistent for Gaussian noise, unaffected by up to half the poses being gross outliers),
+floored at :data:`SCALE_FLOOR`. With ``c = sqrt(chi2_dof(0.95))``:
+
+* Huber: ``w = min(1, c / u)``;
+* Cauchy: ``w = 1 / (1 + (u / c)^2)``.
+
+A pose is an **outlier** when ``u_k > OUTLIER_K`` (``sqrt(chi2_dof(0.9999))``).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import lineax as lx
+import numpy as np
+import optimistix as optx
+from jaxtyping import Array, Bool, Float, Int
+
+from ..model import Layout, Model, apply, errors, residual_and_jacobian_soa
+
+METHODS = ("gn", "lm", "linear")
+LOSSES = ("l2", "huber", "cauchy")
+PIN = 1e8
+"""Prior weight that holds a parameter at its reference value (not in the estimated set)."""
+COLUMN_NORM = 1e3
+"""Norm of every scaled Jacobian column at the start of a fit (see :func:`fit`)."""
+SCALE_FLOOR = 1e-3
+"""Smallest robust scale (weighted-residual units, i.e. 1e-3 sigma): noise-free fits do not
+turn rounding noise into outliers."""
+
+
+# sqrt of chi2 quantiles for the common row counts (position only, full pose): scipy.stats is
+# imported only for other counts, to keep `import jaxcal` light
+_CHI2_SQRT = {
+    (0.5, 3): 1.5381722544550522,
+    (0.95, 3): 2.7954834829151074,
+    (0.9999, 3): 4.594291399787397,
+    (0.5, 6): 2.312600403754855,
+    (0.95, 6): 3.54846265920102,
+    (0.9999, 6): 5.277910688521943,
+}
+
+
+def _chi2_sqrt(p: float, dof: int) -> float:
+    if (p, dof) not in _CHI2_SQRT:
+        from scipy.stats import chi2
+
+        _CHI2_SQRT[(p, dof)] = float(np.sqrt(chi2.ppf(p, dof)))
+    return _CHI2_SQRT[(p, dof)]
+
+
+def tuning(dof: int) -> float:
+    """Robust loss tuning constant ``sqrt(chi2_dof(0.95))`` for ``dof`` rows per pose."""
+    return _chi2_sqrt(0.95, dof)
+
+
+def outlier_threshold(dof: int) -> float:
+    """Standardised residual norm beyond which a pose is an outlier: ``sqrt(chi2_dof(0.9999))``."""
+    return _chi2_sqrt(0.9999, dof)
+
+
+def _xp(a):
+    """NumPy for NumPy input (no JAX dispatch outside a solve), ``jax.numpy`` otherwise."""
+    return np if isinstance(a, (np.ndarray, np.generic)) else jnp
+
+
+def robust_scale(norms: Float[Array, " K"], dof: int, weights=None) -> Float[Array, ""]:
+    """Per-row noise scale from per-pose weighted residual norms (the last axis): ``median |r_k| /
+    sqrt(median chi2_dof)`` over the poses with positive ``weights`` (all by default), floored at
+    :data:`SCALE_FLOOR`."""
+    xp = _xp(norms)
+    med = _chi2_sqrt(0.5, dof)
+    if weights is None:
+        m = xp.median(norms, axis=-1)
+    else:  # median over the selected poses: the others sorted to the end as +inf
+        sel = weights > 0
+        srt = xp.sort(xp.where(sel, norms, xp.inf), axis=-1)
+        n = xp.sum(sel, axis=-1, keepdims=True)
+        lo = xp.take_along_axis(srt, xp.maximum((n - 1) // 2, 0), -1)[..., 0]
+        hi = xp.take_along_axis(srt, xp.maximum(n // 2, 0), -1)[..., 0]
+        m = 0.5 * (lo + hi)
+    return xp.maximum(m / med, SCALE_FLOOR)
+
+
+def robust_weights(norms, scale, dof: int, loss: str):
+    """Per-pose IRLS weights ``rho'(u)/u`` for ``u = norms / scale`` (see the module docstring)."""
+    xp = _xp(norms)
+    u = norms / scale
+    c = tuning(dof)
+    if loss == "huber":
+        return xp.minimum(1.0, c / xp.maximum(u, 1e-300))
+    if loss == "cauchy":
+        return 1.0 / (1.0 + (u / c) ** 2)
+    return xp.ones_like(u)
+
+
+class Solution(eqx.Module):
+    """What one solve returns (vmapped: a leading axis on every field)."""
+
+    x: Float[Array, " m"]
+    """The full parameter vector (non-free entries at their reference, 0)."""
+    converged: Bool[Array, ""]
+    """optimistix reported success (tolerances met) and every value is finite."""
+    steps: Int[Array, ""]
+    """Solver steps taken (summed over robust rounds)."""
+
+
+def _solver(method: str, rtol: float, atol: float):
+    if method == "gn":  # the free set is full rank (the base set) and its columns are scaled: the
+        # normal equations are well conditioned, and several times cheaper than QR on tall systems
+        return optx.GaussNewton(rtol=rtol, atol=atol, linear_solver=lx.Normal(lx.Cholesky()))
+    if method == "lm":  # the damped system is full rank; its default QR made a vmapped solve compile for minutes
+        return optx.LevenbergMarquardt(rtol=rtol, atol=atol, linear_solver=lx.Normal(lx.Cholesky()))
+    raise ValueError(f"unknown least-squares method {method!r}: use one of {METHODS}")
+
+
+def least_squares(
+    rj,
+    y0,
+    args,
+    *,
+    method: str = "gn",
+    max_steps: int = 50,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    transposed: bool = False,
+):
+    """Minimise ``|r(y)|^2`` with optimistix, ``rj(y, args) -> (r, J)`` giving the residual and
+    its exact Jacobian ``dr/dy`` (``(N, p)``, or ``(p, N)`` with ``transposed``: a Jacobian built
+    parameter by parameter needs no transpose). Pure and vmappable.
+
+    **Returns** ``(y, converged, steps)``; ``converged`` is False when optimistix did not report
+    success (e.g. ``max_steps`` reached) or the result is not finite. ``method="linear"`` takes
+    one Gauss–Newton step from ``y0``.
+    """
+    if method == "linear":
+        r, J = rj(y0, args)
+        J = J.T if transposed else J
+        dy = lx.linear_solve(lx.MatrixLinearOperator(J), -r, lx.QR(), throw=False).value
+        y = y0 + dy
+        return y, jnp.all(jnp.isfinite(y)), jnp.asarray(1)
+
+    @jax.custom_jvp
+    def fn(y, args):
+        return rj(y, args)[0]
+
+    @fn.defjvp
+    def fn_jvp(primals, tangents):  # data in args are not differentiated
+        y, args_ = primals
+        r, J = rj(y, args_)
+        return r, (tangents[0] @ J if transposed else J @ tangents[0])
+
+    sol = optx.least_squares(fn, _solver(method, rtol, atol), y0, args=args, max_steps=max_steps, throw=False)
+    ok = (sol.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(sol.value))
+    return sol.value, ok, sol.stats["num_steps"]
+
+
+def fit(
+    model: Model,
+    layout: Layout,
+    free: tuple[int, ...],
+    q: Float[Array, "K n"],
+    target,
+    *,
+    weights: Float[Array, " rows"],
+    pose_weights: Float[Array, " K"] | None = None,
+    prior: Float[Array, " p"] | None = None,
+    method: str = "gn",
+    max_steps: int = 50,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    loss: str = "l2",
+    loss_scale=None,
+    rounds: int = 6,
+    column_norms=None,
+    x0=None,
+) -> Solution:
+    """Fit the free parameters of ``model`` to one data set (module docstring). Pure and vmappable.
+
+    **Arguments**: ``free`` indices into the layout's ``x`` (static); ``q (K, n)``; ``target``
+    the measurements (``(K, 4, 4)`` poses or ``(K, M, 3)`` points); ``weights`` ``1/sigma`` per
+    residual row; ``pose_weights`` ``(K,)`` (default 1); ``prior`` ``(len(free),)`` (default 0);
+    ``loss_scale`` the robust per-row noise scale (None or NaN: estimated); ``column_norms``
+    ``(len(free),)`` the norms of the weighted Jacobian's columns, with prior rows, at the start
+    (default: computed here; a caller that knows them saves one Jacobian in the compiled solve);
+    ``x0`` ``(m,)`` a starting point (default 0, the reference; entries outside ``free`` ignored).
+
+    **Returns** a :class:`Solution`; ``x`` is relative to ``model``.
+    """
+    K = q.shape[0]
+    m, rows = layout.size, layout.rows
+    free_idx = jnp.asarray(free, dtype=jnp.int32)
+    pose_w = jnp.ones(K) if pose_weights is None else jnp.asarray(pose_weights, jnp.float64)
+    prior = jnp.zeros(len(free)) if prior is None else jnp.asarray(prior, jnp.float64)
+
+    every = tuple(free) == tuple(range(m))
+
+    def full(y):
+        return y if every else jnp.zeros(m).at[free_idx].set(y)
+
+    def weighted(y, sqrt_pw):
+        # pose axis last (residual_and_jacobian_soa): the weights broadcast along it, and the
+        # Jacobian stays parameter-major, (p, rows K), with no transpose
+        e, J = residual_and_jacobian_soa(model, layout, full(y), q, target)  # (rows, K), (m, rows, K)
+        wk = weights[:, None] * sqrt_pw[None, :]
+        Jw = (J if every else J[free_idx]) * wk[None]
+        return e * wk, Jw
+
+    # column scaling from the start, y = s * z: every column of the weighted Jacobian gets the norm
+    # COLUMN_NORM, so LM's initial damping (lambda = 1 on z) is light next to J^T J, as in
+    # Marquardt's scaling; with unit columns it damped every step and took five times more steps
+    if column_norms is None:
+        _, Jw0 = weighted(jnp.zeros(len(free)), jnp.sqrt(pose_w))
+        column_norms = jnp.sqrt(jnp.sum(Jw0.reshape(len(free), -1) ** 2, 1) + prior**2)
+    norm = jnp.asarray(column_norms) / COLUMN_NORM
+    scale = jnp.where(norm > 0, 1.0 / norm, 1.0)
+
+    def rj(z, sqrt_pw):
+        y = scale * z
+        ew, Jw = weighted(y, sqrt_pw)
+        r = jnp.concatenate([ew.reshape(-1), prior * y])
+        JT = jnp.concatenate([Jw.reshape(len(free), -1) * scale[:, None], jnp.diag(prior * scale)], 1)
+        return r, JT
+
+    def solve(z0, pw):
+        return least_squares(
+            rj, z0, jnp.sqrt(pw), method=method, max_steps=max_steps, rtol=rtol, atol=atol, transposed=True
+        )
+
+    z0 = jnp.zeros(len(free)) if x0 is None else jnp.asarray(x0)[free_idx] / scale
+    if loss == "l2" or method == "linear":
+        z, ok, steps = solve(z0, pose_w)
+    else:
+        if loss not in LOSSES:
+            raise ValueError(f"unknown loss {loss!r}: use one of {LOSSES}")
+        given = jnp.asarray(jnp.nan if loss_scale is None else loss_scale, dtype=jnp.float64)
+
+        def outer(i, c):  # round 0 the plain fit, then reweighted: one solve in the compiled loop
+            z_, _ok, steps_ = c
+            e = errors(apply(model, layout, full(scale * z_)), q, target)
+            norms = jnp.linalg.norm(e * weights, axis=-1)
+            s = jnp.where(jnp.isnan(given), robust_scale(norms, rows, pose_w), given)
+            rw = jnp.where(i == 0, 1.0, robust_weights(norms, s, rows, loss))
+            z2, ok2, s2 = solve(z_, pose_w * rw)
+            return z2, ok2, steps_ + s2
+
+        z, ok, steps = jax.lax.fori_loop(0, rounds + 1, outer, (z0, jnp.asarray(False), jnp.asarray(0)))
+    return Solution(x=full(scale * z), converged=ok, steps=steps)

@@ -1,0 +1,91 @@
+"""Test helpers: random robots and transforms, and the command line run in-process."""
+
+import numpy as np
+import pytest
+
+
+def random_dh(rng, n=6, *, lengths=300.0):
+    """A random, generic DH table (mm, rad)."""
+    return np.c_[
+        rng.uniform(-np.pi, np.pi, n),
+        rng.uniform(-lengths, lengths, n),
+        rng.uniform(-lengths, lengths, n),
+        rng.uniform(-np.pi, np.pi, n),
+    ]
+
+
+def random_transform(rng, scale=100.0):
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    T[:3, 3] = rng.normal(size=3) * scale
+    return T
+
+
+def run_cli(monkeypatch, capsys, *args):
+    """`jaxcal ARGS` in-process through the real entry point `jaxcal.cli.main`; returns
+    (exit code, stdout, stderr)."""
+    import sys
+
+    from jaxcal.cli import main
+
+    monkeypatch.setattr(sys, "argv", ["jaxcal", *map(str, args)])
+    with pytest.raises(SystemExit) as e:
+        main()
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err
+
+
+def dh_fk(dh, q, *, convention="sdh", joint_types=None, base=None, tool=None):
+    """End poses ``(K, 4, 4)`` by a plain NumPy product of DH link matrices: a forward
+    kinematics written apart from jaxcal's, to generate test data."""
+    dh, q = np.asarray(dh, float), np.atleast_2d(np.asarray(q, float))
+    joint_types = joint_types or "R" * len(dh)
+
+    def rz(t):
+        c, s = np.cos(t), np.sin(t)
+        return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+
+    def rx(t):
+        c, s = np.cos(t), np.sin(t)
+        return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]])
+
+    def tr(x, z):
+        T = np.eye(4)
+        T[0, 3], T[2, 3] = x, z
+        return T
+
+    out = []
+    for qk in q:
+        T = np.eye(4) if base is None else np.array(base, float)
+        for (theta, d, a, alpha), qi, kind in zip(dh, qk, joint_types):
+            theta, d = (theta + qi, d) if kind == "R" else (theta, d + qi)
+            if convention == "sdh":
+                T = T @ rz(theta) @ tr(0, d) @ tr(a, 0) @ rx(alpha)
+            else:
+                T = T @ rx(alpha) @ tr(a, 0) @ rz(theta) @ tr(0, d)
+        out.append(T if tool is None else T @ np.asarray(tool, float))
+    return np.array(out)
+
+
+def measurement_csv(q, poses, *, position_only=False, rng=None, sigma_mm=0.0, sigma_rad=0.0, joint_names=None):
+    """CSV text of joint values and measured poses (mm, rad; quaternion w, x, y, z), written
+    without jaxcal, with seeded Gaussian noise."""
+    from scipy.spatial.transform import Rotation
+
+    q, poses = np.asarray(q, float), np.asarray(poses, float)
+    n = q.shape[1]
+    names = list(joint_names or [f"q{i + 1}" for i in range(n)])
+    p = poses[:, :3, 3].copy()
+    R = Rotation.from_matrix(poses[:, :3, :3])
+    if rng is not None:
+        p = p + rng.normal(scale=sigma_mm, size=p.shape)
+        R = Rotation.from_rotvec(rng.normal(scale=sigma_rad, size=(len(q), 3))) * R
+    header = names + ["x", "y", "z"] + ([] if position_only else ["qw", "qx", "qy", "qz"])
+    quat = R.as_quat()[:, [3, 0, 1, 2]]
+    lines = [",".join(header)]
+    for k in range(len(q)):
+        vals = list(q[k]) + list(p[k]) + ([] if position_only else list(quat[k]))
+        lines.append(",".join(repr(float(v)) for v in vals))
+    return "\n".join(lines) + "\n"
