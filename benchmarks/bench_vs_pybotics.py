@@ -166,7 +166,7 @@ def main():
         return cold_start(args._cold)
 
     import numpy as np
-    from _util import machine, summary, timed
+    from _util import machine, print_machine, summary, timed
 
     import jaxcal
     from jaxcal.error_model import perturb
@@ -182,7 +182,7 @@ def main():
             float(np.sqrt(np.mean((np.asarray(x)[free] - x_true[free]) ** 2))),
         )
 
-    print("machine:", machine())
+    print_machine()
     print(
         f"panda (MDH, 7R), {args.poses} poses, position-only, noise {args.noise_mm} mm, "
         f"{len(free)} parameters (jaxcal's identifiable set, same mask in every tool)"

@@ -20,3 +20,4 @@ run gn_batch bench_gn_batch.py --repeats 3
 run vs_pybotics bench_vs_pybotics.py --pybotics-python ../.venv-pybotics/bin/python --json "$out/vs_pybotics.json"
 run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"
+run large_file bench_large_file.py --poses 20000 100000

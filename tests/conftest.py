@@ -49,3 +49,11 @@ if os.environ.get("JAXCAL_COMPILE_LOG"):
         yield
         with open(os.environ["JAXCAL_COMPILE_LOG"], "a") as f:
             f.write(f"{_compile['s']:.2f} {_compile['n']} {time.perf_counter() - t0:.2f} {request.node.nodeid}\n")
+
+
+@pytest.hookimpl
+def pytest_cmdline_main(config):
+    """``-n N`` distributes by work stealing: the suite has a few tests much longer than the rest,
+    and a worker that is done early takes tests from the other instead of waiting."""
+    if getattr(config.option, "numprocesses", None) and getattr(config.option, "dist", None) == "load":
+        config.option.dist = "worksteal"

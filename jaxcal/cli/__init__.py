@@ -17,7 +17,7 @@ def main():
         app()
     except SystemExit as e:
         if e.code == 130:  # typer's exit for Ctrl-C, silent by itself
-            err_console.print("interrupted: nothing was written", highlight=False)
+            _interrupted()
         raise
     except JaxcalError as e:
         # one line however long (rich would wrap at the terminal width); markup off so that
@@ -26,5 +26,17 @@ def main():
         err_console.print(say_error(str(e), e.option), highlight=False, markup=False, soft_wrap=True)
         raise SystemExit(3 if isinstance(e, ImplausibleFitError) else 2) from None
     except KeyboardInterrupt:
-        err_console.print("interrupted: nothing was written", highlight=False)
-        raise SystemExit(130) from None
+        _interrupted()
+
+
+def _interrupted():
+    """One line, then exit 130 at once: an interrupted compile or solve leaves XLA's threads
+    running, and tearing the interpreter down under them can crash. Outputs are written
+    atomically, so there is nothing to clean up."""
+    import os
+    import sys
+
+    err_console.print("interrupted: nothing was written", highlight=False)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(130)

@@ -176,6 +176,8 @@ def test_base_keeps_its_gauge_and_offsets_stay_small():
     held = res.not_identified()
     for name in ("theta1", "d1"):
         assert res.delta(name) == 0.0 and "base" in held[name]
+    for name in ("d3", "d4"):  # parallel axes 2-4: absorbed into d2, and said so (not "by the base")
+        assert "d2" in held[name] and "base" not in held[name], held[name]
     d_theta = res.x[0:24:4]
     assert np.all(np.abs(d_theta) <= np.pi) and np.abs(d_theta).max() < 0.05
     assert np.abs(res.x[[1, 2, 5, 6, 9, 10, 13, 14, 17, 18, 21, 22]]).max() < 5.0

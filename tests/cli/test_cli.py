@@ -156,3 +156,24 @@ def test_compensate_cli(tmp_path, monkeypatch, capsys):
     got = np.asarray(fk(load_robot(tmp_path / "cal.toml"), qc))
     want = np.asarray(fk(r, q))
     assert np.abs(got[:, :3, 3] - want[:, :3, 3]).max() < 1e-5
+
+
+def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys):
+    """Position targets, one far beyond the reach: exit 1, the row is named, and the output file
+    marks it (reached = 0) while the others are sent."""
+    r = preset("paper-6r")
+    save_robot(r, tmp_path / "cal.toml")
+    q = np.random.default_rng(3).uniform(-1.0, 1.0, (4, 6))
+    p = np.array(fk(r, q))[:, :3, 3]
+    p[2] += 1e5
+    t = tmp_path / "targets.csv"
+    t.write_text(
+        "q1,q2,q3,q4,q5,q6,x,y,z\n"
+        + "".join(",".join(repr(float(v)) for v in [*qk, *pk]) + "\n" for qk, pk in zip(q, p))
+    )
+    code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "cal.toml", t, "--out", tmp_path / "o.csv")
+    assert code == 1, err
+    assert "row 3: not reached" in out
+    rows = (tmp_path / "o.csv").read_text().splitlines()
+    reached = [ln.split(",")[-2] for ln in rows[1:]]
+    assert reached == ["1", "1", "0", "1"]
