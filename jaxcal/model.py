@@ -30,6 +30,7 @@ import dataclasses
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .camera import apply_camera, camera_jacobian
@@ -126,7 +127,7 @@ class Model(eqx.Module):
         self.robot = robot
         self.points = jnp.zeros((0, 3)) if points is None else jnp.asarray(points, jnp.float64).reshape(-1, 3)
         self.camera = camera
-        c = jnp.zeros(camera_size(camera)) if camera_params is None else jnp.asarray(camera_params, jnp.float64)
+        c = jnp.asarray(np.zeros(camera_size(camera)) if camera_params is None else camera_params, jnp.float64)
         self.camera_params = c.reshape(camera_size(camera))
 
     @property

@@ -234,7 +234,7 @@ def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool
 
 def broadcast_model(model: Model, n: int) -> Model:
     """``n`` copies of ``model`` along a new leading axis (members sharing one reference)."""
-    return jax.tree.map(lambda a: jnp.broadcast_to(a, (n,) + jnp.shape(a)), model)
+    return jax.tree.map(lambda a: np.broadcast_to(np.asarray(a), (n,) + np.shape(a)), model)
 
 
 def wrapped(model: Model, nominal: Robot) -> Model:

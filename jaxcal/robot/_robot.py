@@ -87,8 +87,9 @@ class Robot(eqx.Module):
         q_limits = as_f64(q_limits, "q_limits")
         if q_limits.shape != (n, 2):
             raise RobotFileError(f"q_limits must have shape ({n}, 2), got {q_limits.shape}")
-        if not bool(jnp.all(q_limits[:, 0] < q_limits[:, 1])):
-            j = int(np.argmin(np.asarray(q_limits[:, 1] - q_limits[:, 0])))
+        lim = np.asarray(q_limits)  # NumPy: an eager JAX comparison would compile for every new robot
+        if not np.all(lim[:, 0] < lim[:, 1]):
+            j = int(np.argmin(lim[:, 1] - lim[:, 0]))
             raise RobotFileError(f"joint {j + 1}: lower limit is not below the upper limit")
         self.q_limits = q_limits
         self.convention = convention
@@ -186,7 +187,7 @@ class Robot(eqx.Module):
 
 def _check_transform(T, name):
     if T is None:
-        return jnp.eye(4)
+        return jnp.asarray(np.eye(4))  # a transfer, where jnp.eye would compile
     T = as_f64(T, name)
     if T.shape != (4, 4):
         raise RobotFileError(f"{name} must be a 4x4 transform, got shape {T.shape}")
