@@ -48,7 +48,7 @@ def write_csv(path, n, seed=0):
     base = np.eye(4)
     base[:3, :3] = Rotation.from_euler("xyz", [0.01, -0.02, 0.7]).as_matrix()
     base[:3, 3] = [600.0, -300.0, 50.0]
-    tool = np.asarray(r.tool) @ np.diag([1.0, 1.0, 1.0, 1.0])
+    tool = np.array(r.tool)
     tool[:3, 3] += [20.0, -10.0, 60.0]
     lim = np.asarray(r.q_limits)
     q = lim[:, 0] + rng.uniform(size=(n, 7)) * (lim[:, 1] - lim[:, 0])
