@@ -22,13 +22,17 @@ def test_ctrl_c_is_clean_every_time(tmp_path):
     data = tmp_path / "data.csv"
     data.write_text(measurement_csv(q, dh_fk(np.asarray(ur5.dh), q), rng=rng, sigma_mm=0.05, sigma_rad=5e-4))
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    cmd = [sys.executable, "-c", "import jaxcal_launch; jaxcal_launch.main()", "calibrate", "ur5", str(data)]
+    # The child says when the launcher is imported: a signal before that lands in CPython's own
+    # start-up (site import), which no program can handle, so the delays count from there.
+    launch = "import sys, jaxcal_launch; print('launching', flush=True); jaxcal_launch.main()"
+    cmd = [sys.executable, "-c", launch, "calibrate", "ur5", str(data)]
     outcomes = []
     for i, delay in enumerate(np.linspace(0.1, 2.5, TRIALS)):
         out = tmp_path / f"robot{i}.toml"
         p = subprocess.Popen(
             cmd + ["--out-robot", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
         )
+        assert p.stdout.readline() == "launching\n"
         time.sleep(delay)
         p.send_signal(signal.SIGINT)
         stdout, stderr = p.communicate(timeout=120)
