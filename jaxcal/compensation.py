@@ -79,7 +79,9 @@ def _wrap(d):
 def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight, damping, max_steps: int):
     rows = 3 if position_only else 6
     n = robot.n_joints
-    cols = jnp.asarray([4 * i + (0 if t == "R" else 1) for i, t in enumerate(robot.joint_types)])
+    # each joint's offset column: theta (DH revolute), d (DH prismatic), the offset (joint frames)
+    p, dh = robot.n_kinds, robot.convention != "joint"
+    cols = jnp.asarray([p * i + (1 if dh and t == "P" else 0) for i, t in enumerate(robot.joint_types)])
     w = jnp.asarray([1.0, 1.0, 1.0] + [rot_weight] * 3)[:rows]
     sd = jnp.sqrt(damping)
 

@@ -33,21 +33,22 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._chain import chain, dot3, is_zero, link_inputs, matmul_soa, rotate_soa
+from ._joints import joint_column_entries
 from .derivatives import OMEGAS, omega_twist_entries
 from .errors import DataError
 from .kinematics import check_q, fk_frames, joint_dh
 from .lie import inv_transform, make_transform, skew, so3_exp, so3_log
-from .robot import DH_NAMES, Robot
+from .robot import Robot
 
 FRAME_NAMES = ("x", "y", "z", "rx", "ry", "rz")
 
 
 def n_params(robot: Robot, *, base: bool = False, tool: bool = False) -> int:
-    return 4 * robot.n_joints + 6 * base + 6 * tool
+    return robot.n_kinds * robot.n_joints + 6 * base + 6 * tool
 
 
 def param_names(robot: Robot, *, base: bool = False, tool: bool = False) -> list[str]:
-    names = [f"{p}{i + 1}" for i in range(robot.n_joints) for p in DH_NAMES]
+    names = robot.param_names()
     names += [f"base_{c}" for c in FRAME_NAMES] if base else []
     names += [f"tool_{c}" for c in FRAME_NAMES] if tool else []
     return names
@@ -58,12 +59,13 @@ def perturb(robot: Robot, x: Float[Array, " m"], *, base: bool = False, tool: bo
     m = n_params(robot, base=base, tool=tool)
     if jnp.ndim(x) != 1 or jnp.shape(x)[0] != m:
         raise DataError(
-            f"x must have shape ({m},) = {robot.n_joints} joints x 4 DH errors"
+            f"x must have shape ({m},) = {robot.n_joints} joints x {robot.n_kinds} "
+            f"{'joint-frame' if robot.convention == 'joint' else 'DH'} errors"
             f"{' + 6 base' if base else ''}{' + 6 tool' if tool else ''}, got {jnp.shape(x)}"
         )
     x = jnp.asarray(x)
-    n4 = 4 * robot.n_joints
-    out = robot.with_dh_delta(x[:n4].reshape(robot.n_joints, 4))
+    n4 = robot.n_kinds * robot.n_joints
+    out = robot.with_dh_delta(x[:n4].reshape(robot.n_joints, robot.n_kinds))
     if not (base or tool):
         return out
     new_base, new_tool = robot.base, robot.tool
@@ -126,7 +128,12 @@ def dh_column_entries(robot: Robot, q: Float[Array, "*b n"], points):
     ``W[k]`` the 3 rotation rows for error kind ``k`` (``theta, d, a, alpha``), each entry an
     array broadcastable to ``(n, K)`` or the Python float ``0.0``; the tool rotation ``(3, 3, K)``,
     position ``(3, K)`` and the points ``(M, 3, K)``, all in the measurement frame.
+
+    A joint-frame robot's columns come from :func:`jaxcal._joints.joint_column_entries`, in the
+    same form with seven kinds.
     """
+    if robot.convention == "joint":
+        return joint_column_entries(robot, q, points)
     c, s, d = link_inputs(robot, q)
     R_n, t_n, F = chain(robot, (c, s, d), frames=True)  # F: (n, 12, K)
     K = t_n.shape[1]
@@ -150,17 +157,18 @@ def dh_column_entries(robot: Robot, q: Float[Array, "*b n"], points):
 
 
 def stack_columns(kinds, n: int, K: int):
-    """Entries ``kinds[k][r]`` (``k`` the DH error kind, ``r`` a row) as ``(4n, rows, K)``:
-    column ``4 i + k`` is joint ``i``'s error ``k``."""
+    """Entries ``kinds[k][r]`` (``k`` the error kind, ``r`` a row) as ``(p n, rows, K)`` for ``p``
+    kinds: column ``p i + k`` is joint ``i``'s error ``k``."""
     blocks = [jnp.stack([jnp.broadcast_to(e, (n, K)) for e in rows], 1) for rows in kinds]  # (n, rows, K)
-    return jnp.stack(blocks, 1).reshape(4 * n, len(kinds[0]), K)
+    return jnp.stack(blocks, 1).reshape(len(kinds) * n, len(kinds[0]), K)
 
 
 def _dh_columns(robot: Robot, q, points):
     """:func:`dh_column_entries` stacked: ``P (M, 3, 4n, K)``, ``W (3, 4n, K)``, ``R_e``, ``p_e``."""
     P, W, R_e, p_e, _ = dh_column_entries(robot, q, points)
     n, K = robot.n_joints, p_e.shape[1]
-    Ps = jnp.stack([jnp.swapaxes(stack_columns([P[k][j] for k in range(4)], n, K), 0, 1) for j in range(len(P[0]))])
+    kinds = range(robot.n_kinds)
+    Ps = jnp.stack([jnp.swapaxes(stack_columns([P[k][j] for k in kinds], n, K), 0, 1) for j in range(len(P[0]))])
     return Ps, jnp.swapaxes(stack_columns(W, n, K), 0, 1), R_e, p_e
 
 

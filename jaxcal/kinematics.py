@@ -15,6 +15,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._chain import chain, link_inputs
+from ._joints import joint_fk, joint_frames_after
 from .errors import DataError
 from .lie import compose, make_transform
 from .robot import Robot
@@ -93,6 +94,7 @@ def _check_range(robot: Robot, q: np.ndarray):
 def joint_dh(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4"]:
     """DH values of every link at joint values ``q``: the joint variable is added to theta
     (revolute) or d (prismatic)."""
+    _dh_only(robot, "joint_dh")
     q = jnp.asarray(check_q(robot, q))
     rev = robot.revolute_mask
     add = jnp.stack([q * rev, q * (1.0 - rev), jnp.zeros_like(q), jnp.zeros_like(q)], -1)
@@ -116,6 +118,8 @@ def fk_frames(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n 4 4"]
 
 @eqx.filter_jit
 def _fk_frames(robot: Robot, q):
+    if robot.convention == "joint":
+        return joint_frames_after(robot, q.reshape(-1, robot.n_joints)).reshape(q.shape[:-1] + (robot.n_joints, 4, 4))
     _, _, ys = chain(robot, link_inputs(robot, q), frames=True)  # (n, 12, K)
     ys = jnp.transpose(ys, (2, 0, 1))  # (K, n, 12)
     T = make_transform(ys[..., :9].reshape(ys.shape[:-1] + (3, 3)), ys[..., 9:])
@@ -129,6 +133,8 @@ def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
 
 @eqx.filter_jit
 def _fk(robot: Robot, q):
+    if robot.convention == "joint":
+        return joint_fk(robot, q.reshape(-1, robot.n_joints)).reshape(q.shape[:-1] + (4, 4))
     R, t, _ = chain(robot, link_inputs(robot, q), frames=False)
     T = make_transform(jnp.moveaxis(R, -1, 0), t.T)  # (K, 4, 4)
     return compose(T, robot.tool).reshape(q.shape[:-1] + (4, 4))
@@ -145,9 +151,50 @@ def _tx(a):
     return T
 
 
+def _dh_only(robot: Robot, what: str):
+    if robot.convention == "joint":
+        raise ValueError(f"{what} needs a DH robot; {robot.name!r} is described by joint frames")
+
+
+def _rz(theta):
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def _tz(d):
+    T = np.eye(4)
+    T[2, 3] = d
+    return T
+
+
+def to_joint(robot: Robot) -> Robot:
+    """The same arm in the joint-frame form (each joint a turn about, or shift along, z of its
+    own origin; zero corrections and offsets), with the same end pose for every ``q``: a standard
+    DH link ``Rz(theta + q) Tz(d) Tx(a) Rx(alpha)`` is ``Rz(q)`` followed by the fixed rest, which
+    becomes the next joint's origin (the last one's, the tool); a modified DH link
+    ``Rx(alpha) Tx(a) Rz(theta) Tz(d)`` followed by ``Rz(q)`` is the origin itself."""
+    if robot.convention == "joint":
+        return robot
+    dh = np.asarray(robot.dh)
+    fixed = [_rz(t) @ _tz(d) @ _tx(a) @ _rx(al) for t, d, a, al in dh]
+    if robot.convention == "sdh":
+        origins, tool = [np.eye(4)] + fixed[:-1], fixed[-1] @ np.asarray(robot.tool)
+    else:
+        origins = [_rx(al) @ _tx(a) @ _rz(t) @ _tz(d) for t, d, a, al in dh]
+        tool = np.asarray(robot.tool)
+    return robot.replace(
+        dh=np.zeros((robot.n_joints, 7)),
+        convention="joint",
+        origins=np.stack(origins),
+        axes=np.tile([0.0, 0.0, 1.0], (robot.n_joints, 1)),
+        tool=tool,
+    )
+
+
 def to_mdh(robot: Robot) -> Robot:
     """The same arm as a modified-DH table; the last link's ``Tx(a_n) Rx(alpha_n)`` moves into
     the tool, so both models give the same end pose for every ``q``."""
+    _dh_only(robot, "to_mdh")
     if robot.convention == "mdh":
         return robot
     dh = np.asarray(robot.dh)
@@ -161,6 +208,7 @@ def to_mdh(robot: Robot) -> Robot:
 def to_sdh(robot: Robot) -> Robot:
     """The same arm as a standard-DH table; the first link's ``Rx(alpha_1) Tx(a_1)`` moves into
     the base, so both models give the same end pose for every ``q``."""
+    _dh_only(robot, "to_sdh")
     if robot.convention == "sdh":
         return robot
     dh = np.asarray(robot.dh)
@@ -172,4 +220,4 @@ def to_sdh(robot: Robot) -> Robot:
 
 
 def convert(robot: Robot, convention: str) -> Robot:
-    return {"sdh": to_sdh, "mdh": to_mdh}[convention](robot)
+    return {"sdh": to_sdh, "mdh": to_mdh, "joint": to_joint}[convention](robot)

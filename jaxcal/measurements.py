@@ -124,6 +124,18 @@ class Measurements:
             idx = np.atleast_1d(np.asarray(idx))
         return dataclasses.replace(self, q=self.q[idx], measured=self.measured[idx], rows=self.rows[idx])
 
+    def select_points(self, points) -> "Measurements":
+        """Only the measured points numbered ``points`` (1-based, as the columns ``x1 .. xM``)."""
+        if self.n_points == 0:
+            raise DataError(f"{self.source}: measures poses, not points; points apply to x1,y1,z1 ... data")
+        idx = [int(p) for p in np.atleast_1d(points)]
+        bad = [p for p in idx if not 1 <= p <= self.n_points]
+        if bad or not idx or len(set(idx)) != len(idx):
+            raise DataError(
+                f"{self.source}: {idx} (points) must be distinct point numbers in 1..{self.n_points}", option="points"
+            )
+        return dataclasses.replace(self, measured=self.measured[:, [p - 1 for p in idx]])
+
 
 def franka_csv_path() -> Path:
     """Path of the bundled real data set ``jaxcal/data/franka_panda_camera/measurements.csv``.
@@ -132,6 +144,14 @@ def franka_csv_path() -> Path:
     it with ``read_measurements(franka_csv_path(), preset("panda"), length_unit="m")``.
     """
     return Path(__file__).resolve().parent / "data" / "franka_panda_camera" / "measurements.csv"
+
+
+def tiago_paths() -> tuple[Path, Path]:
+    """``(urdf, csv)`` of the bundled real data set ``jaxcal/data/tiago_mocap``: a TIAGo arm
+    (prismatic torso + 7 joints) as a URDF chain and 37 postures with four motion-capture points
+    on the hand, in metres (the file's units follow the URDF)."""
+    d = Path(__file__).resolve().parent / "data" / "tiago_mocap"
+    return d / "tiago_arm.urdf", d / "training.csv"
 
 
 def unit_scale(value, table, what: str, default: str) -> tuple[float, str]:

@@ -1,9 +1,9 @@
 r"""The measurement model: what a sensor reports as a function of the calibration parameters,
 its residual, and the residual's exact Jacobian.
 
-A calibration estimates a :class:`Model`: the robot (DH table, base and tool frames), the
-positions of the measured points on the tool, and the unknowns of a camera model. What is
-measured per pose is one of
+A calibration estimates a :class:`Model`: the robot (DH table or joint frames, base and tool
+frames), the positions of the measured points on the tool, and the unknowns of a camera model.
+What is measured per pose is one of
 
 * the **tool's pose** (``n_points = 0``): 6 residual rows ``[p_m - p, log(R_m R^T)]`` (mm, rad),
   optionally through a camera model (:mod:`jaxcal.camera`);
@@ -12,7 +12,7 @@ measured per pose is one of
 
 The parameters ``x`` are laid out by a :class:`Layout`::
 
-    x = [DH errors (4n), base twist (6, if estimated),
+    x = [kinematic errors (4n DH, or 7n joint-frame), base twist (6, if estimated),
          tool: a twist (6) for poses, a translation (3) per point for points (if estimated),
          camera unknowns]
 
@@ -47,7 +47,7 @@ class Layout:
     """Which parameters a fit carries and what is measured (hashable: a static argument)."""
 
     kin_names: tuple[str, ...]
-    """Names of the kinematic (DH) errors, in order."""
+    """Names of the kinematic errors (DH or joint-frame), in order."""
     base: bool = False
     """Estimate the base frame (measurement frame -> robot base): 6 twist parameters."""
     tool: bool = False
@@ -57,11 +57,15 @@ class Layout:
     camera: str = "none"
     """Camera measurement model (:mod:`jaxcal.camera`) of pose data."""
 
+    kin_units: tuple[str, ...] = ()
+    """Unit of each kinematic error (``mm`` or ``rad``); empty: from the DH names."""
+
     @classmethod
     def of(
         cls, robot: Robot, *, base: bool = False, tool: bool = False, n_points: int = 0, camera: str = "none"
     ) -> "Layout":
-        return cls(tuple(robot.param_names()), bool(base), bool(tool), int(n_points), camera)
+        names, units = tuple(robot.param_names()), tuple(robot.param_units())
+        return cls(names, bool(base), bool(tool), int(n_points), camera, units)
 
     @property
     def n_kin(self) -> int:
@@ -107,7 +111,7 @@ class Layout:
 
     def units(self) -> list[str]:
         """Unit of each parameter: mm or rad (camera unknowns are dimensionless, ``1``)."""
-        kin = ["rad" if n.startswith(("theta", "alpha")) else "mm" for n in self.kin_names]
+        kin = list(self.kin_units) or ["rad" if n.startswith(("theta", "alpha")) else "mm" for n in self.kin_names]
         frame = ["mm"] * 3 + ["rad"] * 3
         tool = (frame if self.n_points == 0 else ["mm"] * (3 * self.n_points)) if self.tool else []
         return kin + (frame if self.base else []) + tool + ["1"] * self.n_camera
@@ -226,7 +230,8 @@ def residual_and_jacobian_soa(model: Model, layout: Layout, x: Float[Array, " m"
     if layout.tool and layout.n_points:  # dp_j / dm_j = R
         frames += [[R[r, c] if i == j else 0.0 for i in range(M) for r in range(3)] for j in range(M) for c in range(3)]
     if layout.n_points:
-        J = stack_columns([sum(P[kk], []) for kk in range(4)], n, K)  # (4n, 3M, K)
+        kinds = range(robot.n_kinds)
+        J = stack_columns([sum(P[kk], []) for kk in kinds], n, K)  # (p n, 3M, K)
         if frames:
             J = jnp.concatenate([J, _columns(frames, K)], 0)
         e = (target - jnp.moveaxis(p_pts, -1, 0)).reshape(K, 3 * M)
@@ -240,12 +245,12 @@ def residual_and_jacobian_soa(model: Model, layout: Layout, x: Float[Array, " m"
         return out + [-sum(A[i, j] * rows[3 + j] for j in range(3)) for i in range(3)]
 
     if layout.camera == "none":
-        J = stack_columns([finish(P[kk][0] + W[kk]) for kk in range(4)], n, K)  # (4n, 6, K)
+        J = stack_columns([finish(P[kk][0] + W[kk]) for kk in range(robot.n_kinds)], n, K)  # (p n, 6, K)
         if frames:
             J = jnp.concatenate([J, _columns([finish(col) for col in frames], K)], 0)
         return e.T, J
     # a camera's columns come per pose (not a hot path): dense, then the same residual derivative
-    J = stack_columns([P[kk][0] + W[kk] for kk in range(4)], n, K)
+    J = stack_columns([P[kk][0] + W[kk] for kk in range(robot.n_kinds)], n, K)
     if frames:
         J = jnp.concatenate([J, _columns(frames, K)], 0)
     J = jnp.moveaxis(camera_jacobian(jnp.moveaxis(J, -1, 0).swapaxes(1, 2), T, cur.camera_params, layout.camera), 0, -1)
@@ -283,5 +288,26 @@ def check_layout(model: Model, layout: Layout) -> None:
             f"model measures {model.n_points} points with camera {model.camera!r}, the layout "
             f"{layout.n_points} points with camera {layout.camera!r}"
         )
-    if len(layout.kin_names) != 4 * model.robot.n_joints:
+    if len(layout.kin_names) != model.robot.n_kinds * model.robot.n_joints:
         raise ValueError("layout is for another robot")
+
+
+def load_model(path, *, base_link: str | None = None, tip_link: str | None = None) -> Model:
+    """A saved model (:func:`save_model`): the robot with its frames and the measured points on
+    its tool. A robot file without points is a model whose tool frame's origin is measured."""
+    from .robot import read_robot_file
+
+    robot, points = read_robot_file(path, base_link=base_link, tip_link=tip_link)
+    return Model(robot, points)
+
+
+def save_model(model: Model, path, *, comment: dict | None = None, template=None, base_link=None, tip_link=None):
+    """Write a model atomically: a URDF (``.urdf``, joint-frame robots; ``template`` the nominal
+    URDF whose other links it keeps) or a TOML robot file, with the measured points. The camera
+    model's unknowns are a sensor's, not the robot's, and are not written."""
+    from .robot import save_robot
+
+    pts = np.asarray(model.points) if model.n_points else None
+    save_robot(
+        model.robot, path, comment=comment, points=pts, template=template, base_link=base_link, tip_link=tip_link
+    )

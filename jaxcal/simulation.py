@@ -26,6 +26,8 @@ from .robot import Robot
 # Default error scales, like the paper's Table 2: ~0.005 rad on theta/alpha, ~0.05 mm on d/a.
 DEFAULT_DH_SCALES = (0.005, 0.05, 0.05, 0.005)
 DEFAULT_FRAME_SCALES = (1.0, 1.0, 1.0, 0.01, 0.01, 0.01)  # mm, rad
+DEFAULT_JOINT_SCALES = (0.005, 0.05, 0.05, 0.05, 0.005, 0.005, 0.005)
+"""Joint frames: the offset (rad; a prismatic joint's in mm), the origin's shift (mm) and turn."""
 
 
 def error_scales(
@@ -37,8 +39,16 @@ def error_scales(
     frame_scales=DEFAULT_FRAME_SCALES,
 ) -> np.ndarray:
     """Per-parameter standard deviation of the simulated true errors, in the layout of
-    :func:`jaxcal.error_model.param_names`."""
-    s = list(np.tile(dh_scales, robot.n_joints))
+    :func:`jaxcal.error_model.param_names` (``dh_scales`` per DH joint; joint-frame robots take
+    :data:`DEFAULT_JOINT_SCALES`, a prismatic offset at the length scale)."""
+    if robot.convention == "joint":
+        s = [
+            v * (10.0 if k == 0 and t == "P" else 1.0)
+            for t in robot.joint_types
+            for k, v in enumerate(DEFAULT_JOINT_SCALES)
+        ]
+    else:
+        s = list(np.tile(dh_scales, robot.n_joints))
     s += list(frame_scales) * (int(base) + int(tool))
     return np.asarray(s, dtype=np.float64)
 

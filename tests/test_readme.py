@@ -36,3 +36,22 @@ def test_python_quick_start_runs(tmp_path, monkeypatch, capsys):
     assert np.sqrt(np.mean(np.sum((predicted - truth) ** 2, -1))) < 0.1  # noise is 0.02 mm
     assert np.sqrt(np.mean(np.sum((nominal - truth) ** 2, -1))) > 1.0  # the errors were real
     assert "parameter" in capsys.readouterr().out
+
+
+def test_urdf_block_runs(tmp_path, monkeypatch, capsys):
+    """The URDF example, as written, from a folder of its own (data paths made absolute)."""
+    import json
+    import shlex
+
+    from helpers import run_cli
+
+    (block,) = [b for b in blocks("bash") if "tiago_arm.urdf" in b]
+    root = README.parent
+    monkeypatch.chdir(tmp_path)
+    for line in block.replace("\\\n", " ").splitlines():
+        args = [str(root / a) if a.startswith("jaxcal/data/") else a for a in shlex.split(line)]
+        assert args[0] == "jaxcal"
+        code, _, err = run_cli(monkeypatch, capsys, *args[1:])
+        assert code in (0, None), err
+    ev = json.loads((tmp_path / "evaluation.json").read_text())
+    assert len(ev["points"]) == 4 and 1.0 < ev["position_rms_mm"] < 5.0  # the data set's README: 2.9-4.1 mm

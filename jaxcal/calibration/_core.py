@@ -238,13 +238,16 @@ def broadcast_model(model: Model, n: int) -> Model:
 
 
 def wrapped(model: Model, nominal: Robot) -> Model:
-    """``model`` with every DH angle (theta and alpha) within half a turn of the nominal one: the
-    same kinematics, and offsets in (-pi, pi] a controller can take."""
+    """``model`` with every DH angle (theta and alpha), or every revolute joint's offset, within
+    half a turn of the nominal one: the same kinematics, and offsets in (-pi, pi] a controller
+    can take."""
     dh = np.array(model.robot.dh, copy=True)
     nom = np.asarray(nominal.dh)
-    for k in (0, 3):
+    rev = np.array([t == "R" for t in nominal.joint_types])
+    for k in (0,) if nominal.convention == "joint" else (0, 3):
         d = dh[..., k] - nom[..., k]
-        dh[..., k] = nom[..., k] + (np.pi - np.mod(np.pi - d, 2 * np.pi))
+        turned = nom[..., k] + (np.pi - np.mod(np.pi - d, 2 * np.pi))
+        dh[..., k] = np.where(rev, turned, dh[..., k]) if nominal.convention == "joint" else turned
     r = eqx.tree_at(lambda r: r.dh, model.robot, dh)
     return Model(r, model.points, model.camera_params, camera=model.camera)
 

@@ -71,13 +71,14 @@ def _rms(v) -> float:
 
 
 def frame_doc(T) -> dict:
-    """A frame as ``xyz_mm`` and roll-pitch-yaw ``rpy_deg`` (fixed axes x-y-z)."""
-    from scipy.spatial.transform import Rotation
+    """A frame as ``xyz_mm`` and roll-pitch-yaw ``rpy_deg`` (fixed axes x-y-z; at pitch ±90 deg,
+    the robot files' convention of :func:`jaxcal.lie.matrix_to_rpy`, without a warning)."""
+    from ..lie import matrix_to_rpy
 
     T = np.asarray(T)
     return {
         "xyz_mm": [float(v) for v in T[:3, 3]],
-        "rpy_deg": [float(v) for v in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)],
+        "rpy_deg": [float(v) for v in np.degrees(np.asarray(matrix_to_rpy(T[:3, :3])))],
     }
 
 

@@ -56,11 +56,18 @@ def use_compilation_cache() -> None:
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
 
 
-def load_robot_arg(robot: str):
-    """A robot file (TOML or URDF) or a preset name."""
+def load_robot_arg(robot: str, base_link: str | None = None, tip_link: str | None = None):
+    """A robot file (TOML or URDF; ``base_link``/``tip_link`` choose a URDF's chain) or a preset
+    name."""
     from ..robot import PRESETS, load_robot, preset
 
-    return preset(robot) if robot in PRESETS else load_robot(robot)
+    if robot in PRESETS:
+        return preset(robot)
+    return load_robot(robot, base_link=base_link, tip_link=tip_link)
+
+
+BASE_LINK_HELP = "URDF: the chain's first link (default: the root)"
+TIP_LINK_HELP = "URDF: the chain's last link (default: the one leaf)"
 
 
 @contextlib.contextmanager

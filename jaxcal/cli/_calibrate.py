@@ -8,7 +8,7 @@ import typer
 from rich.table import Table
 
 from ..calibration import Options
-from ._app import app, console, load_robot_arg, progress
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg, progress
 
 _D = Options()
 
@@ -62,22 +62,39 @@ def calibrate(
     ),
     max_angle_change_deg: float = typer.Option(_D.max_angle_change_deg, help="plausibility: largest DH angle change"),
     json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
-    out_robot: Path = typer.Option(None, help="write the calibrated robot here (TOML)"),
+    out_robot: Path = typer.Option(
+        None, help="write the calibrated robot here (TOML; one measured point becomes the tool)"
+    ),
+    out_model: Path = typer.Option(
+        None,
+        help="write the calibrated model here: URDF (.urdf, a URDF robot: the nominal file with the "
+        "corrections in its joints' origins, the measurement frame and the points as links) or TOML",
+    ),
     plots: Path = typer.Option(None, help="write plots into this folder"),
+    points: str = typer.Option(None, help="use only these measured points, e.g. 1 or 1,3 (default: all)"),
+    base_link: str = typer.Option(None, help=BASE_LINK_HELP),
+    tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
 ):
     """Calibrate from measured data with K-fold held-out validation (base and tool estimated)."""
     from .._io import check_writable, write_atomic
     from ..calibration import GAUGE, calibrate_data
-    from ..errors import ImplausibleFitError
+    from ..errors import DataError, ImplausibleFitError
     from ..measurements import read_measurements
+    from ..model import Model, save_model
     from ..robot import save_robot
 
-    outputs = {"json_out": json_out, "out_robot": out_robot, "plots": plots}
+    outputs = {"json_out": json_out, "out_robot": out_robot, "out_model": out_model, "plots": plots}
     for name, path in outputs.items():
         if path is not None:
             check_writable(path / "x.png" if name == "plots" else path, name)
-    nominal = load_robot_arg(robot)
+    nominal = load_robot_arg(robot, base_link, tip_link)
+    for name, path in (("out_robot", out_robot), ("out_model", out_model)):
+        if path is not None and (path.suffix.lower() == ".urdf") != (nominal.convention == "joint"):
+            kind = "a URDF robot is written as URDF (.urdf)" if nominal.convention == "joint" else "a DH robot as TOML"
+            raise DataError(f"{name}: {kind}; nothing was computed", option=name)
     meas = read_measurements(data, nominal, length_unit=length_unit, angle_unit=angle_unit)
+    if points is not None:
+        meas = meas.select_points([int(p) for p in points.split(",") if p.strip()])
     opts = Options(
         method=method,
         params=params,
@@ -110,19 +127,24 @@ def calibrate(
     if not rep["converged"]:
         console.print("[yellow]warning:[/yellow] the final fit did not converge; nothing was written")
         raise typer.Exit(1)
-    if out_robot is not None:
-        save_robot(
-            res.robot.replace(name=f"{nominal.name}-calibrated"),
-            out_robot,
-            comment={
-                "data": str(data),
-                "heldout_rms_mm": rep["heldout_rms_mm"],
-                "choice": rep["choice"],
-                "convention": res.robot.convention,
-                "gauge": GAUGE,
-            },
-        )
+    comment = {
+        "data": str(data),
+        "heldout_rms_mm": rep["heldout_rms_mm"],
+        "choice": rep["choice"],
+        "convention": res.robot.convention,
+        "gauge": GAUGE,
+    }
+    if out_robot is not None and nominal.convention != "joint":
+        save_robot(res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment)
         console.print(f"calibrated robot written to {out_robot}")
+    # a URDF robot's --out-robot is its model too: the points are links of the written URDF
+    for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
+        if path is None:
+            continue
+        urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
+        model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
+        save_model(model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link)
+        console.print(f"calibrated model written to {path}")
     if json_out is not None:
         write_atomic(json_out, res.to_json())
         console.print(f"report written to {json_out}")
@@ -155,7 +177,7 @@ def show(rep: dict, meas) -> None:
     for col in ("model", "train RMS (mm)", "held-out RMS (mm)", "held-out max (mm)", "held-out rot RMS (deg)"):
         summary.add_column(col, justify="right" if col != "model" else "left")
     summary.add_row(
-        "frames only (nominal DH)",
+        "frames only (nominal kinematics)",
         _fmt(rep["frames_only_train_rms_mm"]),
         _fmt(rep["frames_only_heldout_rms_mm"]),
         _fmt(rep["frames_only_heldout_max_mm"]),

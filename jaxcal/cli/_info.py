@@ -5,18 +5,36 @@ from __future__ import annotations
 import typer
 from rich.table import Table
 
-from ._app import app, console, load_robot_arg
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg
 
 
 @app.command()
-def info(robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name")):
-    """Print a robot's DH table (mm, rad)."""
+def info(
+    robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name"),
+    base_link: str = typer.Option(None, help=BASE_LINK_HELP),
+    tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
+):
+    """Print a robot's DH table, or its joint frames (mm, rad)."""
     import numpy as np
 
-    r = load_robot_arg(robot)
+    from ..lie import matrix_to_rpy
+
+    r = load_robot_arg(robot, base_link, tip_link)
     table = Table(title=f"{r.name} ({r.convention}, file units {r.units[0]}, {r.units[1]})")
-    for col in ("joint", "name", "type", "theta", "d (mm)", "a (mm)", "alpha"):
-        table.add_column(col)
-    for i, (row, t, n) in enumerate(zip(np.asarray(r.dh), r.joint_types, r.joint_names), start=1):
-        table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row))
+    if r.convention == "joint":
+        for col in ("joint", "name", "type", "axis", "origin xyz (mm)", "origin rpy (rad)", "limits"):
+            table.add_column(col)
+        for i, (O, a, t, n, lim) in enumerate(
+            zip(np.asarray(r.origins), np.asarray(r.axes), r.joint_types, r.joint_names, np.asarray(r.q_limits)), 1
+        ):
+            rpy = np.asarray(matrix_to_rpy(O[:3, :3]))
+            table.add_row(
+                str(i), n, t, " ".join(f"{v:.3g}" for v in a), " ".join(f"{v:.6g}" for v in O[:3, 3]),
+                " ".join(f"{v:.6g}" for v in rpy), f"{lim[0]:.4g} .. {lim[1]:.4g}",
+            )  # fmt: skip
+    else:
+        for col in ("joint", "name", "type", "theta", "d (mm)", "a (mm)", "alpha"):
+            table.add_column(col)
+        for i, (row, t, n) in enumerate(zip(np.asarray(r.dh), r.joint_types, r.joint_names), start=1):
+            table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row))
     console.print(table)

@@ -1,13 +1,16 @@
-"""Robot models: a DH table with base and tool frames, published presets, and robot files."""
+"""Robot models: a DH table or joint frames (URDF) with base and tool frames, published presets, and robot files."""
 
+from ._files import load_robot as load_robot
+from ._files import read_robot_file as read_robot_file
+from ._files import save_robot as save_robot
 from ._presets import PRESETS as PRESETS
 from ._presets import preset as preset
 from ._robot import ANGLE_UNITS as ANGLE_UNITS
 from ._robot import CONVENTIONS as CONVENTIONS
 from ._robot import DH_NAMES as DH_NAMES
+from ._robot import JOINT_FRAME_NAMES as JOINT_FRAME_NAMES
 from ._robot import LENGTH_UNITS as LENGTH_UNITS
 from ._robot import Robot as Robot
-from ._toml import load_robot as load_robot
 from ._toml import robot_from_dict as robot_from_dict
 from ._toml import robot_to_dict as robot_to_dict
-from ._toml import save_robot as save_robot
+from ._urdf import urdf_text as urdf_text

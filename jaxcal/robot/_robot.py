@@ -1,4 +1,5 @@
-"""The robot model: a DH table as an equinox Module, with base and tool frames.
+"""The robot model: a DH table, or joint frames as a URDF gives them, as an equinox Module, with
+base and tool frames.
 
 Units inside jaxcal are millimetres and radians; the file readers convert at the edges and
 remember the file's units, so data files and written models follow them.
@@ -14,31 +15,47 @@ from jaxtyping import Array, Float
 from .._config import as_f64
 from ..errors import RobotFileError
 
-CONVENTIONS = ("sdh", "mdh")
+CONVENTIONS = ("sdh", "mdh", "joint")
 LENGTH_UNITS = {"mm": 1.0, "m": 1000.0}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 JOINT_TYPES = ("R", "P")
 DH_NAMES = ("theta", "d", "a", "alpha")
+JOINT_FRAME_NAMES = ("offset", "x", "y", "z", "rx", "ry", "rz")
+"""Per-joint parameters of the joint-frame form: the joint offset, then a rigid correction of
+the joint's origin (a translation and a rotation vector, in the origin's own axes)."""
 
 
 class Robot(eqx.Module):
-    """A serial arm described by a Denavit–Hartenberg table.
+    """A serial arm described by a Denavit–Hartenberg table or by joint frames.
 
     With ``convention="sdh"`` (standard DH, the paper's eq. 1) link ``i`` is
     ``Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``; with ``"mdh"`` (modified DH, Craig) it is
     ``Rx(alpha_i) Tx(a_i) Rz(theta_i) Tz(d_i)``, where row ``i`` stores Craig's
     ``alpha_{i-1}, a_{i-1}``. A revolute joint adds ``q_i`` to ``theta_i``, a prismatic one to
     ``d_i``. The end pose is ``base @ A_1 ... A_n @ tool``.
+
+    With ``convention="joint"`` (a URDF chain) link ``i`` is ``O_i E_i M_i(q_i + offset_i)``:
+    the joint's fixed origin ``O_i`` (``origins``), a rigid correction ``E_i = [exp(r_i) | t_i]``
+    and the joint's motion ``M_i``, a turn about (revolute) or a shift along (prismatic) the unit
+    ``axes[i]``. The parameter table ``dh`` then holds ``(offset, x, y, z, rx, ry, rz)`` per joint
+    (:data:`JOINT_FRAME_NAMES`), zero for the nominal robot. Every joint has its own frame, so
+    nearly parallel axes are no singularity, unlike DH (Hayati's problem).
     """
 
-    dh: Float[Array, "n 4"]
-    """Per joint ``(theta offset, d, a, alpha)`` in mm and rad, base to tip."""
+    dh: Float[Array, "n p"]
+    """Per joint ``(theta offset, d, a, alpha)`` in mm and rad, base to tip (DH); the joint-frame
+    parameters :data:`JOINT_FRAME_NAMES` (``convention="joint"``)."""
     base: Float[Array, "4 4"]
     """Measurement (world) frame -> robot base frame 0."""
     tool: Float[Array, "4 4"]
     """Last joint frame (flange) -> tool point/frame."""
     q_limits: Float[Array, "n 2"]
     """Joint limits ``[lower, upper]`` (rad, or mm for prismatic joints); used by simulation."""
+    origins: Float[Array, "n 4 4"] | None = None
+    """Joint frames only: each joint's fixed origin in its parent's frame (the fixed joints
+    before it folded in)."""
+    axes: Float[Array, "n 3"] | None = None
+    """Joint frames only: each joint's unit axis in its origin frame."""
     convention: str = eqx.field(static=True)
     joint_types: tuple[str, ...] = eqx.field(static=True)
     name: str = eqx.field(static=True, default="robot")
@@ -60,19 +77,25 @@ class Robot(eqx.Module):
         name="robot",
         joint_names=None,
         units=("mm", "rad"),
+        origins=None,
+        axes=None,
     ):
+        if convention not in CONVENTIONS:
+            raise RobotFileError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
+        kinds = JOINT_FRAME_NAMES if convention == "joint" else DH_NAMES
+        if dh is None and convention == "joint" and origins is not None:
+            dh = np.zeros((np.shape(origins)[0], len(kinds)))
         dh = as_f64(dh, "dh")
-        if dh.ndim != 2 or dh.shape[1] != 4:
-            raise RobotFileError(f"dh must have shape (n_joints, 4) = (theta, d, a, alpha), got {dh.shape}")
+        if dh.ndim != 2 or dh.shape[1] != len(kinds):
+            raise RobotFileError(f"dh must have shape (n_joints, {len(kinds)}) = {kinds}, got {dh.shape}")
         n = dh.shape[0]
         if n < 1:
             raise RobotFileError("a robot needs at least one joint")
         bad = ~np.isfinite(np.asarray(dh))
         if bad.any():
             j, k = np.argwhere(bad)[0]
-            raise RobotFileError(f"joint {j + 1}: {DH_NAMES[k]} is not finite")
-        if convention not in CONVENTIONS:
-            raise RobotFileError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
+            raise RobotFileError(f"joint {j + 1}: {kinds[k]} is not finite")
+        self.origins, self.axes = _joint_frames(convention, origins, axes, n)
         joint_types = tuple(str(t) for t in joint_types) if joint_types is not None else ("R",) * n
         if len(joint_types) != n:
             raise RobotFileError(f"{len(joint_types)} joint types for {n} joints")
@@ -129,6 +152,11 @@ class Robot(eqx.Module):
         return self.dh[..., 3]
 
     @property
+    def n_kinds(self) -> int:
+        """Parameters per joint: 4 (DH) or 7 (joint frames)."""
+        return len(JOINT_FRAME_NAMES if self.convention == "joint" else DH_NAMES)
+
+    @property
     def revolute_mask(self) -> Float[Array, " n"]:
         return jnp.array([t == "R" for t in self.joint_types], dtype=jnp.float64)
 
@@ -138,13 +166,24 @@ class Robot(eqx.Module):
         dh = np.asarray(self.dh)
         lim = np.asarray(self.q_limits)
         stroke = sum(float(lim[i, 1] - lim[i, 0]) for i, t in enumerate(self.joint_types) if t == "P")
-        return float(
-            np.abs(dh[:, 1]).sum() + np.abs(dh[:, 2]).sum() + np.linalg.norm(np.asarray(self.tool)[:3, 3]) + stroke
-        )
+        if self.convention == "joint":
+            links = np.linalg.norm(np.asarray(self.origins)[:, :3, 3], axis=-1).sum()
+        else:
+            links = np.abs(dh[:, 1]).sum() + np.abs(dh[:, 2]).sum()
+        return float(links + np.linalg.norm(np.asarray(self.tool)[:3, 3]) + stroke)
 
     def param_names(self) -> list[str]:
-        """Names of the 4n DH parameters in the order of :meth:`dh` flattened row-major."""
-        return [f"{p}{i + 1}" for i in range(self.n_joints) for p in DH_NAMES]
+        """Names of the kinematic parameters in the order of :attr:`dh` flattened row-major:
+        ``theta1, d1, a1, alpha1, ...`` (DH) or ``offset1, x1, y1, z1, rx1, ry1, rz1, ...``."""
+        kinds = JOINT_FRAME_NAMES if self.convention == "joint" else DH_NAMES
+        return [f"{p}{i + 1}" for i in range(self.n_joints) for p in kinds]
+
+    def param_units(self) -> list[str]:
+        """``"mm"`` or ``"rad"`` for each of :meth:`param_names` (a prismatic joint's offset is a
+        length)."""
+        if self.convention != "joint":
+            return ["rad", "mm", "mm", "rad"] * self.n_joints
+        return [u for t in self.joint_types for u in ["rad" if t == "R" else "mm"] + ["mm"] * 3 + ["rad"] * 3]
 
     def replace(self, **kw) -> "Robot":
         """A validated copy with some fields replaced (never mutates ``self``; not for jit)."""
@@ -158,6 +197,8 @@ class Robot(eqx.Module):
             name=self.name,
             joint_names=self.joint_names,
             units=self.units,
+            origins=self.origins,
+            axes=self.axes,
         )
         args.update(kw)
         return Robot(**args)
@@ -167,7 +208,7 @@ class Robot(eqx.Module):
         descriptive fields, without validating again. Compiled functions are specialised on
         the static fields: stripping the description lets robots of one structure share them."""
         new = object.__new__(Robot)
-        for f in ("dh", "base", "tool", "q_limits", "convention", "joint_types"):
+        for f in ("dh", "base", "tool", "q_limits", "origins", "axes", "convention", "joint_types"):
             object.__setattr__(new, f, getattr(self, f))
         n = len(self.joint_types)
         object.__setattr__(new, "name", name)
@@ -183,6 +224,28 @@ class Robot(eqx.Module):
 
     def with_dh_delta(self, delta: Float[Array, "n 4"]) -> "Robot":
         return eqx.tree_at(lambda r: r.dh, self, self.dh + delta)
+
+
+def _joint_frames(convention, origins, axes, n):
+    """Validated ``(origins, axes)`` of a joint-frame robot; ``(None, None)`` for DH."""
+    if convention != "joint":
+        if origins is not None or axes is not None:
+            raise RobotFileError("origins and axes belong to joint-frame robots (convention='joint')")
+        return None, None
+    if origins is None or axes is None:
+        raise RobotFileError("a joint-frame robot needs origins (n, 4, 4) and axes (n, 3)")
+    O = np.asarray(origins, dtype=np.float64)
+    if O.shape != (n, 4, 4):
+        raise RobotFileError(f"origins must have shape ({n}, 4, 4), got {O.shape}")
+    for i in range(n):
+        _check_transform(O[i], f"joint {i + 1} origin")
+    a = np.asarray(axes, dtype=np.float64)
+    if a.shape != (n, 3) or not np.all(np.isfinite(a)):
+        raise RobotFileError(f"axes must be {n} finite 3-vectors, got shape {a.shape}")
+    norm = np.linalg.norm(a, axis=1)
+    if np.any(norm < 1e-9):
+        raise RobotFileError(f"joint {int(np.argmin(norm)) + 1}: the axis is zero")
+    return jnp.asarray(O), jnp.asarray(a / norm[:, None])
 
 
 def _check_transform(T, name):

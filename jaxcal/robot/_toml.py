@@ -35,7 +35,7 @@ from ._robot import ANGLE_UNITS as ANGLE
 from ._robot import LENGTH_UNITS as LENGTH
 from ._robot import Robot
 
-TOP_KEYS = {"name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration"}
+TOP_KEYS = {"name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points"}
 JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits"}
 FRAME_KEYS = {"xyz", "rpy"}
 
@@ -135,8 +135,10 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
     )
 
 
-def load_robot(path) -> Robot:
-    """Read a robot TOML file (see the module docstring for its shape)."""
+def read_toml(path) -> tuple[Robot, np.ndarray | None]:
+    """``(robot, points)`` of a robot TOML file (see the module docstring for its shape): the
+    measured points (mm, tool frame) a calibration wrote as ``points = [[x, y, z], ...]`` in the
+    file's length unit, or ``None``."""
     path = Path(path)
     try:
         with path.open("rb") as f:
@@ -145,12 +147,22 @@ def load_robot(path) -> Robot:
         raise RobotFileError(f"robot file not found: {path}") from None
     except tomllib.TOMLDecodeError as e:
         raise RobotFileError(f"{path}: not valid TOML: {e}") from None
-    return robot_from_dict(doc, source=str(path))
+    robot = robot_from_dict(doc, source=str(path))
+    if "points" not in doc:
+        return robot, None
+    pts = doc["points"]
+    if not isinstance(pts, list) or not all(isinstance(p, list) and len(p) == 3 for p in pts):
+        raise RobotFileError(f"{path}: points must be a list of [x, y, z]")
+    lu = LENGTH[robot.units[0]]
+    return robot, np.array([[_num(v, f"points[{i}]") * lu for v in p] for i, p in enumerate(pts)])
 
 
-def robot_to_dict(robot: Robot, *, comment: dict | None = None) -> dict:
+def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> dict:
     """A TOML-ready document in the robot's own units (``robot.units``, full float precision);
-    ``comment`` adds a ``[calibration]`` table that says how the values were obtained."""
+    ``comment`` adds a ``[calibration]`` table that says how the values were obtained,
+    ``points`` the measured points on the tool (mm in, the file's unit out)."""
+    if robot.convention == "joint":
+        raise RobotFileError("a joint-frame robot is written as URDF (a path ending in .urdf)")
     lu_name, au_name = robot.units
     lu, au = LENGTH[lu_name], ANGLE[au_name]
     dh = np.asarray(robot.dh) / np.array([au, lu, lu, au])
@@ -180,12 +192,14 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None) -> dict:
                 "xyz": [float(v) / lu for v in T[:3, 3]],
                 "rpy": [float(v) / au for v in np.asarray(matrix_to_rpy(T[:3, :3]))],
             }
+    if points is not None and len(points):
+        doc["points"] = [[float(v) / lu for v in p] for p in np.asarray(points)]
     if comment:
         doc["calibration"] = dict(comment)
     return doc
 
 
-def save_robot(robot: Robot, path, *, comment: dict | None = None) -> None:
+def save_toml(robot: Robot, path, *, comment: dict | None = None, points=None) -> None:
     """Write a robot TOML file in the robot's own units, atomically (a reader never sees half a
     file, and an existing file is replaced only once the new one is complete)."""
-    write_atomic(path, tomli_w.dumps(robot_to_dict(robot, comment=comment)))
+    write_atomic(path, tomli_w.dumps(robot_to_dict(robot, comment=comment, points=points)))

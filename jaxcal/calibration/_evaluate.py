@@ -1,0 +1,86 @@
+"""Held-out evaluation of a saved model: predict a data file's measurements with the model as it
+is (frames included, nothing re-fitted) and summarise the errors per point, per pose and by
+posture group relative to the training data."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DataError
+from ..model import Model, predict
+from ..robot import Robot
+
+REPEAT_RAD = 1e-2
+"""A pose whose every revolute joint is within this of a training pose's (and every prismatic
+joint within :data:`REPEAT_MM`) repeats that posture."""
+REPEAT_MM = 1.0
+GROUPS = ("repeated", "new within training ranges", "out of training ranges")
+
+
+def _stats(err: np.ndarray) -> dict:
+    """RMS, max and median of error norms (any shape), or ``None`` entries without data."""
+    e = np.ravel(err)
+    if e.size == 0:
+        return {"rms_mm": None, "max_mm": None, "median_mm": None}
+    return {"rms_mm": float(np.sqrt(np.mean(e**2))), "max_mm": float(e.max()), "median_mm": float(np.median(e))}
+
+
+def posture_groups(robot: Robot, q: np.ndarray, q_train: np.ndarray) -> np.ndarray:
+    """Index into :data:`GROUPS` of every pose ``q (K, n)`` relative to the training poses: a
+    repeat of one (within :data:`REPEAT_RAD` / :data:`REPEAT_MM` on every joint), a new posture
+    with every joint inside the training data's range, or outside it on some joint."""
+    tol = np.array([REPEAT_RAD if t == "R" else REPEAT_MM for t in robot.joint_types])
+    near = np.all(np.abs(q[:, None, :] - q_train[None, :, :]) <= tol, axis=-1).any(axis=1)
+    lo, hi = q_train.min(0), q_train.max(0)
+    inside = np.all((q >= lo - tol) & (q <= hi + tol), axis=-1)
+    return np.where(near, 0, np.where(inside, 1, 2))
+
+
+def evaluate(model: Model, meas, *, training=None) -> dict:
+    """Errors of ``model`` on the measurements ``meas`` (:class:`jaxcal.Measurements`), nothing
+    fitted: JSON-ready, lengths in mm, angles in degrees.
+
+    * ``position_rms_mm``, ``position_max_mm``, ``position_median_mm`` over every point of every
+      pose (error norms), and ``points``: per measured point in column order, ``rms_mm``,
+      ``max_mm``, ``median_mm``;
+    * ``rotation_rms_deg`` (and max, median) when poses are measured;
+    * ``poses``: per pose its data row and error (mm; per point, and deg for poses);
+    * ``groups`` (given the ``training`` measurements): the same summary for repeated postures,
+      new ones within the training ranges and ones out of them.
+
+    A robot file without points measures its tool frame's origin: it evaluates one point.
+    """
+    M = meas.n_points
+    if model.n_points == 0 and M == 1:
+        model = Model(model.robot, np.zeros((1, 3)), model.camera_params, camera=model.camera)
+    if model.n_points != M:
+        have = "poses" if M == 0 else f"{M} point(s) per pose"
+        want = "poses" if model.n_points == 0 else f"{model.n_points} point(s)"
+        raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}", option="data")
+    pred = np.asarray(predict(model, np.asarray(meas.q)))
+    if M:
+        pos = np.linalg.norm(meas.measured - pred, axis=-1)  # (K, M)
+        rot = None
+    else:
+        pos = np.linalg.norm(meas.measured[:, :3, 3] - pred[:, :3, 3], axis=-1)[:, None]
+        dR = np.einsum("kij,klj->kil", meas.measured[:, :3, :3], pred[:, :3, :3])
+        rot = np.degrees(np.arccos(np.clip((np.trace(dR, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)))
+    out = {"poses_evaluated": len(meas), "source": meas.source}
+    out.update({f"position_{k}": v for k, v in _stats(pos).items()})
+    out["points"] = [_stats(pos[:, j]) for j in range(pos.shape[1])]
+    if rot is not None:
+        out.update({f"rotation_{k.replace('_mm', '_deg')}": v for k, v in _stats(rot).items()})
+    out["poses"] = [
+        {"row": int(r), "error_mm": [float(v) for v in pos[i]]}
+        | ({} if rot is None else {"rotation_deg": float(rot[i])})
+        for i, r in enumerate(meas.rows)
+    ]
+    if training is not None:
+        if training.q.shape[1] != meas.q.shape[1]:
+            raise DataError(f"{training.source}: {training.q.shape[1]} joints, the data {meas.q.shape[1]}")
+        g = posture_groups(model.robot, np.asarray(meas.q), np.asarray(training.q))
+        out["groups"] = {
+            name: {"poses": int(np.sum(g == i))} | {f"position_{k}": v for k, v in _stats(pos[g == i]).items()}
+            for i, name in enumerate(GROUPS)
+        }
+    return out

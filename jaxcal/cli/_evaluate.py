@@ -1,0 +1,65 @@
+"""``jaxcal evaluate``: a saved model's errors on a data file (:func:`jaxcal.evaluate`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console
+
+
+def _fmt(v):
+    return "-" if v is None else f"{v:.3f}"
+
+
+@app.command()
+def evaluate(
+    model: Path = typer.Argument(..., help="a saved model: calibrate --out-model (URDF or TOML) or a robot file"),
+    data: Path = typer.Argument(..., help="measurement CSV, as for calibrate"),
+    training: Path = typer.Option(
+        None, help="the training CSV: errors by posture group (repeated / new / out of range)"
+    ),
+    json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
+    length_unit: str = typer.Option(None, help="m | mm (default: the model file's)"),
+    angle_unit: str = typer.Option(None, help="rad | deg (default: the model file's)"),
+    base_link: str = typer.Option(None, help=BASE_LINK_HELP),
+    tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
+):
+    """Predict a data file's measurements with a saved model (frames included, nothing
+    re-fitted) and report the errors in mm (rotation in deg)."""
+    import json
+
+    from .._io import check_writable, write_atomic
+    from ..calibration import evaluate as run
+    from ..measurements import read_measurements
+    from ..model import load_model
+
+    if json_out is not None:
+        check_writable(json_out, "json_out")
+    m = load_model(model, base_link=base_link, tip_link=tip_link)
+    meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit)
+    train = None
+    if training is not None:
+        train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit)
+    rep = run(m, meas, training=train)
+    table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
+    for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
+        table.add_column(col, justify="right")
+    for j, p in enumerate(rep["points"], 1):
+        table.add_row(str(j) if meas.n_points else "tool", _fmt(p["rms_mm"]), _fmt(p["max_mm"]), _fmt(p["median_mm"]))
+    table.add_row("all", _fmt(rep["position_rms_mm"]), _fmt(rep["position_max_mm"]), _fmt(rep["position_median_mm"]))
+    console.print(table)
+    if "rotation_rms_deg" in rep:
+        console.print(f"rotation: RMS {rep['rotation_rms_deg']:.4f} deg, max {rep['rotation_max_deg']:.4f} deg")
+    if "groups" in rep:
+        groups = Table(title="by posture, relative to the training data")
+        for col in ("postures", "poses", "RMS (mm)", "max (mm)"):
+            groups.add_column(col, justify="right")
+        for name, g in rep["groups"].items():
+            groups.add_row(name, str(g["poses"]), _fmt(g["position_rms_mm"]), _fmt(g["position_max_mm"]))
+        console.print(groups)
+    if json_out is not None:
+        write_atomic(json_out, json.dumps(rep, indent=2))
+        console.print(f"report written to {json_out}")

@@ -1,0 +1,58 @@
+"""Robot files by their suffix: TOML (DH tables) or URDF (joint frames)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import RobotFileError
+from ._robot import Robot
+from ._toml import read_toml, save_toml
+from ._urdf import read_urdf, save_urdf
+
+
+def _is_urdf(path) -> bool:
+    return Path(path).suffix.lower() in (".urdf", ".xml")
+
+
+def read_robot_file(path, *, base_link: str | None = None, tip_link: str | None = None):
+    """``(robot, points)``: a robot file and the measured points (mm, tool frame) a calibration
+    wrote into it (``None`` if none). ``base_link`` and ``tip_link`` choose a URDF's chain."""
+    if _is_urdf(path):
+        return read_urdf(path, base_link=base_link, tip_link=tip_link)
+    if base_link is not None or tip_link is not None:
+        raise RobotFileError(f"{path}: base_link and tip_link choose the chain of a URDF file")
+    return read_toml(path)
+
+
+def load_robot(path, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:
+    """Read a robot file: TOML (a DH table, :mod:`jaxcal.robot._toml`) or URDF (the chain from
+    ``base_link`` to ``tip_link``, :mod:`jaxcal.robot._urdf`)."""
+    return read_robot_file(path, base_link=base_link, tip_link=tip_link)[0]
+
+
+def save_robot(
+    robot: Robot,
+    path,
+    *,
+    comment: dict | None = None,
+    points=None,
+    template=None,
+    base_link: str | None = None,
+    tip_link: str | None = None,
+) -> None:
+    """Write a robot file atomically: URDF for a path ending in ``.urdf`` (a joint-frame robot;
+    ``template`` the nominal URDF whose chain it keeps), TOML otherwise (a DH robot). ``points``
+    (mm, tool frame) are written with it."""
+    points = None if points is None or not len(np.asarray(points)) else np.asarray(points)
+    if _is_urdf(path):
+        if robot.convention != "joint":
+            raise RobotFileError(
+                f"{path}: a DH robot is written as TOML; jaxcal.to_joint converts it to joint frames for URDF"
+            )
+        save_urdf(
+            robot, path, points=points, template=template, base_link=base_link, tip_link=tip_link, comment=comment
+        )
+    else:
+        save_toml(robot, path, comment=comment, points=points)

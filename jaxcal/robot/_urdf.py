@@ -1,0 +1,308 @@
+"""URDF files -> joint-frame :class:`jaxcal.Robot` and back, through yourdfpy (meshes are never
+loaded).
+
+Reading takes the serial chain from a base link to a tip link: revolute, continuous and
+prismatic joints become the robot's joints, each fixed joint is folded into the next movable
+joint's origin (the ones after the last, into the tool). Lengths are metres in the file and
+millimetres inside.
+
+Writing keeps the nominal file whole where one is given and changes only the chain's movable
+joints' ``<origin>``: the calibrated link ``O_i E_i M_i(offset_i)`` equals
+``P origin_j E_i M_i(offset_i)``, with ``P`` the fixed joints before it, so the correction and
+the offset (a turn about, or shift along, the axis) fold into the joint's own origin. It adds
+
+* ``jaxcal_measurement_frame``, a new root, fixed to the chain's base link by the base frame;
+* ``jaxcal_tool`` under the tip link where the tool frame changed;
+* ``jaxcal_point1..M`` under the tool for the measured points.
+
+Reading such a file back gives the same forward kinematics (the measurement frame and the
+base folded into the first joint's origin) and the points.
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .._io import write_atomic
+from ..errors import RobotFileError
+from ..lie import so3_exp
+from ._robot import Robot
+
+M_TO_MM = 1000.0
+MEASUREMENT_FRAME = "jaxcal_measurement_frame"
+TOOL_LINK = "jaxcal_tool"
+POINT_LINK = "jaxcal_point"
+MOVABLE = {"revolute": "R", "continuous": "R", "prismatic": "P"}
+
+
+def _yourdfpy():
+    try:
+        import yourdfpy
+    except ImportError:  # an optional dependency: DH robots need none of it
+        raise RobotFileError("URDF files need yourdfpy: pip install yourdfpy") from None
+    return yourdfpy
+
+
+def _parse(path: Path):
+    yourdfpy = _yourdfpy()
+    if not path.exists():
+        raise RobotFileError(f"robot file not found: {path}")
+    try:
+        urdf = yourdfpy.URDF.load(
+            str(path),
+            build_scene_graph=False,
+            build_collision_scene_graph=False,
+            load_meshes=False,
+            load_collision_meshes=False,
+        )
+    except Exception as e:  # yourdfpy raises lxml and its own errors: one message naming the file
+        raise RobotFileError(f"{path}: not a readable URDF: {e}") from None
+    if urdf.robot is None or not urdf.robot.joints:
+        raise RobotFileError(f"{path}: the URDF has no joints")
+    return urdf.robot
+
+
+def _mm(T) -> np.ndarray:
+    T = np.eye(4) if T is None else np.array(T, dtype=np.float64)
+    T[:3, 3] *= M_TO_MM
+    return T
+
+
+def _chain(doc, source: str, base_link: str | None, tip_link: str | None):
+    """The joints from ``base_link`` to ``tip_link`` (defaults: the root, the one leaf below it
+    that is not a point jaxcal wrote)."""
+    by_child = {j.child: j for j in doc.joints}
+    parents = {j.parent for j in doc.joints}
+    links = {lk.name for lk in doc.links} | parents | set(by_child)
+    for what, name in (("base_link", base_link), ("tip_link", tip_link)):
+        if name is not None and name not in links:
+            raise RobotFileError(
+                f"{source}: no link named {name!r} ({what}); links: {', '.join(sorted(links))}", option=what
+            )
+    if base_link is None:
+        roots = sorted(links - set(by_child))
+        if len(roots) != 1:
+            raise RobotFileError(
+                f"{source}: {len(roots)} root links ({', '.join(roots)}); choose one (base_link)", option="base_link"
+            )
+        base_link = roots[0]
+    if tip_link is None:
+        below, todo = set(), [base_link]
+        while todo:
+            link = todo.pop()
+            kids = [j.child for j in doc.joints if j.parent == link]
+            below.update(kids)
+            todo += kids
+        inner = {j.parent for j in doc.joints if not j.child.startswith(POINT_LINK)}
+        leaves = sorted(lk for lk in below if lk not in inner and not lk.startswith(POINT_LINK))
+        if TOOL_LINK in below:
+            leaves = [TOOL_LINK]
+        if len(leaves) != 1:
+            raise RobotFileError(
+                f"{source}: {len(leaves)} tip links below {base_link!r} ({', '.join(leaves) or 'none'}); "
+                "choose one (tip_link)",
+                option="tip_link",
+            )
+        tip_link = leaves[0]
+    path, link = [], tip_link
+    while link != base_link:
+        if link not in by_child:
+            raise RobotFileError(
+                f"{source}: {tip_link!r} (tip_link) is not below {base_link!r} (base_link)", option="tip_link"
+            )
+        path.append(by_child[link])
+        link = by_child[link].parent
+    return path[::-1], base_link, tip_link
+
+
+def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None):
+    """``(robot, points)``: the joint-frame robot of the chain from ``base_link`` to
+    ``tip_link``, and the measured points (mm, tool frame) a calibrated file carries (``None``
+    when it has none)."""
+    path = Path(path)
+    source = str(path)
+    doc = _parse(path)
+    base = np.eye(4)
+    roots = {lk.name for lk in doc.links} - {j.child for j in doc.joints}
+    if base_link is None and roots == {MEASUREMENT_FRAME}:  # a calibrated file: its base frame
+        (j,) = [j for j in doc.joints if j.parent == MEASUREMENT_FRAME]
+        base, base_link = _mm(j.origin), j.child
+    joints, base_link, tip_link = _chain(doc, source, base_link, tip_link)
+    for j in doc.joints:
+        if j.parent == base_link and j.child == MEASUREMENT_FRAME:  # written under a base that is no root
+            base = np.linalg.inv(_mm(j.origin))
+    origins, axes, types, names, limits = [], [], [], [], []
+    pending = np.eye(4)
+    for j in joints:
+        if j.type == "fixed":
+            pending = pending @ _mm(j.origin)
+            continue
+        if j.type not in MOVABLE:
+            raise RobotFileError(
+                f"{source}: joint {j.name!r} is {j.type}; a serial chain takes revolute, "
+                "continuous, prismatic and fixed joints"
+            )
+        if j.mimic is not None:
+            raise RobotFileError(f"{source}: joint {j.name!r} mimics another joint; not supported in a chain")
+        kind = MOVABLE[j.type]
+        origins.append(pending @ _mm(j.origin))
+        pending = np.eye(4)
+        axes.append(np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=np.float64))
+        scale = 1.0 if kind == "R" else M_TO_MM
+        lim = j.limit
+        if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None:
+            limits.append([-np.pi, np.pi] if kind == "R" else [-1000.0, 1000.0])
+        else:
+            limits.append([lim.lower * scale, lim.upper * scale])
+        types.append(kind)
+        names.append(j.name)
+    if not types:
+        raise RobotFileError(f"{source}: no movable joint between {base_link!r} and {tip_link!r}")
+    robot = Robot(
+        None,
+        convention="joint",
+        origins=np.stack(origins),
+        axes=np.stack(axes),
+        joint_types=types,
+        base=base,
+        tool=pending,
+        q_limits=np.array(limits),
+        name=doc.name or path.stem,
+        joint_names=names,
+        units=("m", "rad"),
+    )
+    tool_link = tip_link
+    pts = sorted(
+        ((int(m.group(1)), j) for j in doc.joints if (m := re.fullmatch(POINT_LINK + r"(\d+)", j.child))),
+        key=lambda t: t[0],
+    )
+    pts = [j for _, j in pts if j.parent == tool_link]
+    points = np.stack([_mm(j.origin)[:3, 3] for j in pts]) if pts else None
+    return robot, points
+
+
+def _folded(robot: Robot, i: int) -> np.ndarray:
+    """``E_i M_i(offset_i)`` of joint ``i`` (mm): what its origin is right-multiplied by."""
+    p = np.array(robot.dh[i])
+    a = np.asarray(robot.axes)[i]
+    E = np.eye(4)
+    E[:3, :3] = so3_exp(p[4:7])
+    E[:3, 3] = p[1:4]
+    M = np.eye(4)
+    if robot.joint_types[i] == "R":
+        M[:3, :3] = so3_exp(a * p[0])
+    else:
+        M[:3, 3] = a * p[0]
+    return E @ M
+
+
+def _m(T) -> np.ndarray:
+    T = np.array(T, dtype=np.float64)
+    T[:3, 3] /= M_TO_MM
+    return T
+
+
+def urdf_text(
+    robot: Robot, *, points=None, template=None, base_link=None, tip_link=None, comment: dict | None = None
+) -> str:
+    """The URDF of a joint-frame ``robot`` (see the module docstring): the chain of the
+    ``template`` file it was read from (with the same ``base_link`` and ``tip_link``) with the
+    corrections folded in, or a minimal chain of its own without one."""
+    yourdfpy = _yourdfpy()
+    if robot.convention != "joint":
+        raise RobotFileError("only joint-frame robots are written as URDF (jaxcal.kinematics.to_joint converts DH)")
+    if template is not None:
+        doc = copy.deepcopy(_parse(Path(template)))
+        by_name = {j.name: j for j in doc.joints}
+        missing = [nm for nm in robot.joint_names if nm not in by_name]
+        if missing:
+            raise RobotFileError(f"{template}: no joint named {', '.join(missing)}")
+        for i, nm in enumerate(robot.joint_names):
+            j = by_name[nm]
+            j.origin = _m(_mm(j.origin) @ _folded(robot, i))
+        base_link, tip_link = _chain(doc, str(template), base_link, tip_link)[1:]
+        # the nominal tool is the template's fixed joints after the last movable one
+        _, nominal_tool = _tool_of(doc, robot.joint_names[-1], tip_link)
+    else:
+        doc = yourdfpy.Robot(name=robot.name)
+        doc.links.append(yourdfpy.Link(name="base_link"))
+        parent = "base_link"
+        lim = np.asarray(robot.q_limits)
+        for i, nm in enumerate(robot.joint_names):
+            child = f"link_{i + 1}"
+            doc.links.append(yourdfpy.Link(name=child))
+            scale = 1.0 if robot.joint_types[i] == "R" else 1.0 / M_TO_MM
+            doc.joints.append(
+                yourdfpy.Joint(
+                    name=nm,
+                    type="revolute" if robot.joint_types[i] == "R" else "prismatic",
+                    parent=parent,
+                    child=child,
+                    origin=_m(np.asarray(robot.origins)[i] @ _folded(robot, i)),
+                    axis=np.asarray(robot.axes)[i],
+                    limit=yourdfpy.Limit(effort=0.0, velocity=0.0, lower=lim[i, 0] * scale, upper=lim[i, 1] * scale),
+                )
+            )
+            parent = child
+        base_link, tip_link, nominal_tool = "base_link", parent, np.eye(4)
+    tool = np.asarray(robot.tool)
+    if not np.allclose(tool, nominal_tool, atol=1e-12, rtol=0):
+        doc.links.append(yourdfpy.Link(name=TOOL_LINK))
+        doc.joints.append(
+            yourdfpy.Joint(
+                name=TOOL_LINK + "_joint",
+                type="fixed",
+                parent=tip_link,
+                child=TOOL_LINK,
+                origin=_m(np.linalg.solve(nominal_tool, tool)),
+            )
+        )
+        tip_link = TOOL_LINK
+    for k, p in enumerate(np.zeros((0, 3)) if points is None else np.asarray(points), start=1):
+        T = np.eye(4)
+        T[:3, 3] = p
+        doc.links.append(yourdfpy.Link(name=f"{POINT_LINK}{k}"))
+        doc.joints.append(
+            yourdfpy.Joint(
+                name=f"{POINT_LINK}{k}_joint", type="fixed", parent=tip_link, child=f"{POINT_LINK}{k}", origin=_m(T)
+            )
+        )
+    base = np.asarray(robot.base)
+    if not np.allclose(base, np.eye(4), atol=0, rtol=0):
+        doc.links.append(yourdfpy.Link(name=MEASUREMENT_FRAME))
+        if any(j.child == base_link for j in doc.joints):  # a tree has one root: hang it below instead
+            parent, child, T = base_link, MEASUREMENT_FRAME, np.linalg.inv(base)
+        else:
+            parent, child, T = MEASUREMENT_FRAME, base_link, base
+        doc.joints.append(
+            yourdfpy.Joint(name=MEASUREMENT_FRAME + "_joint", type="fixed", parent=parent, child=child, origin=_m(T))
+        )
+    text = yourdfpy.URDF(robot=doc, build_scene_graph=False, load_meshes=False).write_xml_string().decode()
+    if comment:
+        note = "; ".join(f"{k}: {v}" for k, v in comment.items()).replace("--", "- -")
+        text = re.sub(r"(<\?xml[^>]*\?>\s*)?", lambda m: (m.group(0) or "") + f"<!-- {note} -->\n", text, count=1)
+    return text
+
+
+def _tool_of(doc, last_joint: str, tip_link: str):
+    """``(link, T)``: the last movable joint's child and the product of the fixed joints from it
+    to ``tip_link`` (mm)."""
+    by_child = {j.child: j for j in doc.joints}
+    T, link = np.eye(4), tip_link
+    chain = []
+    while by_child[link].name != last_joint:
+        chain.append(by_child[link])
+        link = by_child[link].parent
+    for j in reversed(chain):
+        T = T @ _mm(j.origin)
+    return link, T
+
+
+def save_urdf(robot: Robot, path, *, points=None, template=None, base_link=None, tip_link=None, comment=None) -> None:
+    """Write :func:`urdf_text` atomically."""
+    text = urdf_text(robot, points=points, template=template, base_link=base_link, tip_link=tip_link, comment=comment)
+    write_atomic(path, text)

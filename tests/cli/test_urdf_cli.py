@@ -1,0 +1,82 @@
+"""A URDF robot through the command line on the bundled TIAGo motion-capture data: calibrate
+with ``--out-model CAL.urdf``, then ``jaxcal evaluate`` the saved model, nothing re-fitted."""
+
+import json
+
+import numpy as np
+import pytest
+from helpers import run_cli
+
+from jaxcal import load_model, read_measurements
+from jaxcal.measurements import tiago_paths
+from jaxcal.model import predict
+
+URDF, CSV = tiago_paths()
+
+
+@pytest.fixture(scope="module")
+def split(tmp_path_factory):
+    """The first 25 postures to train on, the other 12 and three repeats to evaluate."""
+    d = tmp_path_factory.mktemp("tiago")
+    lines = CSV.read_text().splitlines()
+    (d / "train.csv").write_text("\n".join(lines[:26]) + "\n")
+    (d / "test.csv").write_text("\n".join([lines[0]] + lines[26:] + lines[1:4]) + "\n")
+    return d
+
+
+def test_calibrate_then_evaluate(monkeypatch, capsys, split):
+    d = split
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--params", "offsets", "--folds", "3",
+        "--out-model", d / "cal.urdf", "--json", d / "rep.json",
+    )  # fmt: skip
+    assert code in (0, None), err
+    rep = json.loads((d / "rep.json").read_text())
+    assert rep["points"] == 4 and "shipped_row" in rep["ignored_columns"]
+    assert rep["train_rms_mm"] < 5.0  # the data set's README: a few mm
+    # the saved model reproduces the fit on its own training data
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "cal.urdf", d / "train.csv", "--json", d / "ev.json")
+    assert code in (0, None), err
+    ev = json.loads((d / "ev.json").read_text())
+    assert ev["position_rms_mm"] == pytest.approx(rep["train_rms_mm"], rel=1e-6)
+    # held-out: per point in column order, checked against an independent computation
+    code, out, err = run_cli(
+        monkeypatch, capsys, "evaluate", d / "cal.urdf", d / "test.csv", "--training", d / "train.csv",
+        "--json", d / "held.json",
+    )  # fmt: skip
+    assert code in (0, None), err
+    held = json.loads((d / "held.json").read_text())
+    model = load_model(d / "cal.urdf")
+    meas = read_measurements(d / "test.csv", model.robot)
+    e = np.linalg.norm(meas.measured - np.asarray(predict(model, meas.q)), axis=-1)
+    assert [p["rms_mm"] for p in held["points"]] == pytest.approx(np.sqrt((e**2).mean(0)).tolist())
+    assert [p["max_mm"] for p in held["points"]] == pytest.approx(e.max(0).tolist())
+    assert held["position_rms_mm"] == pytest.approx(float(np.sqrt((e**2).mean())))
+    assert held["groups"]["repeated"]["poses"] == 3  # the three training rows appended
+    assert sum(g["poses"] for g in held["groups"].values()) == 15
+    assert "out of training ranges" in out
+
+
+def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):
+    d = split
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--params", "frames", "--folds", "3",
+        "--points", "2", "--out-model", d / "one.urdf",
+    )  # fmt: skip
+    assert code in (0, None), err
+    assert load_model(d / "one.urdf").n_points == 1
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "one.urdf", d / "test.csv")
+    assert code == 2 and "the data measure 4 point(s) per pose, the model predicts 1 point(s)" in err
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--points", "5", "--out-model", d / "bad.urdf"
+    )
+    assert code == 2 and "--points" in err and "1..4" in err
+    assert not (d / "bad.urdf").exists()
+
+
+def test_output_kind_is_checked_before_the_fit(monkeypatch, capsys, split):
+    d = split
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--out-model", d / "x.toml")
+    assert code == 2 and "--out-model: a URDF robot is written as URDF (.urdf); nothing was computed" in err
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", d / "train.csv", "--out-model", d / "x.urdf")
+    assert code == 2 and "a DH robot as TOML" in err

@@ -1,0 +1,142 @@
+"""URDF in and out: the chain read by jaxcal against yourdfpy's own forward kinematics (its
+scene graph, an independent implementation), written models reloaded to 1e-9 mm, and bad files
+named."""
+
+import numpy as np
+import pytest
+import yourdfpy
+
+from jaxcal import RobotFileError, fk, load_model, load_robot, save_model, to_joint
+from jaxcal.lie import xyz_rpy_to_transform
+from jaxcal.measurements import tiago_paths
+from jaxcal.model import Model
+
+URDF, _ = tiago_paths()
+
+
+def _yourdfpy_fk(path, names, q, tip, base=None):
+    """Tool poses (mm) from yourdfpy's scene graph; prismatic joint values in m."""
+    u = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
+    out = []
+    for row in q:
+        u.update_cfg(dict(zip(names, row)))
+        T = np.array(u.get_transform(frame_to=tip, frame_from=base or u.base_link))
+        T[:3, 3] *= 1000.0
+        out.append(T)
+    return np.stack(out)
+
+
+def _random_q(robot, rng, k=6):
+    lim = np.asarray(robot.q_limits)
+    return lim[:, 0] + rng.uniform(size=(k, robot.n_joints)) * (lim[:, 1] - lim[:, 0])
+
+
+def test_tiago_chain_matches_yourdfpy():
+    rng = np.random.default_rng(25)
+    r = load_robot(URDF)
+    assert r.convention == "joint" and r.units == ("m", "rad")
+    assert r.joint_names == ("torso_lift_joint",) + tuple(f"arm_{i}_joint" for i in range(1, 8))
+    assert r.joint_types == ("P",) + ("R",) * 7
+    np.testing.assert_allclose(np.asarray(r.q_limits)[0], [0.0, 350.0])  # metres in the file, mm inside
+    q = _random_q(r, rng)
+    q_file = q.copy()
+    q_file[:, 0] /= 1000.0
+    expect = _yourdfpy_fk(URDF, r.joint_names, q_file, "wrist_ft_tool_link")
+    np.testing.assert_allclose(np.asarray(fk(r, q)), expect, atol=1e-9)
+
+
+def test_sub_chain_by_links():
+    rng = np.random.default_rng(1)
+    r = load_robot(URDF, base_link="torso_lift_link", tip_link="arm_4_link")
+    assert r.joint_names == ("arm_1_joint", "arm_2_joint", "arm_3_joint", "arm_4_joint")
+    q = _random_q(r, rng)
+    expect = _yourdfpy_fk(URDF, r.joint_names, q, "arm_4_link", base="torso_lift_link")
+    np.testing.assert_allclose(np.asarray(fk(r, q)), expect, atol=1e-9)
+
+
+def _calibrated(rng):
+    r = load_robot(URDF)
+    dh = rng.normal(size=(r.n_joints, 7)) * np.array([0.01, 1.0, 1.0, 1.0, 0.01, 0.01, 0.01])
+    base = np.asarray(xyz_rpy_to_transform(np.array([120.0, -40.0, 30.0]), np.array([0.1, -0.2, 0.3])))
+    tool = np.asarray(r.tool) @ np.asarray(xyz_rpy_to_transform(np.array([1.0, 2.0, 3.0]), np.array([0.01, 0.0, 0.02])))
+    return r.replace(dh=dh, base=base, tool=tool), rng.normal(size=(4, 3)) * 60.0
+
+
+@pytest.mark.parametrize("template", [True, False], ids=["into-the-nominal-file", "own-chain"])
+def test_written_model_reloads_to_the_same_kinematics(tmp_path, template):
+    rng = np.random.default_rng(7)
+    cal, points = _calibrated(rng)
+    path = tmp_path / "cal.urdf"
+    save_model(Model(cal, points), path, template=URDF if template else None, comment={"data": "x.csv"})
+    back = load_model(path)
+    q = _random_q(cal, rng, 20)
+    np.testing.assert_allclose(np.asarray(fk(back.robot, q)), np.asarray(fk(cal, q)), atol=1e-9)
+    np.testing.assert_allclose(np.asarray(back.points), points, atol=1e-12)
+    assert back.robot.joint_names == cal.joint_names
+    # the file is a URDF any parser reads: yourdfpy's kinematics to the first point agree
+    q_file = q.copy()
+    q_file[:, 0] /= 1000.0
+    T = _yourdfpy_fk(path, cal.joint_names, q_file, "jaxcal_point1")
+    expect = np.asarray(fk(cal, q))
+    p1 = expect[:, :3, 3] + np.einsum("kij,j->ki", expect[:, :3, :3], points[0])
+    np.testing.assert_allclose(T[:, :3, 3], p1, atol=1e-9)
+    if template:  # the nominal file's other links are kept
+        assert "torso_fixed_link" in path.read_text()
+
+
+def test_dh_robot_in_joint_frames_has_the_same_kinematics():
+    from helpers import dh_fk
+
+    from jaxcal import preset
+
+    rng = np.random.default_rng(3)
+    for name in ("ur5", "panda", "puma560"):
+        r = preset(name)
+        q = _random_q(r, rng)
+        np.testing.assert_allclose(np.asarray(fk(to_joint(r), q)), np.asarray(fk(r, q)), atol=1e-9)
+    # and against the independent NumPy FK, with a prismatic joint
+    r = preset("ur5").replace(joint_types=("R", "P", "R", "R", "R", "R"))
+    q = _random_q(r, rng)
+    np.testing.assert_allclose(
+        np.asarray(fk(to_joint(r), q)), dh_fk(np.asarray(r.dh), q, joint_types=r.joint_types), atol=1e-9
+    )
+
+
+BAD = {
+    "floating joint": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="floating"><parent link="a"/><child link="b"/></joint></robot>',
+        "joint 'j' is floating",
+    ),
+    "two tips": (
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="c"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>',
+        "2 tip links below 'a' (b, c); choose one (tip_link)",
+    ),
+    "only fixed joints": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint></robot>',
+        "no movable joint between 'a' and 'b'",
+    ),
+    "not xml": ("<robot name=", "not a readable URDF"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_urdf_is_named(tmp_path, case):
+    text, msg = BAD[case]
+    p = tmp_path / "r.urdf"
+    p.write_text(text)
+    with pytest.raises(RobotFileError, match=msg.replace("(", r"\(").replace(")", r"\)")):
+        load_robot(p)
+
+
+def test_dh_robot_is_not_written_as_urdf(tmp_path):
+    from jaxcal import preset, save_robot
+
+    with pytest.raises(RobotFileError, match="written as TOML"):
+        save_robot(preset("ur5"), tmp_path / "x.urdf")
+    assert not (tmp_path / "x.urdf").exists()
