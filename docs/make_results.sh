@@ -16,4 +16,5 @@ COLUMNS=120 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.
 jaxcal calibrate panda jaxcal/data/franka_panda_camera/measurements.csv --length-unit m --camera-model auto \
     --json docs/franka/report_camera_auto.json
 python docs/franka_fold_seeds.py docs/franka/fold_seeds.json
+bash docs/make_tiago.sh
 python docs/tables.py --write
