@@ -140,3 +140,21 @@ def test_dh_robot_is_not_written_as_urdf(tmp_path):
     with pytest.raises(RobotFileError, match="written as TOML"):
         save_robot(preset("ur5"), tmp_path / "x.urdf")
     assert not (tmp_path / "x.urdf").exists()
+
+
+def test_continuous_joint_and_default_axis(tmp_path):
+    """A continuous joint has no limits (±pi for simulation); an axis left out is URDF's x."""
+    p = tmp_path / "r.urdf"
+    p.write_text(
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="spin" type="continuous"><parent link="a"/><child link="b"/>'
+        '<origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/></joint>'
+        '<joint name="tilt" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.2 0 0" rpy="0 0 0"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>'
+    )
+    r = load_robot(p)
+    np.testing.assert_allclose(np.asarray(r.q_limits), [[-np.pi, np.pi], [-1.0, 1.0]])
+    np.testing.assert_allclose(np.asarray(r.axes)[1], [1.0, 0.0, 0.0])
+    T = np.asarray(fk(r, np.array([[np.pi / 2, np.pi / 2]])))[0]
+    # spin turns the 0.2 m link to +y; tilt about x then turns nothing of a point on x
+    np.testing.assert_allclose(T[:3, 3], [0.0, 200.0, 100.0], atol=1e-9)
