@@ -1,4 +1,5 @@
-"""`jaxcal verify`: every analytic matrix of the paper (eq. 3-10) against ``jax.jacfwd``.
+"""`jaxcal verify`: every analytic matrix of the paper (eq. 3-10), and the joint-frame model's
+identification Jacobian, against ``jax.jacfwd``.
 
 A self-check a user can run on their own machine; the test suite checks the same things with
 tighter sweeps.
@@ -61,14 +62,15 @@ def check_all(n_points: int = 2000, seed: int = 0) -> list[tuple[str, float, flo
     for name in PRESETS:
         robot = preset(name)
         Q = jnp.asarray(rng.uniform(-2, 2, (20, robot.n_joints)))
-        m = E.n_params(robot, base=True, tool=True)
-        J = E.identification_jacobian(robot, Q, base=True, tool=True)
+        for r, what in ((robot, "eq. 10, adjoint form"), (K.to_joint(robot), "joint frames")):
+            m = E.n_params(r, base=True, tool=True)
+            J = E.identification_jacobian(r, Q, base=True, tool=True)
 
-        def true_err(x, q):
-            return E.pose_error(K.fk(E.perturb(robot, x, base=True, tool=True), q), K.fk(robot, q))
+            def true_err(x, q, r=r):
+                return E.pose_error(K.fk(E.perturb(r, x, base=True, tool=True), q), K.fk(r, q))
 
-        ad = jax.vmap(lambda q: jax.jacfwd(true_err)(jnp.zeros(m), q))(Q)
-        rows.append((f"identification Jacobian, {name} (eq. 10, adjoint form)", float(jnp.abs(J - ad).max()), 1e-9))
+            ad = jax.vmap(lambda q, m=m, true_err=true_err: jax.jacfwd(true_err)(jnp.zeros(m), q))(Q)
+            rows.append((f"identification Jacobian, {name} ({what})", float(jnp.abs(J - ad).max()), 1e-9))
         d = jnp.asarray(rng.normal(size=(robot.n_joints, 4)))
         lit = E.error_twist_matrix(robot, Q, d)
         adj = E.twist_jacobian(robot, Q) @ d.ravel()
