@@ -1,4 +1,4 @@
-r"""Optimal joint configurations by gradient: BFGS (optimistix) on the criterion of
+r"""Optimal joint configurations by gradient: BFGS (:mod:`._bfgs`) on the criterion of
 :mod:`._problem`, differentiated through the identification Jacobian, from several starts at
 once.
 
@@ -19,10 +19,10 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 from jaxtyping import Array, Float
 
 from ..errors import DataError
+from ._bfgs import minimise
 from ._constraints import Constraints, constraints, feasible, min_distance, random_feasible, random_values
 from ._problem import DesignProblem, loss, loss_of, measures_batch, tool_positions, values_of
 from ._result import PoseDesign, frozen
@@ -71,20 +71,13 @@ def _objective(u, args):
 
 @eqx.filter_jit
 def _optimise(problem: DesignProblem, cons: Constraints, q0: Float[Array, "S K n"], *, max_steps: int, tol: float):
-    """BFGS from every start ``q0[s]`` at once: final configurations, losses without penalty,
-    penalties, success flags and steps."""
-    solver = optx.BFGS(rtol=tol, atol=tol)
+    """BFGS from every start ``q0[s]`` at once: final configurations, losses (with penalty),
+    convergence flags and evaluations."""
+    vg = jax.value_and_grad(_objective)
 
     def one(q_):
-        sol = optx.minimise(_objective, solver, to_u(problem, q_), (problem, cons), max_steps=max_steps, throw=False)
-        q = to_q(problem, sol.value)
-        return (
-            q,
-            loss(problem, q),
-            penalty(problem, cons, q),
-            sol.result == optx.RESULTS.successful,
-            sol.stats["num_steps"],
-        )
+        u, f, conv, n = minimise(vg, to_u(problem, q_), (problem, cons), max_evals=max_steps, tol=tol)
+        return to_q(problem, u), f, conv, n
 
     return jax.vmap(one)(q0)
 
@@ -94,6 +87,14 @@ def objective_and_grad(problem: DesignProblem, q: Float[Array, "K n"]):
     """The criterion's loss (:func:`jaxcal.design.loss`) and its gradient with respect to the
     joint values."""
     return jax.value_and_grad(lambda q_: loss(problem, q_))(q)
+
+
+def _loss_np(problem: DesignProblem, m) -> float:
+    """:func:`loss_of` of one row of :func:`measures_batch`, in NumPy (inf when singular)."""
+    if not np.all(np.isfinite(m)):
+        return np.inf
+    terms = np.array([-m[0] / problem.n_base, np.log(m[1]), np.log(m[2])])
+    return float(terms[np.asarray(problem.weights) > 0][0])
 
 
 def _count(name: str, v, lo: int) -> int:
@@ -111,8 +112,8 @@ def optimal_poses(
     min_spread: float = 0.0,
     region=None,
     q0=None,
-    max_steps: int = 2000,
-    tol: float = 1e-7,
+    max_steps: int = 500,
+    tol: float = 1e-6,
     n_random: int = 200,
 ) -> PoseDesign:
     """``n_poses`` joint configurations that optimise the problem's criterion, by gradient.
@@ -126,8 +127,8 @@ def optimal_poses(
     * ``min_spread``: smallest joint-space Euclidean distance between two configurations (rad;
       mm for prismatic joints). ``region``: ``(lower xyz, upper xyz)`` in mm, a box in the frame
       of the forward kinematics that every measured point must stay in.
-    * ``max_steps``, ``tol``: BFGS's step limit and tolerance (on the loss, O(1), and on the
-      reparametrised joint values).
+    * ``max_steps``, ``tol``: BFGS's limit on evaluations (trial points) and its tolerance on
+      the change of the loss, O(1), and of the reparametrised joint values.
     * ``n_random``: random pose sets of the same count to compare with.
 
     **Returns** a :class:`PoseDesign`; ``feasible`` is False (with a warning) when no start met
@@ -153,21 +154,20 @@ def optimal_poses(
         if q0.shape[1:] != (n_poses, problem.lower.shape[0]):
             raise DataError(f"q0 must have shape (S, {n_poses}, {problem.lower.shape[0]}), got {q0.shape}", option="q0")
     t0 = time.perf_counter()
-    q, losses, pens, ok, steps = (
-        np.asarray(a) for a in _optimise(problem, cons, jnp.asarray(q0), max_steps=max_steps, tol=tol)
-    )
+    q, _, ok, evals = (np.asarray(a) for a in _optimise(problem, cons, jnp.asarray(q0), max_steps=max_steps, tol=tol))
     seconds = time.perf_counter() - t0
     q = np.clip(q, np.asarray(problem.lower), np.asarray(problem.upper))  # rounding of c + h sin(u)
+    m = np.asarray(measures_batch(problem, jnp.asarray(q)))
+    losses = np.array([_loss_np(problem, r) for r in m])
     good = np.array([np.isfinite(losses[s]) and feasible(problem, cons, q[s]) for s in range(len(q))])
-    order = np.lexsort((np.where(np.isfinite(losses), losses, np.inf), ~good))
-    best = int(order[0])
+    best = int(np.lexsort((np.where(np.isfinite(losses), losses, np.inf), ~good))[0])
     if not good[best]:
         warnings.warn(
             "no start met the constraints (min_spread, region): the design returned violates them; "
             "loosen them or add starts",
             stacklevel=2,
         )
-    values = values_of(measures_batch(problem, jnp.asarray(q[best])[None])[0])
+    values = values_of(m[best])
     return PoseDesign(
         q=frozen(q[best]),
         criterion=problem.criterion,
@@ -182,7 +182,7 @@ def optimal_poses(
             "start_losses": [float(v) for v in losses],
             "feasible_starts": int(good.sum()),
             "converged_starts": int(ok.sum()),
-            "max_steps_taken": int(steps.max()),
+            "max_evaluations": int(evals.max()),
             "optimise_seconds": seconds,
         },
     )

@@ -72,7 +72,8 @@ class PoseDesign:
             f"{self.method} design of {N} poses, criterion {self.criterion!r}, "
             f"{len(self.base_names)} base parameters; {'feasible' if self.feasible else 'NOT FEASIBLE'}, "
             f"smallest joint-space distance {self.min_distance:.4g}",
-            f"{'criterion':<44} {'design':>12} {'random median':>14} {'random better':>14} {'random poses to match':>22}",
+            f"{'criterion':<44} {'design':>12} {'random median':>14} {'random better':>14} "
+            f"{'random poses to match':>22}",
         ]
         for c in CRITERIA:
             med = float(np.median(self.random_values[_key(c)]))
