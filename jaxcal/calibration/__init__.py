@@ -12,6 +12,8 @@ from ._single import CalibrationResult as CalibrationResult
 from ._single import calibrate as calibrate
 from ._single import calibrate_batch as calibrate_batch
 from ._single import identify as identify
+from ._single import make_layout as make_layout
+from ._single import nominal_model as nominal_model
 from ._workflow import DataCalibration as DataCalibration
 from ._workflow import calibrate_data as calibrate_data
 from ._workflow import fold_ids as fold_ids

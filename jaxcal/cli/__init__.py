@@ -3,7 +3,16 @@ prints. One module per command."""
 
 from __future__ import annotations
 
-from . import _calibrate, _compensate, _evaluate, _info, _montecarlo, _reproduce, _verify  # noqa: F401  (register commands)
+from . import (  # noqa: F401  (register commands)
+    _calibrate,
+    _compensate,
+    _design,
+    _evaluate,
+    _info,
+    _montecarlo,
+    _reproduce,
+    _verify,
+)
 from ._app import app, err_console, say_error, use_compilation_cache
 
 

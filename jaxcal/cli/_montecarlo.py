@@ -26,6 +26,9 @@ def montecarlo(
     estimate_tool: bool = typer.Option(False, "--estimate-tool/--no-estimate-tool"),
     repeats: int = typer.Option(3, "--repeats", help="timed runs after the first (compile) call"),
     json_out: Path = typer.Option(None, "--json", help="write the summary as JSON"),
+    poses_file: Path = typer.Option(
+        None, "--poses-file", help="calibrate every robot on these poses (a pose file, e.g. from jaxcal design)"
+    ),
 ):
     """Calibrate N simulated robots at once; report speed, accuracy vs truth and vs the CRLB."""
     from .._io import check_writable, write_atomic
@@ -34,6 +37,12 @@ def montecarlo(
     if json_out is not None:
         check_writable(json_out, "json_out")
     r = load_robot_arg(robot)
+    q = None
+    if poses_file is not None:
+        from ..design import read_poses
+
+        q = read_poses(poses_file, r)
+        poses = len(q)
     with console.status("starting") as status:
         out = run_montecarlo(
             r,
@@ -48,6 +57,7 @@ def montecarlo(
             estimate_base=estimate_base,
             estimate_tool=estimate_tool,
             repeats=repeats,
+            q=q,
             progress=lambda s: status.update(f"{s} ({robots} robots x {poses} poses, {method})"),
         )
     t = Table(title=f"Monte Carlo: {r.name}, {robots} robots x {poses} poses, {method}")

@@ -1,0 +1,94 @@
+"""``jaxcal design``: calibration poses optimised by gradient, or the best of a candidate pool."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from ._app import app, console, load_robot_arg
+
+
+def _numbers(text: str, count: int, option: str) -> list[float]:
+    from ..errors import DataError
+
+    try:
+        out = [float(t) for t in text.split(",")]
+    except ValueError:
+        out = []
+    if len(out) != count:
+        raise DataError(f"{option} must be {count} comma-separated numbers, got {text!r}", option=option)
+    return out
+
+
+@app.command()
+def design(
+    robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name (paper-6r, puma560, ur5, panda)"),
+    poses: int = typer.Option(..., "--poses", help="number of poses to design"),
+    out: Path = typer.Option(..., "--out", help="pose file to write (CSV: q1..qN or the joint names)"),
+    criterion: str = typer.Option(
+        "validation", help="validation (expected position RMS from the CRLB) | d (log det) | a (trace of covariance)"
+    ),
+    pool: Path = typer.Option(None, "--pool", help="candidate pose file: choose the best --poses of its rows"),
+    position_only: bool = typer.Option(False, "--position-only/--full-pose", help="measure the tool point only"),
+    point: list[str] = typer.Option(
+        None, "--point", help="a measured point X,Y,Z on the tool (mm, tool frame); repeat for several"
+    ),
+    estimate_base: bool = typer.Option(True, "--estimate-base/--no-estimate-base"),
+    estimate_tool: bool = typer.Option(True, "--estimate-tool/--no-estimate-tool"),
+    params: str = typer.Option("all", help="DH errors calibrated: frames | offsets | angles | all | a comma list"),
+    noise_mm: float = typer.Option(0.02, "--noise-mm", help="position noise sigma (mm)"),
+    noise_rad: float = typer.Option(2e-5, "--noise-rad", help="rotation noise sigma (rad)"),
+    starts: int = typer.Option(4, help="optimiser starts (gradient design)"),
+    seed: int = typer.Option(0),
+    min_spread: float = typer.Option(0.0, help="smallest joint-space distance between two poses (rad)"),
+    region: str = typer.Option(
+        None, help="box the measured point(s) must stay in: xmin,ymin,zmin,xmax,ymax,zmax (mm, robot base frame)"
+    ),
+    val_poses: int = typer.Option(200, "--val-poses", help="random validation poses of the validation criterion"),
+    random_sets: int = typer.Option(200, "--random-sets", help="random pose sets to compare the design with"),
+    json_out: Path = typer.Option(None, "--json", help="write the design's summary as JSON"),
+):
+    """Design calibration poses: optimised by gradient through the identification Jacobian, or
+    chosen from a pool; compared with random poses of the same count."""
+    from .._io import check_writable, write_atomic
+    from ..design import design_problem, optimal_poses, read_poses, select_poses, write_poses
+
+    check_writable(out, "out")
+    if json_out is not None:
+        check_writable(json_out, "json_out")
+    r = load_robot_arg(robot)
+    box = None
+    if region is not None:
+        v = _numbers(region, 6, "region")
+        box = (v[:3], v[3:])
+    points = [_numbers(p, 3, "point") for p in point] if point else None
+    n_points = len(points) if points else int(position_only)
+    candidates = read_poses(pool, r) if pool is not None else None
+    with console.status("building the design problem") as status:
+        problem = design_problem(
+            r,
+            criterion=criterion,
+            n_points=n_points,
+            points=points,
+            n_val=val_poses,
+            seed=seed,
+            estimate_base=estimate_base,
+            estimate_tool=estimate_tool,
+            params=params,
+            sigma_pos_mm=noise_mm,
+            sigma_rot_rad=noise_rad,
+        )
+        status.update(f"designing {poses} poses ({'pool' if pool else 'gradient'}, {criterion})")
+        common = dict(min_spread=min_spread, region=box, seed=seed, n_random=random_sets)
+        if candidates is not None:
+            result = select_poses(problem, candidates, poses, **common)
+        else:
+            result = optimal_poses(problem, poses, starts=starts, **common)
+    console.print(result.report(), highlight=False, markup=False, soft_wrap=True)
+    write_poses(out, result.q, r)
+    console.print(f"wrote {out}")
+    if json_out is not None:
+        write_atomic(json_out, json.dumps(result.to_dict(), indent=2))
+        console.print(f"wrote {json_out}")

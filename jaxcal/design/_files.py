@@ -1,0 +1,51 @@
+"""Pose files: one header row of joint columns (``q1..qN`` or the robot's joint names, as
+measurement files, :mod:`jaxcal.measurements`), one row per configuration, in the robot file's
+units unless told otherwise. A design written here is the joint part of the measurement file
+``jaxcal calibrate`` reads once positions are added, and what ``jaxcal montecarlo
+--poses-file`` calibrates on."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._io import write_atomic
+from ..errors import DataError
+from ..kinematics import check_q
+from ..measurements import joint_columns, parse_rows, read_table, require_rows, unit_scale
+from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
+
+
+def _scales(robot: Robot, length_unit, angle_unit) -> np.ndarray:
+    lu, _ = unit_scale(length_unit, LENGTH_UNITS, "length_unit", robot.units[0])
+    au, _ = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", robot.units[1])
+    return np.array([lu if t == "P" else au for t in robot.joint_types])
+
+
+def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.ndarray:
+    """``(K, n)`` joint values (rad, mm) of a pose file; other columns are ignored. Units default
+    to the robot file's. Raises :class:`jaxcal.DataError` naming the file, row and column."""
+    n = robot.n_joints
+    src, header, records = read_table(path, f"expected a header row q1..q{n} (or the joint names)")
+    cols = joint_columns(header, robot, src)
+    require_rows(records, src)
+    values = parse_rows(records, header, cols, src)[0]
+    q = values * _scales(robot, length_unit, angle_unit)
+    check_q(robot, q)
+    return q
+
+
+def write_poses(path, q, robot: Robot, *, length_unit=None, angle_unit=None) -> None:
+    """Write joint values ``q (K, n)`` (rad, mm) as a pose file, atomically: columns ``q1..qN``
+    (the robot's joint names if it has its own), values in the robot file's units with ``repr``
+    precision (they read back bit-identically in mm and rad). The caller's array is not
+    modified."""
+    q = np.array(q, dtype=np.float64, copy=True)
+    n = robot.n_joints
+    if q.ndim != 2 or q.shape[1] != n or len(q) == 0:
+        raise DataError(f"q must have shape (K, {n}) with K >= 1, got {q.shape}", option="q")
+    if not np.all(np.isfinite(q)):
+        k, j = np.argwhere(~np.isfinite(q))[0]
+        raise DataError(f"q: row {k}, joint {j + 1}: value is not finite", option="q")
+    values = q / _scales(robot, length_unit, angle_unit)
+    text = ",".join(robot.joint_names) + "\n" + "".join(",".join(repr(float(v)) for v in row) + "\n" for row in values)
+    write_atomic(path, text)

@@ -1,0 +1,281 @@
+r"""The design problem: the information a pose set gives about the identifiable (base)
+parameters of a calibration, and the three criteria computed from it.
+
+A calibration with weights ``W = diag(1 / sigma^2)`` estimates the base parameters (the columns
+the frames-first greedy walk of :func:`jaxcal.identifiability.analyze` keeps, as
+:func:`jaxcal.calibrate` does) with covariance bounded below by the Cramér–Rao bound
+``M(Q)^{-1}``, where ``M(Q) = sum_k J_b(q_k)^T W J_b(q_k)`` (+ a ridge prior's diagonal) and
+``J_b`` are the base columns of the identification Jacobian (paper eq. 10,
+:func:`jaxcal.model.jacobian`). The parameters are scaled so that every column has unit RMS
+weighted norm per pose over the validation set (mm and rad would otherwise weigh parameters
+arbitrarily). The criteria:
+
+* ``d`` (D-optimal): ``log det M``, larger is better;
+* ``a`` (A-optimal): ``tr M^{-1}``, the summed variance of the scaled parameters;
+* ``validation``: ``sqrt(tr(M^{-1} S))`` with ``S = mean_v G_v^T G_v`` over validation poses
+  ``v``, ``G_v`` the position rows of the tool point(s): the expected RMS position error (mm)
+  of the calibrated model at the validation poses, the CRLB propagated through the model to
+  first order.
+
+Every criterion is a smooth function of the joint values, differentiated by JAX through the
+analytic Jacobian. The criterion is chosen by dynamic weights, so one compiled program serves
+all three.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .._config import as_f64
+from ..calibration import Options, make_layout, nominal_model, parse_params
+from ..errors import DataError
+from ..identifiability import analyze
+from ..kinematics import check_q
+from ..model import Layout, Model, jacobian, predict, row_weights
+from ..robot import Robot
+
+CRITERIA = ("d", "a", "validation")
+DEFAULT_SIGMA_POS_MM = 0.02
+DEFAULT_SIGMA_ROT_RAD = 2e-5
+
+
+class DesignProblem(eqx.Module):
+    """What a criterion needs, built by :func:`design_problem` (arrays; the layout and the base
+    columns static)."""
+
+    model: Model
+    """The nominal model (the robot's structure, the measured points)."""
+    scale: Float[Array, " b"]
+    """Column scale of the base parameters."""
+    row_weights: Float[Array, " rows"]
+    """``1 / sigma`` per residual row of a pose."""
+    prior: Float[Array, " b"]
+    """Diagonal information of a ridge prior, scaled (0 without)."""
+    val_factor: Float[Array, "b b"]
+    """``F`` with ``F^T F = S`` (scaled): the validation criterion is ``tr(F M^{-1} F^T)``."""
+    weights: Float[Array, " 3"]
+    """One-hot selection of the criterion (``d``, ``a``, ``validation``)."""
+    lower: Float[Array, " n"]
+    upper: Float[Array, " n"]
+    layout: Layout = eqx.field(static=True)
+    base: tuple[int, ...] = eqx.field(static=True)
+
+    @property
+    def criterion(self) -> str:
+        return CRITERIA[int(np.argmax(np.asarray(self.weights)))]
+
+    @property
+    def n_base(self) -> int:
+        return len(self.base)
+
+    def base_names(self) -> tuple[str, ...]:
+        names = self.layout.names()
+        return tuple(names[i] for i in self.base)
+
+
+def information(problem: DesignProblem, q: Float[Array, "K n"]) -> Float[Array, "b b"]:
+    r"""Fisher information ``M = sum_k J_b^T W J_b + prior`` of the scaled base parameters over
+    the poses ``q`` (the inverse of the Cramér–Rao bound)."""
+    L = blocks(problem, q)
+    return jnp.einsum("krb,krc->bc", L, L) + jnp.diag(problem.prior)
+
+
+def blocks(problem: DesignProblem, q: Float[Array, "K n"]) -> Float[Array, "K rows b"]:
+    """Weighted, scaled base-set rows of each pose: ``M = sum_k L_k^T L_k``."""
+    J = jacobian(problem.model, problem.layout, q)[..., list(problem.base)]
+    return J * problem.scale * problem.row_weights[:, None]
+
+
+def measures(problem: DesignProblem, M: Float[Array, "b b"]) -> Float[Array, " 3"]:
+    """``[log det M, tr M^{-1}, tr(F M^{-1} F^T)]`` through one Cholesky factor (NaN when ``M``
+    is not positive definite)."""
+    C = jnp.linalg.cholesky(M)
+    Ci = jax.scipy.linalg.solve_triangular(C, jnp.eye(M.shape[0]), lower=True)  # C^-1: M^-1 = Ci^T Ci
+    logdet = 2.0 * jnp.sum(jnp.log(jnp.diagonal(C)))
+    return jnp.stack([logdet, jnp.sum(Ci**2), jnp.sum((Ci @ problem.val_factor.T) ** 2)])
+
+
+def loss_of(problem: DesignProblem, m: Float[Array, " 3"]) -> Float[Array, ""]:
+    """The minimised form of the selected criterion: ``-log det M / b`` (D), ``log tr`` (A,
+    validation): each changes by O(1) for a relative change of the information, whatever the
+    robot's size."""
+    terms = jnp.stack([-m[0] / problem.n_base, jnp.log(m[1]), jnp.log(m[2])])
+    return jnp.sum(jnp.where(problem.weights > 0, terms, 0.0))
+
+
+def loss(problem: DesignProblem, q: Float[Array, "K n"]) -> Float[Array, ""]:
+    """The selected criterion of the poses ``q`` in its minimised form (:func:`loss_of`): the
+    function the pose optimisation differentiates."""
+    return loss_of(problem, measures(problem, information(problem, q)))
+
+
+def values_of(m) -> dict:
+    """The three criteria in their reported units from :func:`measures`."""
+    m = np.asarray(m, dtype=np.float64)
+    if not np.all(np.isfinite(m)):  # too few poses: the information is singular
+        return {"log_det": -np.inf, "a_trace": np.inf, "validation_rms_mm": np.inf}
+    return {"log_det": float(m[0]), "a_trace": float(m[1]), "validation_rms_mm": float(np.sqrt(m[2]))}
+
+
+@eqx.filter_jit
+def measures_batch(problem: DesignProblem, q: Float[Array, "R K n"]) -> Float[Array, "R 3"]:
+    """:func:`measures` of many pose sets at once."""
+    return jax.vmap(lambda q_: measures(problem, information(problem, q_)))(q)
+
+
+def evaluate(problem: DesignProblem, q) -> dict:
+    """All three criteria of the poses ``q (K, n)``: ``log_det``, ``a_trace`` and
+    ``validation_rms_mm`` (module docstring), whichever criterion the problem selects."""
+    q = _checked_q(problem, q, "q")
+    return values_of(measures_batch(problem, jnp.asarray(q)[None])[0])
+
+
+def value(name: str, values: dict) -> float:
+    """The reported value of criterion ``name`` from :func:`evaluate`'s dict."""
+    return values[{"d": "log_det", "a": "a_trace", "validation": "validation_rms_mm"}[name]]
+
+
+def better(name: str, a: float, b: float) -> bool:
+    """Whether value ``a`` of criterion ``name`` is better than ``b`` (D: larger)."""
+    return a > b if name == "d" else a < b
+
+
+def _checked_q(problem: DesignProblem, q, name: str) -> np.ndarray:
+    q = np.asarray(as_f64(q, name))
+    n = problem.lower.shape[0]
+    if q.ndim != 2 or q.shape[1] != n:
+        raise DataError(f"{name} must have shape (K, {n}), got {q.shape}", option=name)
+    bad = ~np.isfinite(q)
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        raise DataError(f"{name}: row {k}, joint {j + 1}: value is not finite", option=name)
+    return q
+
+
+def tool_positions(model: Model, layout: Layout, q: Float[Array, "K n"]) -> Float[Array, "K P 3"]:
+    """Positions (mm, in the frame of the forward kinematics) of what is measured: the tool
+    origin for poses, the points for points."""
+    pred = predict(model, q)
+    return pred[..., None, :3, 3] if layout.n_points == 0 else pred
+
+
+@eqx.filter_jit
+def _reference(model: Model, layout: Layout, q):
+    return jacobian(model, layout, q), tool_positions(model, layout, q)
+
+
+def uniform_poses(robot: Robot, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` joint configurations uniform within the joint limits."""
+    lim = np.asarray(robot.q_limits)
+    return lim[:, 0] + rng.uniform(size=(n, len(lim))) * (lim[:, 1] - lim[:, 0])
+
+
+def options_of(options: Options | None, kw: dict) -> Options:
+    """``options`` with keyword overrides, checked; unknown keywords name the known ones."""
+    base = Options() if options is None else options
+    known = {f.name for f in dataclasses.fields(Options)}
+    unknown = sorted(set(kw) - known)
+    if unknown:
+        raise DataError(f"unknown option(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}", option=unknown[0])
+    return dataclasses.replace(base, **kw).checked()
+
+
+def design_problem(
+    robot: Robot,
+    options: Options | None = None,
+    /,
+    *,
+    criterion: str = "validation",
+    n_points: int = 0,
+    points=None,
+    q_val=None,
+    n_val: int = 200,
+    seed: int = 0,
+    **kw,
+) -> DesignProblem:
+    """The design problem of a calibration of ``robot`` with these options.
+
+    **Arguments**
+
+    * ``options`` / keywords: :class:`jaxcal.Options`, as for :func:`jaxcal.calibrate`: the
+      layout (``estimate_base``, ``estimate_tool``, ``camera``), the parameter set (``params``,
+      ``ridge_mm``; ``auto`` is ``all`` as in a single fit) and the noise (``sigma_pos_mm``,
+      ``sigma_rot_rad``; None: 0.02 mm and 2e-5 rad, which only weigh rotation rows against
+      position rows).
+    * ``criterion``: ``"validation"`` (default), ``"d"`` or ``"a"`` (module docstring).
+    * ``n_points``: 0 to measure the tool's pose, ``M >= 1`` to measure ``M`` points on the tool
+      (position only); ``points (M, 3)`` their positions in the tool frame (mm; default: all at
+      the tool origin).
+    * ``q_val (V, n)``: the validation poses; default ``n_val`` poses uniform within the joint
+      limits, drawn with ``seed``. They also fix the base set and the column scale.
+    """
+    if criterion not in CRITERIA:
+        raise DataError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", option="criterion")
+    opts = options_of(options, kw)
+    for name, v, lo in (("n_points", n_points, 0), ("n_val", n_val, 1), ("seed", seed, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise DataError(f"{name} must be an integer >= {lo}, got {v!r}", option=name)
+    if points is not None:
+        points = np.asarray(as_f64(points, "points"))
+        if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
+            raise DataError(f"points must be finite with shape (M, 3), got {points.shape}", option="points")
+        if n_points not in (0, points.shape[0]):
+            raise DataError(f"n_points is {n_points} but points has {points.shape[0]} rows", option="points")
+        n_points = points.shape[0]
+    layout = make_layout(robot, opts, int(n_points))
+    model = nominal_model(robot, layout)
+    if points is not None:
+        model = eqx.tree_at(lambda m: m.points, model, jnp.asarray(points))
+    if q_val is None:
+        q_val = uniform_poses(robot, int(n_val), np.random.default_rng([int(seed), 1]))
+    q_val = np.asarray(check_q(robot, as_f64(q_val, "q_val")))
+    if q_val.ndim != 2 or q_val.shape[0] < 1:
+        raise DataError(f"q_val must have shape (V, {robot.n_joints}) with V >= 1, got {q_val.shape}", option="q_val")
+    J = np.asarray(_reference(model, layout, jnp.asarray(q_val))[0])  # (V, rows, m)
+
+    # the identifiable set as calibrate finds it: frames offered first, then DH, then camera
+    frames, cams = list(layout.frames), list(layout.cameras)
+    ident = analyze(J, layout.names(), priority=frames + list(range(layout.n_kin)) + cams)
+    spec = "all" if opts.params == "auto" else opts.params
+    cand = parse_params(spec, robot, opts.ridge_mm)[0]
+    base = tuple(i for i in ident.base if i in frames or i in cams or i in cand.dh)
+    if not base:
+        raise DataError("no identifiable parameter to design for (check params)", option="params")
+    sp = DEFAULT_SIGMA_POS_MM if opts.sigma_pos_mm is None else opts.sigma_pos_mm
+    sr = DEFAULT_SIGMA_ROT_RAD if opts.sigma_rot_rad is None else opts.sigma_rot_rad
+    w = np.asarray(row_weights(layout, sp, sr))
+    Jb = J[..., list(base)]
+    scale = 1.0 / np.sqrt(np.mean(np.sum((Jb * w[:, None]) ** 2, axis=1), axis=0))
+    prior = np.array([cand.prior_weight(i) if i < layout.n_kin else 0.0 for i in base]) ** 2 * scale**2
+    # validation: the position rows of every measured point (the tool origin for poses), averaged
+    # over points and poses
+    G = (Jb[:, :3] if layout.n_points == 0 else Jb) * scale
+    S = np.einsum("vrb,vrc->bc", G, G) / (len(q_val) * max(layout.n_points, 1))
+    lam, U = np.linalg.eigh((S + S.T) / 2)
+    F = np.sqrt(np.clip(lam, 0.0, None))[:, None] * U.T
+    lim = np.asarray(robot.q_limits)
+    return DesignProblem(
+        model=model,
+        scale=jnp.asarray(scale),
+        row_weights=jnp.asarray(w),
+        prior=jnp.asarray(prior),
+        val_factor=jnp.asarray(F),
+        weights=jnp.asarray(np.eye(3)[CRITERIA.index(criterion)]),
+        lower=jnp.asarray(lim[:, 0]),
+        upper=jnp.asarray(lim[:, 1]),
+        layout=layout,
+        base=base,
+    )
+
+
+def with_criterion(problem: DesignProblem, criterion: str) -> DesignProblem:
+    """The same problem with another criterion (same compiled programs)."""
+    if criterion not in CRITERIA:
+        raise DataError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", option="criterion")
+    return eqx.tree_at(lambda p: p.weights, problem, jnp.asarray(np.eye(3)[CRITERIA.index(criterion)]))

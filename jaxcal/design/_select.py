@@ -1,0 +1,219 @@
+r"""The best ``N`` poses of a candidate pool (poses a user knows are reachable and collision-free):
+a greedy start, then Fedorov exchanges on the same criteria as the gradient design.
+
+Each pool pose ``j`` contributes ``A_j = L_j^T L_j`` to the information (``L_j``: its weighted,
+scaled base-set rows, :func:`jaxcal.design.information`). The greedy start adds, one at a time,
+the pose that raises ``log det`` most (of the information plus a small ridge, so that the first
+picks are defined). An exchange then replaces a chosen pose ``i`` by a pool pose ``j`` when the
+criterion improves, the best pair of all first, until none improves. Every pair is scored
+without refactoring: with ``M_i = M - A_i`` and ``K = I + L_j M_i^{-1} L_j^T`` (rows x rows),
+
+* ``log det(M_i + A_j) = log det M_i + log det K``;
+* ``tr(F (M_i + A_j)^{-1} F^T) = tr(F M_i^{-1} F^T) - tr(K^{-1} Z^T Z)``, ``Z = F M_i^{-1} L_j^T``
+  (Sherman–Morrison–Woodbury), with ``F = I`` (A) or the validation factor.
+"""
+
+from __future__ import annotations
+
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float, Int
+
+from .._config import as_f64
+from ..errors import DataError
+from ._constraints import constraints, feasible, in_box, min_distance, positions, random_values
+from ._problem import DesignProblem, blocks, measures_batch, values_of
+from ._result import PoseDesign, frozen
+
+RIDGE = 1e-6
+"""Ridge of the greedy start, relative to the mean information of one pool pose."""
+IMPROVEMENT = 1e-10
+"""Smallest improvement of the loss an exchange must bring."""
+
+
+@eqx.filter_jit
+def _blocks(problem: DesignProblem, q):
+    return blocks(problem, q)
+
+
+def _loss_terms(problem: DesignProblem, logdet, tr_a, tr_v):
+    b = problem.n_base
+    terms = jnp.stack([-logdet / b, jnp.log(tr_a), jnp.log(tr_v)], -1)
+    return jnp.sum(jnp.where(problem.weights > 0, terms, 0.0), -1)
+
+
+def _swap_losses(problem: DesignProblem, Mi_base, L: Float[Array, "P r b"]):
+    """Loss of ``Mi_base + A_j`` for every pool pose ``j`` (Woodbury, module docstring)."""
+    C = jnp.linalg.cholesky(Mi_base)
+    Ci = jax.scipy.linalg.solve_triangular(C, jnp.eye(C.shape[0]), lower=True)
+    Minv = Ci.T @ Ci
+    F = problem.val_factor
+    logdet = 2.0 * jnp.sum(jnp.log(jnp.diagonal(C)))
+    tr_a, tr_v = jnp.sum(Ci**2), jnp.sum((Ci @ F.T) ** 2)
+    ML = jnp.einsum("bc,prc->pbr", Minv, L)  # M_i^-1 L_j^T
+    K = jnp.eye(L.shape[1]) + jnp.einsum("prb,pbs->prs", L, ML)
+    Kc = jnp.linalg.cholesky(K)
+    ld = logdet + 2.0 * jnp.sum(jnp.log(jnp.diagonal(Kc, axis1=-2, axis2=-1)), -1)
+
+    def reduce(Z):  # tr(K^-1 Z^T Z) = |Kc^-1 Z^T|_F^2
+        W = jax.scipy.linalg.solve_triangular(Kc, jnp.swapaxes(Z, -1, -2), lower=True)
+        return jnp.sum(W**2, axis=(-2, -1))
+
+    ta = tr_a - reduce(ML)
+    tv = tr_v - reduce(jnp.einsum("cb,pbr->pcr", F, ML))
+    out = _loss_terms(problem, ld, ta, tv)
+    return jnp.where(jnp.isfinite(out), out, jnp.inf)
+
+
+@eqx.filter_jit
+def _greedy(problem: DesignProblem, L, allowed: Bool[Array, " P"], close: Bool[Array, "P P"], n: int):
+    """``n`` pool indices by greedy ``log det`` (with a ridge): each step the allowed pose, not
+    too close to a chosen one, that raises it most. -1 where none was left."""
+    A = jnp.einsum("prb,prc->pbc", L, L)
+    ridge = RIDGE * jnp.trace(jnp.mean(A, 0)) / A.shape[-1]
+    d_problem = eqx.tree_at(lambda p: p.weights, problem, jnp.array([1.0, 0.0, 0.0]))
+
+    def step(k, state):
+        chosen, M, ok = state
+        s = _swap_losses(d_problem, M + ridge * jnp.eye(M.shape[0]), L)
+        s = jnp.where(ok, s, jnp.inf)
+        j = jnp.argmin(s)
+        found = jnp.isfinite(s[j])
+        chosen = chosen.at[k].set(jnp.where(found, j, -1))
+        M = M + jnp.where(found, A[j], 0.0)
+        ok = ok & ~close[j] & (jnp.arange(len(ok)) != j)
+        return chosen, M, ok
+
+    init = (jnp.full(n, -1), jnp.diag(problem.prior), allowed)
+    return jax.lax.fori_loop(0, n, step, init)[0]
+
+
+@eqx.filter_jit
+def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, close, max_swaps: int):
+    """Fedorov exchange from ``chosen`` until no swap improves the loss (or ``max_swaps``)."""
+    A = jnp.einsum("prb,prc->pbc", L, L)
+    P = L.shape[0]
+
+    def info(ch):
+        return jnp.diag(problem.prior) + jnp.sum(A[ch], 0)
+
+    def best_swap(ch):
+        M = info(ch)
+        in_set = jnp.zeros(P, bool).at[ch].set(True)
+        n_close = jnp.sum(close[:, ch], 1)  # chosen poses too close to each pool pose
+
+        def slot(i):
+            s = _swap_losses(problem, M - A[ch[i]], L)
+            ok = allowed & ~in_set & (n_close - close[:, ch[i]] == 0)
+            return jnp.where(ok, s, jnp.inf)
+
+        S = jax.lax.map(slot, jnp.arange(ch.shape[0]))  # (N, P)
+        k = jnp.argmin(S)
+        return S.reshape(-1)[k], k // P, k % P
+
+    def current(ch):
+        M = info(ch)
+        return _swap_losses(problem, M - A[ch[0]], L[ch[0]][None])[0]
+
+    def cond(state):
+        ch, loss, swaps, done = state
+        return ~done & (swaps < max_swaps)
+
+    def body(state):
+        ch, loss, swaps, _ = state
+        new, i, j = best_swap(ch)
+        better = new < loss - IMPROVEMENT * jnp.abs(loss)
+        ch = jnp.where(better, ch.at[i].set(j), ch)
+        return ch, jnp.where(better, new, loss), swaps + better, ~better
+
+    out = jax.lax.while_loop(cond, body, (chosen, current(chosen), 0, False))
+    return out[0], out[2]
+
+
+def select_poses(
+    problem: DesignProblem,
+    pool,
+    n_poses: int,
+    *,
+    min_spread: float = 0.0,
+    region=None,
+    max_swaps: int | None = None,
+    seed: int = 0,
+    n_random: int = 200,
+) -> PoseDesign:
+    """The best ``n_poses`` configurations of ``pool (P, n)`` for the problem's criterion.
+
+    **Arguments**: ``pool`` joint values (rad, mm) within the robot's limits; ``min_spread`` and
+    ``region`` as for :func:`optimal_poses` (pool poses that leave the region are never chosen);
+    ``max_swaps`` the most exchanges (default ``10 n_poses``); ``seed`` and ``n_random`` the
+    comparison with random pose sets (drawn uniformly within the limits, as for the gradient
+    design, not from the pool).
+
+    **Returns** a :class:`PoseDesign` whose ``details["indices"]`` are the chosen pool rows.
+
+    **Raises** :class:`jaxcal.DataError` for a pool with bad values or values beyond the joint
+    limits (naming the row and joint), or too few usable candidates.
+    """
+    from ._optimize import _count
+
+    n_poses = _count("n_poses", n_poses, 1)
+    max_swaps = 10 * n_poses if max_swaps is None else _count("max_swaps", max_swaps, 0)
+    seed, n_random = _count("seed", seed, 0), _count("n_random", n_random, 1)
+    pool = np.asarray(as_f64(pool, "pool"))
+    n = problem.lower.shape[0]
+    if pool.ndim != 2 or pool.shape[1] != n:
+        raise DataError(f"pool must have shape (P, {n}), got {pool.shape}", option="pool")
+    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
+    bad = ~np.isfinite(pool) | (pool < lo) | (pool > hi)
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        raise DataError(
+            f"pool: row {k}, joint {j + 1}: {pool[k, j]:.6g} is outside the joint limits [{lo[j]:.6g}, {hi[j]:.6g}]",
+            option="pool",
+        )
+    if len(pool) < n_poses:
+        raise DataError(f"pool has {len(pool)} poses, fewer than the {n_poses} asked for", option="pool")
+    if problem.layout.rows * n_poses < problem.n_base:
+        raise DataError(f"n_poses: {n_poses} poses cannot identify {problem.n_base} base parameters", option="n_poses")
+    cons = constraints(min_spread, region)
+    allowed = np.ones(len(pool), bool)
+    if cons.has_box:
+        allowed = in_box(cons, np.asarray(positions(problem, jnp.asarray(pool))))
+    d = np.sqrt(np.sum((pool[:, None] - pool[None]) ** 2, -1))
+    close = d < float(cons.spread)
+    t0 = time.perf_counter()
+    L = _blocks(problem, jnp.asarray(pool))
+    start = np.asarray(_greedy(problem, L, jnp.asarray(allowed), jnp.asarray(close), n_poses))
+    if np.any(start < 0):
+        raise DataError(
+            f"pool: only {int(np.sum(start >= 0))} poses satisfy the region and the minimum spread together, "
+            f"fewer than the {n_poses} asked for",
+            option="pool",
+        )
+    chosen, swaps = _exchange(problem, L, jnp.asarray(start), jnp.asarray(allowed), jnp.asarray(close), max_swaps)
+    chosen = np.asarray(chosen)
+    seconds = time.perf_counter() - t0
+    q = pool[chosen]
+    values = values_of(measures_batch(problem, jnp.asarray(q)[None])[0])
+    rng = np.random.default_rng([seed, 3])
+    return PoseDesign(
+        q=frozen(q),
+        criterion=problem.criterion,
+        values=values,
+        random_values=random_values(problem, cons, n_poses, n_random, rng),
+        method="pool",
+        base_names=problem.base_names(),
+        feasible=feasible(problem, cons, q),
+        min_distance=min_distance(q),
+        details={
+            "indices": [int(i) for i in chosen],
+            "pool_size": int(len(pool)),
+            "usable": int(allowed.sum()),
+            "swaps": int(swaps),
+            "select_seconds": seconds,
+        },
+    )

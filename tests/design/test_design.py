@@ -1,0 +1,128 @@
+"""Pose design: the criteria against finite differences and against the Cramér–Rao bound
+computed apart (identifiability.crlb on error_model's Jacobian), designs within the limits and
+constraints, and the pool exchange against a brute-force check of every single swap.
+
+One small problem (paper 6R arm, full pose, frames known, 8 poses, 2 starts) serves every test,
+so that they share their compiled programs with the command-line test."""
+
+import numpy as np
+import pytest
+
+import jaxcal
+from jaxcal import design
+from jaxcal.error_model import identification_jacobian
+from jaxcal.errors import DataError
+from jaxcal.identifiability import analyze, crlb, row_sigmas
+
+N, STARTS = 8, 2
+FRAMES_KNOWN = dict(estimate_base=False, estimate_tool=False)
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return jaxcal.preset("paper-6r")
+
+
+@pytest.fixture(scope="module")
+def problem(robot):
+    return design.design_problem(robot, n_val=60, seed=1, **FRAMES_KNOWN)
+
+
+def _random_q(robot, k, seed):
+    lim = np.asarray(robot.q_limits)
+    return lim[:, 0] + np.random.default_rng(seed).uniform(size=(k, len(lim))) * (lim[:, 1] - lim[:, 0])
+
+
+@pytest.mark.parametrize("criterion", design.CRITERIA)
+def test_loss_gradient_matches_central_differences(robot, problem, criterion):
+    pb = design.with_criterion(problem, criterion)
+    q = _random_q(robot, N, 3)
+    value, grad = (np.asarray(a) for a in design.objective_and_grad(pb, q))
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        v = rng.normal(size=q.shape)
+        h = 1e-5
+        plus = float(design.objective_and_grad(pb, q + h * v)[0])
+        minus = float(design.objective_and_grad(pb, q - h * v)[0])
+        fd = (plus - minus) / (2 * h)
+        assert np.isfinite(value)
+        np.testing.assert_allclose(np.sum(grad * v), fd, rtol=1e-6, atol=1e-9)
+
+
+def test_criteria_are_the_crlb_computed_apart(robot, problem):
+    """log det, trace and the validation RMS from identifiability.crlb on error_model's Jacobian
+    (another implementation than the design's model.jacobian), on the base set that
+    identifiability.analyze finds at the problem's validation poses."""
+    sp, sr = 0.02, 2e-5  # the design's default noise
+    q = _random_q(robot, N, 5)
+    got = design.evaluate(problem, q)
+    lim = np.asarray(robot.q_limits)  # the problem's validation poses (seed 1)
+    qv = lim[:, 0] + np.random.default_rng([1, 1]).uniform(size=(60, 6)) * (lim[:, 1] - lim[:, 0])
+    J = np.asarray(identification_jacobian(robot, np.concatenate([q, qv])))  # one compiled shape
+    ident = analyze(J[N:], robot.param_names())  # frames known: the column order is calibrate's
+    assert problem.base_names() == ident.base_names == tuple(n for n in robot.param_names() if n != "d3")
+    cov = crlb(J[:N], row_sigmas(N, sigma_pos_mm=sp, sigma_rot_rad=sr), ident)
+    scale = np.asarray(problem.scale)
+    np.testing.assert_allclose(got["log_det"], -np.linalg.slogdet(cov)[1] + 2 * np.log(scale).sum(), rtol=1e-9)
+    np.testing.assert_allclose(got["a_trace"], np.trace(cov / np.outer(scale, scale)), rtol=1e-9)
+    # expected squared position error at the validation poses
+    G = J[N:, :3][..., list(ident.base)]
+    expected = np.sqrt(np.mean(np.einsum("vrb,bc,vrc->v", G, cov, G)))
+    np.testing.assert_allclose(got["validation_rms_mm"], expected, rtol=1e-9)
+
+
+def test_design_respects_limits_spread_and_region(robot):
+    """Narrow joint limits, a minimum spread and a box for the tool: all hold, and the design
+    beats random poses of the same count on its criterion."""
+    lim = np.array([[-0.4, 0.9], [-0.8, 0.3], [-0.5, 0.5], [-1.0, 1.0], [-0.7, 0.2], [-2.0, 2.0]])
+    narrow = robot.replace(q_limits=lim)
+    pb = design.design_problem(narrow, n_val=60, seed=1, **FRAMES_KNOWN)
+    box = ([300.0, -600.0, -800.0], [1500.0, 600.0, 400.0])
+    d = design.optimal_poses(pb, N, starts=STARTS, seed=2, min_spread=0.4, region=box, n_random=50)
+    q = d.q
+    assert q.shape == (N, 6) and d.feasible
+    assert np.all(q >= lim[:, 0]) and np.all(q <= lim[:, 1])
+    dist = np.sqrt(((q[:, None] - q[None]) ** 2).sum(-1))[np.triu_indices(N, 1)]
+    assert dist.min() >= 0.4
+    p = np.asarray(jaxcal.fk(narrow, q))[:, :3, 3]
+    assert np.all(p >= box[0]) and np.all(p <= box[1])
+    assert d.random_fraction_better() == 0.0
+    with pytest.raises(DataError, match="region: lower y"):
+        design.optimal_poses(pb, N, region=([0, 1, 0], [1, 0, 1]))
+
+
+def test_pool_selection_no_single_swap_improves(robot, problem):
+    """The exchange's Woodbury scores against every swap evaluated directly."""
+    pool = _random_q(robot, 30, 7)
+    d = design.select_poses(problem, pool, N, n_random=50)
+    idx = d.details["indices"]
+    assert len(set(idx)) == N and np.array_equal(d.q, pool[idx])
+    rest = [j for j in range(len(pool)) if j not in idx]
+    swaps = np.array([np.where(np.arange(N) == i, j, idx) for i in range(N) for j in rest])
+    loss = lambda ids: float(design.objective_and_grad(problem, pool[ids])[0])  # noqa: E731
+    best = loss(idx)
+    assert min(loss(s) for s in swaps[::7]) >= best - 1e-12
+    ref = [loss(np.array(s)) for s in swaps]
+    assert min(ref) >= best - 1e-12
+    with pytest.raises(DataError, match=r"pool: row 2, joint 3: .* outside the joint limits"):
+        bad = pool.copy()
+        bad[2, 2] = 4.0
+        design.select_poses(problem, bad, N)
+
+
+def test_pose_file_round_trip_and_errors(robot, tmp_path):
+    named = robot.replace(joint_names=[f"j{i}" for i in range(6)], units=("m", "deg"))
+    q = _random_q(robot, 5, 8)
+    keep = q.copy()
+    design.write_poses(tmp_path / "p.csv", q, named)
+    assert np.array_equal(q, keep)
+    text = (tmp_path / "p.csv").read_text()
+    assert text.startswith("j0,j1,j2,j3,j4,j5\n")
+    np.testing.assert_allclose(float(text.splitlines()[1].split(",")[0]), np.rad2deg(q[0, 0]), rtol=1e-15)
+    np.testing.assert_allclose(design.read_poses(tmp_path / "p.csv", named), q, rtol=1e-14)
+    (tmp_path / "bad.csv").write_text("q1,q2,q3,q4,q5,q6\n0,0,0,0,x,0\n")
+    with pytest.raises(DataError, match=r"row 1 .*column 'q5'"):
+        design.read_poses(tmp_path / "bad.csv", robot)
+    (tmp_path / "short.csv").write_text("q1,q2,q3,q4,q5\n0,0,0,0,0\n")
+    with pytest.raises(DataError, match="q1..q5"):
+        design.read_poses(tmp_path / "short.csv", robot)
