@@ -24,6 +24,7 @@ from ..kinematics import fk
 from ..lie import so3_log
 from ..model import Layout, Model, apply, errors, jacobian, predict
 from ..robot import Robot
+from ..sharding import distribute, gather, member_mesh, sharded
 from ..solvers import PIN, fit, outlier_threshold, robust_scale, robust_weights
 from ._initial import initial_frames
 
@@ -170,6 +171,7 @@ def run_members(
     memory_mb: float = 1024.0,
     progress=None,
     label: str = "fitting",
+    devices=None,
 ) -> dict:
     """Fit every member (leading axis of ``models``, ``pose_w``, ``weights``, ``prior``; and of
     ``q``/``target`` unless ``cfg.shared_data``) in chunks of one compiled, vmapped solve.
@@ -181,7 +183,9 @@ def run_members(
 
     Chunks have a fixed size (``chunk``, default :func:`chunk_size`; the last is padded by
     repeating its last member), so one compile serves every chunk, and memory is bounded by
-    ``memory_mb`` whatever the member count.
+    ``memory_mb`` whatever the member count. ``devices`` (from
+    :func:`jaxcal.sharding.select_devices`; default: the default device) share each chunk's
+    members, ``chunk`` members per device.
     ``progress(done, total, label)`` is called after each chunk. Returns NumPy arrays with the
     member axis first.
     """
@@ -189,7 +193,10 @@ def run_members(
     K = int(pose_w.shape[1])
     ls = np.full(B, np.nan) if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))
     Kp = pose_bucket(K)
-    c = chunk_size(B, Kp, cfg.layout, memory_mb) if chunk is None else chunk
+    mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
+    D = mesh.size if mesh is not None else 1
+    per = chunk_size(-(-B // D), Kp, cfg.layout, memory_mb / D) if chunk is None else chunk
+    c = per * D
     n0 = column_norms(J0, weights, pose_w, prior)
     x0 = np.zeros(np.shape(prior)) if x0 is None else np.asarray(x0)
     axis = 0 if cfg.shared_data else 1
@@ -199,7 +206,12 @@ def run_members(
     for start in range(0, B, c):
         idx = np.minimum(np.arange(start, start + c), B - 1)
         args = _chunk_args(cfg, models, q, target, pose_w, weights, prior, ls, n0, x0, idx)
-        outs.append(jax.tree.map(np.asarray, _members(cfg, *args)))
+        if mesh is None:
+            outs.append(jax.tree.map(np.asarray, _members(cfg, *args)))
+        else:  # every member array split over the devices; data shared by all members on each
+            m_, q_, t_, *rest = args
+            q_, t_ = distribute((q_, t_), mesh, split=not cfg.shared_data)
+            outs.append(gather(_members(cfg, distribute(m_, mesh), q_, t_, *distribute(rest, mesh))))
         if progress is not None:
             progress(min(start + c, B), B, label)
     out = jax.tree.map(lambda *a: np.concatenate(a)[:B], *outs)
