@@ -115,6 +115,9 @@ def _members(cfg: Config, models, q, target, pose_w, weights, prior, loss_scale,
 MAX_CHUNK = 64
 """Most members per compiled call: a vmapped solve runs until its slowest member is done, so
 smaller chunks waste less on easy members; and a workflow pads its small calls to one chunk."""
+CACHE_BYTES = 2**22
+"""The Jacobians of one compiled call's members are kept within this many bytes (about a CPU's
+share of its last-level cache): each step then reads them from cache, not from memory."""
 
 
 def pose_bucket(n: int) -> int:
@@ -139,10 +142,12 @@ def pad_poses(a, K: int, axis: int):
 
 def chunk_size(n_members: int, n_poses: int, layout: Layout, memory_mb: float) -> int:
     """Members per compiled call within ``memory_mb`` (the Jacobian and its few working copies
-    dominate, ``n_poses x rows x parameters`` doubles each), a power of two so that batches of
-    similar size share one compiled solve."""
-    per = 8.0 * n_poses * layout.rows * (layout.size + 8) * 8
-    cap = int(max(1, min(MAX_CHUNK, memory_mb * 2**20 // per)))
+    dominate, ``n_poses x rows x parameters`` doubles each) and with their Jacobians within
+    :data:`CACHE_BYTES`, a power of two so that batches of similar size share one compiled
+    solve."""
+    jac = 8.0 * n_poses * layout.rows * layout.size
+    per = jac * (layout.size + 8) / layout.size * 8
+    cap = int(max(1, min(MAX_CHUNK, memory_mb * 2**20 // per, CACHE_BYTES // jac)))
     cap = 2 ** int(np.floor(np.log2(cap)))
     return int(min(cap, 2 ** int(np.ceil(np.log2(max(n_members, 1))))))
 

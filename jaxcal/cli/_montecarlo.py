@@ -1,4 +1,4 @@
-"""``jaxcal montecarlo``: N simulated calibrations in one compiled call."""
+"""``jaxcal montecarlo``: N simulated calibrations, in chunks shared over devices, resumable."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import app, console, load_robot_arg
+from ._app import app, console, load_robot_arg, progress
 
 
 @app.command()
@@ -26,15 +26,23 @@ def montecarlo(
     estimate_tool: bool = typer.Option(False, "--estimate-tool/--no-estimate-tool"),
     repeats: int = typer.Option(3, "--repeats", help="timed runs after the first (compile) call"),
     json_out: Path = typer.Option(None, "--json", help="write the summary as JSON"),
+    devices: str = typer.Option("all", "--devices", help="devices to share the robots over: all | N"),
+    out_dir: Path = typer.Option(
+        None, "--out", help="study folder: each chunk's results written as it completes; a rerun continues"
+    ),
+    memory_mb: float = typer.Option(1024.0, "--memory-mb", help="memory budget of a chunk of robots (MB)"),
+    max_chunks: int = typer.Option(None, "--max-chunks", help="stop after this many chunks (rerun to continue)"),
 ):
-    """Calibrate N simulated robots at once; report speed, accuracy vs truth and vs the CRLB."""
+    """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
     from .._io import check_writable, write_atomic
     from ..experiments import run_montecarlo
 
     if json_out is not None:
         check_writable(json_out, "json_out")
+    if out_dir is not None:
+        check_writable(out_dir / "study.json", "out")
     r = load_robot_arg(robot)
-    with console.status("starting") as status:
+    with progress(f"{robots} robots x {poses} poses, {method}") as bar:
         out = run_montecarlo(
             r,
             n_robots=robots,
@@ -48,15 +56,28 @@ def montecarlo(
             estimate_base=estimate_base,
             estimate_tool=estimate_tool,
             repeats=repeats,
-            progress=lambda s: status.update(f"{s} ({robots} robots x {poses} poses, {method})"),
+            progress=bar,
+            devices=devices,
+            out=out_dir,
+            memory_mb=memory_mb,
+            max_chunks=max_chunks,
         )
-    t = Table(title=f"Monte Carlo: {r.name}, {robots} robots x {poses} poses, {method}")
+    if not out["complete"]:
+        console.print(
+            f"stopped after {out['chunks_done']} of {out['chunks']} chunks ({out['robots_done']} robots): "
+            f"rerun the same command to continue"
+        )
+    t = Table(
+        title=f"Monte Carlo: {r.name}, {out['robots_done']} of {robots} robots x {out['n_poses']} poses, {method}"
+    )
     t.add_column("quantity")
     t.add_column("value", justify="right")
+    timed = out["robots_per_second"] is not None  # None: every chunk was done before this run
     rows = [
-        ("robots / second (after compile)", f"{out['robots_per_second']:,.0f}"),
-        ("run time, median (s)", f"{out['run_seconds']:.3f}"),
-        ("compile time (s)", f"{out['compile_seconds']:.2f}"),
+        ("devices", ", ".join(out["devices"])),
+        ("chunks (robots each)", f"{out['chunks_done']} / {out['chunks']} ({out['chunk_robots']})"),
+        ("robots / second (after compile)", f"{out['robots_per_second']:,.0f}" if timed else "-"),
+        ("compile time (s)", f"{out['compile_seconds']:.2f}" if timed else "-"),
         ("converged", f"{out['converged_fraction']:.1%} (max {out['max_steps_taken']} steps)"),
         ("rank / parameters", f"{out['rank']} / {out['n_params']}"),
         ("fixed (not identifiable)", ", ".join(out["fixed"]) or "none"),
@@ -69,6 +90,6 @@ def montecarlo(
     for k, v in rows:
         t.add_row(k, v)
     console.print(t)
-    if json_out:
+    if json_out and out["complete"]:  # a summary of part of a study is not written
         write_atomic(json_out, json.dumps(out, indent=2))
         console.print(f"wrote {json_out}")
