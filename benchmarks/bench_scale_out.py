@@ -45,7 +45,8 @@ runs = []
 for _ in range(repeats):
     t0 = time.perf_counter(); call(); runs.append(time.perf_counter() - t0)
 np.save(save, res.x)
-print(json.dumps({"first": first, "runs": runs, "devices": jax.device_count(), "converged": float(res.converged.mean()),
+print(json.dumps({"jaxcal": jaxcal.__file__, "first": first, "runs": runs,
+                  "devices": jax.device_count(), "converged": float(res.converged.mean()),
                   "max_steps": int(res.num_steps.max())}))
 """
 SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
@@ -106,19 +107,21 @@ def main():
                     devices,
                     str(save),
                 ]
-                p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1800)
+                p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1800, cwd=tmp)
                 if p.returncode:
                     print(f"{label}: failed\n{p.stderr[-2000:]}")
                     continue
                 d = json.loads(p.stdout.strip().splitlines()[-1])
                 med = statistics.median(d["runs"])
                 rates[label].append(args.robots / med)
-                gap = float(np.abs(np.load(save) - np.load(tmp / "x1.npy")).max()) if (tmp / "x1.npy").exists() else 0.0
+                ref = tmp / f"x{[c[0] for c in confs].index('this tree, 1 device')}.npy"
+                gap = float(np.abs(np.load(save) - np.load(ref)).max()) if ref.exists() else float("nan")
                 print(
                     f"round {rnd + 1}  {label:46s} {args.robots / med:7,.0f} robots/s  (median {med:.3f} s, "
                     f"min {min(d['runs']):.3f}, max {max(d['runs']):.3f}; compile {max(d['first'] - med, 0):.2f} s; "
                     f"{d['devices']} device(s); converged {d['converged']:.0%}, max {d['max_steps']} steps; "
-                    f"differs from 1 device by {gap:.1e}; load {os.getloadavg()[0]:.2f})",
+                    f"differs from this tree's 1 device by {gap:.1e}; load {os.getloadavg()[0]:.2f}; "
+                    f"{Path(d['jaxcal']).parent.parent.name})",
                     flush=True,
                 )
         base = next(iter(rates))

@@ -50,11 +50,42 @@ def _jacobians(robot, q, *, layout: Layout):
     return jax.vmap(lambda q_: jacobian(model, layout, q_))(q)
 
 
+@eqx.filter_jit
+def _information(robot, q, w, *, layout: Layout, base: tuple[int, ...]):
+    """``(R, r, r)`` Fisher information ``Jb^T Jb`` of the base columns, rows weighted by ``w``:
+    each robot's Jacobian reduced where it is made."""
+    model = Model(robot, jnp.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+
+    def one(q_):
+        Jb = jacobian(model, layout, q_).reshape(-1, layout.size)[:, list(base)] * w[:, None]
+        return Jb.T @ Jb
+
+    return jax.vmap(one)(q)
+
+
 def crlb_variances(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None) -> np.ndarray:
     """``(R, r)`` Cramér–Rao variances of the base parameters for each robot's pose set ``q (R,
-    K, n)`` at the nominal model: the diagonals of :func:`jaxcal.identifiability.crlb` for all
-    robots at once."""
-    return np.diagonal(_crlb_each(robot, q, ident, layout, sigma_pos, sigma_rot), axis1=-2, axis2=-1)
+    K, n)`` at the nominal model: the diagonal of :func:`jaxcal.identifiability.crlb`, from each
+    robot's column-scaled information matrix, :data:`CRLB_SLICE` robots at a time (a slice's
+    Jacobians are the largest arrays of a study)."""
+    q = np.asarray(q)
+    R, K = q.shape[:2]
+    sig = row_sigmas(
+        K,
+        position_only=layout.n_points > 0,
+        sigma_pos_mm=sigma_pos,
+        sigma_rot_rad=None if layout.n_points else sigma_rot,
+    )
+    step = min(R, CRLB_SLICE)
+    padded = np.concatenate([q, np.repeat(q[-1:], -R % step, 0)])  # whole slices: one compile
+    fn = lambda s: _information(robot.stripped(), padded[s : s + step], 1 / sig, layout=layout, base=tuple(ident.base))  # noqa: E731
+    N = np.concatenate([np.asarray(fn(s)) for s in range(0, len(padded), step)])[:R]
+    d = np.sqrt(np.diagonal(N, axis1=-2, axis2=-1))  # column scales: inv of a matrix with unit diagonal
+    return np.diagonal(np.linalg.inv(N / (d[:, :, None] * d[:, None, :])), axis1=-2, axis2=-1) / d**2
+
+
+CRLB_SLICE = 256
+"""Robots per Cramér–Rao evaluation of :func:`crlb_variances`."""
 
 
 def _crlb_each(robot, q, ident, layout, sigma_pos, sigma_rot) -> np.ndarray:
