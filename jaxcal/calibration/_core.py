@@ -120,14 +120,20 @@ CACHE_BYTES = 2**22
 share of its last-level cache): each step then reads them from cache, not from memory."""
 
 
-def pose_bucket(n: int) -> int:
+def pose_bucket(n: int, fine: bool = False) -> int:
     """``n`` poses rounded up so that data sets of similar size share one compiled solve (the added
     poses weigh nothing): a power of two up to 1024 poses, where compiling dominates the solve,
-    then a multiple of an eighth of the power of two below (at most 12.5 % padding)."""
-    if n <= 1024:
+    then (or with ``fine``, for a batch whose run time dominates) a multiple of an eighth of the
+    power of two below (at most 12.5 % padding)."""
+    if n <= 1024 and not fine:
         return max(16, 1 << (max(n, 1) - 1).bit_length())
-    step = 1 << (n.bit_length() - 4)
-    return -(-n // step) * step
+    step = 1 << max(n.bit_length() - 4, 3)
+    return max(16, -(-n // step) * step)
+
+
+FINE_BUCKET = 2**15
+"""Member poses (members x poses) from which a batch pads its poses by :func:`pose_bucket`'s
+fine steps: solving it takes longer than compiling for its own pose count."""
 
 
 def pad_poses(a, K: int, axis: int):
@@ -197,7 +203,7 @@ def run_members(
     B = int(pose_w.shape[0])
     K = int(pose_w.shape[1])
     ls = np.full(B, np.nan) if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))
-    Kp = pose_bucket(K)
+    Kp = pose_bucket(K, fine=B * K >= FINE_BUCKET)
     mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
     D = mesh.size if mesh is not None else 1
     per = chunk_size(-(-B // D), Kp, cfg.layout, memory_mb / D) if chunk is None else chunk

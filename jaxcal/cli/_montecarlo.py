@@ -2,13 +2,31 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import sys
 from pathlib import Path
 
 import typer
 from rich.table import Table
 
-from ._app import app, console, load_robot_arg, progress
+from ._app import app, console, err_console, load_robot_arg, progress
+
+
+@contextlib.contextmanager
+def _kept_on_interrupt(out_dir):
+    """Ctrl-C during a study with a folder: one line saying what is kept, exit 130 at once (as
+    :func:`jaxcal.cli.main` does for every command; its line says nothing was written)."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        if out_dir is None:
+            raise
+        err_console.print(f"interrupted: the finished chunks are kept in {out_dir}; rerun to continue", highlight=False)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
 
 
 @app.command()
@@ -42,7 +60,7 @@ def montecarlo(
     if out_dir is not None:
         check_writable(out_dir / "study.json", "out")
     r = load_robot_arg(robot)
-    with progress(f"{robots} robots x {poses} poses, {method}") as bar:
+    with progress(f"{robots} robots x {poses} poses, {method}") as bar, _kept_on_interrupt(out_dir):
         out = run_montecarlo(
             r,
             n_robots=robots,
