@@ -276,8 +276,9 @@ def run_montecarlo(
         dt = time.perf_counter() - t0
         if first is None:
             first = (len(q_i), dt, (q_i, measured))
-        else:
+        else:  # warm chunks time themselves: the first chunk's data are not needed again
             warm.append((len(q_i), dt))
+            first = first[:2] + (None,)
         rec = _record(robot, res, x_true, q_i, q_val, true_val, ident, sigma_pos, sigma_rot, noisy)
         n_i = min(c, n_robots - i * c)  # without the padding
         rec = {k: v[:n_i] for k, v in rec.items()}
