@@ -12,8 +12,9 @@ git worktree add -q --detach "$tree" "$rev"
 trap 'git worktree remove --force "$tree"' EXIT
 run() {  # label, PYTHONPATH
   echo "== $1"
-  PYTHONPATH=$2 python -c "from jaxcal.cli import main; main()" montecarlo ur5 $args --json "$tree/$1.json" \
-    > /dev/null 2>&1
+  # from the tree's own folder: `python -c` puts the working directory ahead of PYTHONPATH
+  (cd "$2" && PYTHONPATH=$2 python -c "from jaxcal.cli import main; main()" montecarlo ur5 $args --json "$tree/$1.json" \
+    > /dev/null 2>&1)
   python -c "import json; d = json.load(open('$tree/$1.json')); print(f\"{d['robots_per_second']:.0f} robots/s, compile {d['compile_seconds']:.2f} s, CRLB efficiency {d['crlb_efficiency_mean']:.3f}\")"
 }
 run "before-$rev" "$tree"

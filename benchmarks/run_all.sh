@@ -22,3 +22,4 @@ run elimination_vs_gn bench_elimination_vs_gn.py --robots 100
 run scaling bench_scaling.py --out "$out"
 run large_file bench_large_file.py --poses 20000 100000
 run design bench_design.py
+run scale_out bench_scale_out.py --before f007281 --rounds 2

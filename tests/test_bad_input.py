@@ -406,6 +406,12 @@ CLI = {
     "montecarlo --val-poses 0": (lambda f: ["montecarlo", "paper-6r", "--val-poses", "0"], "--val-poses"),
     "montecarlo --noise-mm -1": (lambda f: ["montecarlo", "paper-6r", "--noise-mm", "-1"], "--noise-mm must be"),
     "montecarlo bad robot": (lambda f: ["montecarlo", f["bad_toml"]], "joint 1: missing d"),
+    "montecarlo --devices 2": (
+        lambda f: ["montecarlo", "paper-6r", "--devices", "2"],
+        "--devices: 2 requested, but 1 cpu device is available",
+    ),
+    "montecarlo --devices two": (lambda f: ["montecarlo", "paper-6r", "--devices", "two"], "--devices must be"),
+    "montecarlo --out file": (lambda f: ["montecarlo", "paper-6r", "--out", f["good"]], "is a file, not a folder"),
     "reproduce --noise-mm -1": (
         lambda f: ["reproduce", "--noise-mm", "-1", "--out", f["good"].parent / "o"],
         "--noise-mm must be >= 0",

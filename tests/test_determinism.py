@@ -18,6 +18,7 @@ TIMING_KEYS = {
     "run_seconds_all",
     "compile_seconds",
     "first_call_seconds",
+    "wall_seconds",
     "machine",
 }
 

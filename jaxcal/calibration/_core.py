@@ -24,6 +24,7 @@ from ..kinematics import fk
 from ..lie import so3_log
 from ..model import Layout, Model, apply, errors, jacobian, predict
 from ..robot import Robot
+from ..sharding import distribute, gather, member_mesh, sharded
 from ..solvers import PIN, fit, outlier_threshold, robust_scale, robust_weights
 from ._initial import initial_frames
 
@@ -114,16 +115,25 @@ def _members(cfg: Config, models, q, target, pose_w, weights, prior, loss_scale,
 MAX_CHUNK = 64
 """Most members per compiled call: a vmapped solve runs until its slowest member is done, so
 smaller chunks waste less on easy members; and a workflow pads its small calls to one chunk."""
+CACHE_BYTES = 2**22
+"""The Jacobians of one compiled call's members are kept within this many bytes (about a CPU's
+share of its last-level cache): each step then reads them from cache, not from memory."""
 
 
-def pose_bucket(n: int) -> int:
+def pose_bucket(n: int, fine: bool = False) -> int:
     """``n`` poses rounded up so that data sets of similar size share one compiled solve (the added
     poses weigh nothing): a power of two up to 1024 poses, where compiling dominates the solve,
-    then a multiple of an eighth of the power of two below (at most 12.5 % padding)."""
-    if n <= 1024:
+    then (or with ``fine``, for a batch whose run time dominates) a multiple of an eighth of the
+    power of two below (at most 12.5 % padding)."""
+    if n <= 1024 and not fine:
         return max(16, 1 << (max(n, 1) - 1).bit_length())
-    step = 1 << (n.bit_length() - 4)
-    return -(-n // step) * step
+    step = 1 << max(n.bit_length() - 4, 3)
+    return max(16, -(-n // step) * step)
+
+
+FINE_BUCKET = 2**15
+"""Member poses (members x poses) from which a batch pads its poses by :func:`pose_bucket`'s
+fine steps: solving it takes longer than compiling for its own pose count."""
 
 
 def pad_poses(a, K: int, axis: int):
@@ -138,10 +148,12 @@ def pad_poses(a, K: int, axis: int):
 
 def chunk_size(n_members: int, n_poses: int, layout: Layout, memory_mb: float) -> int:
     """Members per compiled call within ``memory_mb`` (the Jacobian and its few working copies
-    dominate, ``n_poses x rows x parameters`` doubles each), a power of two so that batches of
-    similar size share one compiled solve."""
-    per = 8.0 * n_poses * layout.rows * (layout.size + 8) * 8
-    cap = int(max(1, min(MAX_CHUNK, memory_mb * 2**20 // per)))
+    dominate, ``n_poses x rows x parameters`` doubles each) and with their Jacobians within
+    :data:`CACHE_BYTES`, a power of two so that batches of similar size share one compiled
+    solve."""
+    jac = 8.0 * n_poses * layout.rows * layout.size
+    per = jac * (layout.size + 8) / layout.size * 8
+    cap = int(max(1, min(MAX_CHUNK, memory_mb * 2**20 // per, CACHE_BYTES // jac)))
     cap = 2 ** int(np.floor(np.log2(cap)))
     return int(min(cap, 2 ** int(np.ceil(np.log2(max(n_members, 1))))))
 
@@ -170,6 +182,7 @@ def run_members(
     memory_mb: float = 1024.0,
     progress=None,
     label: str = "fitting",
+    devices=None,
 ) -> dict:
     """Fit every member (leading axis of ``models``, ``pose_w``, ``weights``, ``prior``; and of
     ``q``/``target`` unless ``cfg.shared_data``) in chunks of one compiled, vmapped solve.
@@ -181,15 +194,20 @@ def run_members(
 
     Chunks have a fixed size (``chunk``, default :func:`chunk_size`; the last is padded by
     repeating its last member), so one compile serves every chunk, and memory is bounded by
-    ``memory_mb`` whatever the member count.
+    ``memory_mb`` whatever the member count. ``devices`` (from
+    :func:`jaxcal.sharding.select_devices`; default: the default device) share each chunk's
+    members, ``chunk`` members per device.
     ``progress(done, total, label)`` is called after each chunk. Returns NumPy arrays with the
     member axis first.
     """
     B = int(pose_w.shape[0])
     K = int(pose_w.shape[1])
     ls = np.full(B, np.nan) if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))
-    Kp = pose_bucket(K)
-    c = chunk_size(B, Kp, cfg.layout, memory_mb) if chunk is None else chunk
+    Kp = pose_bucket(K, fine=B * K >= FINE_BUCKET)
+    mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
+    D = mesh.size if mesh is not None else 1
+    per = chunk_size(-(-B // D), Kp, cfg.layout, memory_mb / D) if chunk is None else chunk
+    c = per * D
     n0 = column_norms(J0, weights, pose_w, prior)
     x0 = np.zeros(np.shape(prior)) if x0 is None else np.asarray(x0)
     axis = 0 if cfg.shared_data else 1
@@ -199,7 +217,12 @@ def run_members(
     for start in range(0, B, c):
         idx = np.minimum(np.arange(start, start + c), B - 1)
         args = _chunk_args(cfg, models, q, target, pose_w, weights, prior, ls, n0, x0, idx)
-        outs.append(jax.tree.map(np.asarray, _members(cfg, *args)))
+        if mesh is None:
+            outs.append(jax.tree.map(np.asarray, _members(cfg, *args)))
+        else:  # every member array split over the devices; data shared by all members on each
+            m_, q_, t_, *rest = args
+            q_, t_ = distribute((q_, t_), mesh, split=not cfg.shared_data)
+            outs.append(gather(_members(cfg, distribute(m_, mesh), q_, t_, *distribute(rest, mesh))))
         if progress is not None:
             progress(min(start + c, B), B, label)
     out = jax.tree.map(lambda *a: np.concatenate(a)[:B], *outs)

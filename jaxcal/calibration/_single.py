@@ -20,6 +20,7 @@ from ..identifiability import Identifiability
 from ..kinematics import check_q
 from ..model import Layout, Model, measured_robot
 from ..robot import Robot
+from ..sharding import describe, select_devices
 from ..solvers import PIN, calibrate_design_batch
 from . import _core as core
 from . import _plausibility as plausibility
@@ -120,6 +121,8 @@ class BatchResult:
     degraded: np.ndarray | None = None
     nonfinite: np.ndarray | None = None
     """``(R,)``: the solver gave non-finite values; ``x`` is 0 there, not converged."""
+    devices: tuple[str, ...] = ()
+    """The devices the data sets were shared over (:func:`jaxcal.sharding.describe`)."""
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -349,13 +352,17 @@ def calibrate_batch(
     position_only: bool | None = None,
     ident: Identifiability | None = None,
     progress=None,
+    devices: str | int | None = "all",
     **kw,
 ) -> BatchResult:
     """:func:`calibrate` for ``R`` data sets of the same nominal robot: ``q (R, K, n)``,
     measurements with the same leading axis. One compiled, vmapped solve run in chunks within
-    ``memory_mb`` (no Python loop over data sets inside a chunk). The identifiable set comes from
-    the first data set unless ``ident`` is given. A data set whose solve gives non-finite values
-    is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN."""
+    ``memory_mb`` (no Python loop over data sets inside a chunk), each chunk's data sets shared
+    over ``devices`` (``"all"``, a count, or ``None`` for the default device alone;
+    :func:`jaxcal.sharding.select_devices`). The identifiable set comes from the first data set
+    unless ``ident`` is given. A data set whose solve gives non-finite values is reported
+    (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN."""
+    devs = select_devices(devices)
     opts = make_options(options, kw, elimination=True)
     q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
     layout = make_layout(robot, opts, n_points)
@@ -384,7 +391,7 @@ def calibrate_batch(
     if ident is None:
         ident = core.identify(J0, layout)
     prior1 = prior_of(layout, ident, cand)
-    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress)
+    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
     sig = np.tile([1.0, 1.0], (R, 1))
     if layout.frames or not given:
@@ -428,6 +435,7 @@ def calibrate_batch(
         outlier_mask=mask,
         degraded=degraded,
         nonfinite=nonfinite,
+        devices=tuple(describe(devs)),
     )
 
 
@@ -460,4 +468,5 @@ def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
         outlier_mask=np.zeros((R, K), bool),
         degraded=np.zeros(R, bool),
         nonfinite=nonfinite,
+        devices=tuple(describe(select_devices(None))),  # the elimination design solve is not sharded
     )

@@ -1,14 +1,32 @@
-"""``jaxcal montecarlo``: N simulated calibrations in one compiled call."""
+"""``jaxcal montecarlo``: N simulated calibrations, in chunks shared over devices, resumable."""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import sys
 from pathlib import Path
 
 import typer
 from rich.table import Table
 
-from ._app import app, console, load_robot_arg
+from ._app import app, console, err_console, load_robot_arg, progress
+
+
+@contextlib.contextmanager
+def _kept_on_interrupt(out_dir):
+    """Ctrl-C during a study with a folder: one line saying what is kept, exit 130 at once (as
+    :func:`jaxcal.cli.main` does for every command; its line says nothing was written)."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        if out_dir is None:
+            raise
+        err_console.print(f"interrupted: the finished chunks are kept in {out_dir}; rerun to continue", highlight=False)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
 
 
 @app.command()
@@ -29,13 +47,21 @@ def montecarlo(
     poses_file: Path = typer.Option(
         None, "--poses-file", help="calibrate every robot on these poses (a pose file, e.g. from jaxcal design)"
     ),
+    devices: str = typer.Option("all", "--devices", help="devices to share the robots over: all | N"),
+    out_dir: Path = typer.Option(
+        None, "--out", help="study folder: each chunk's results written as it completes; a rerun continues"
+    ),
+    memory_mb: float = typer.Option(1024.0, "--memory-mb", help="memory budget of a chunk of robots (MB)"),
+    max_chunks: int = typer.Option(None, "--max-chunks", help="stop after this many chunks (rerun to continue)"),
 ):
-    """Calibrate N simulated robots at once; report speed, accuracy vs truth and vs the CRLB."""
+    """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
     from .._io import check_writable, write_atomic
     from ..experiments import run_montecarlo
 
     if json_out is not None:
         check_writable(json_out, "json_out")
+    if out_dir is not None:
+        check_writable(out_dir / "study.json", "out")
     r = load_robot_arg(robot)
     q = None
     if poses_file is not None:
@@ -43,7 +69,7 @@ def montecarlo(
 
         q = read_poses(poses_file, r)
         poses = len(q)
-    with console.status("starting") as status:
+    with progress(f"{robots} robots x {poses} poses, {method}") as bar, _kept_on_interrupt(out_dir):
         out = run_montecarlo(
             r,
             n_robots=robots,
@@ -58,15 +84,28 @@ def montecarlo(
             estimate_tool=estimate_tool,
             repeats=repeats,
             q=q,
-            progress=lambda s: status.update(f"{s} ({robots} robots x {poses} poses, {method})"),
+            progress=bar,
+            devices=devices,
+            out=out_dir,
+            memory_mb=memory_mb,
+            max_chunks=max_chunks,
         )
-    t = Table(title=f"Monte Carlo: {r.name}, {robots} robots x {poses} poses, {method}")
+    if not out["complete"]:
+        console.print(
+            f"stopped after {out['chunks_done']} of {out['chunks']} chunks ({out['robots_done']} robots): "
+            f"rerun the same command to continue"
+        )
+    t = Table(
+        title=f"Monte Carlo: {r.name}, {out['robots_done']} of {robots} robots x {out['n_poses']} poses, {method}"
+    )
     t.add_column("quantity")
     t.add_column("value", justify="right")
+    timed = out["robots_per_second"] is not None  # None: every chunk was done before this run
     rows = [
-        ("robots / second (after compile)", f"{out['robots_per_second']:,.0f}"),
-        ("run time, median (s)", f"{out['run_seconds']:.3f}"),
-        ("compile time (s)", f"{out['compile_seconds']:.2f}"),
+        ("devices", ", ".join(out["devices"])),
+        ("chunks (robots each)", f"{out['chunks_done']} / {out['chunks']} ({out['chunk_robots']})"),
+        ("robots / second (after compile)", f"{out['robots_per_second']:,.0f}" if timed else "-"),
+        ("compile time (s)", f"{out['compile_seconds']:.2f}" if timed else "-"),
         ("converged", f"{out['converged_fraction']:.1%} (max {out['max_steps_taken']} steps)"),
         ("rank / parameters", f"{out['rank']} / {out['n_params']}"),
         ("fixed (not identifiable)", ", ".join(out["fixed"]) or "none"),
@@ -79,6 +118,6 @@ def montecarlo(
     for k, v in rows:
         t.add_row(k, v)
     console.print(t)
-    if json_out:
+    if json_out and out["complete"]:  # a summary of part of a study is not written
         write_atomic(json_out, json.dumps(out, indent=2))
         console.print(f"wrote {json_out}")

@@ -1,5 +1,6 @@
-"""Monte Carlo study: many simulated robots calibrated in one compiled, vmapped solve, compared
-with the simulated truth and with the Cramér–Rao bound."""
+"""Monte Carlo study: many simulated robots calibrated by compiled, vmapped solves, in chunks of
+bounded memory shared over devices, compared with the simulated truth and with the Cramér–Rao
+bound; resumable when its chunks are kept in a folder (:mod:`._study`)."""
 
 from __future__ import annotations
 
@@ -11,14 +12,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import as_f64
 from ..calibration import Options, calibrate_batch, identify
 from ..error_model import perturb
 from ..identifiability import base_covariance, row_sigmas
 from ..kinematics import fk
 from ..model import Layout, Model, jacobian
 from ..robot import Robot
-from ..simulation import simulate
+from ..sharding import describe, select_devices
+from ..simulation import error_scales, measure, sample_poses
 from ..solvers import design_poses
+from ._study import StudyFolder, fingerprint
 from ._timing import machine_info
 
 
@@ -46,10 +50,45 @@ def _jacobians(robot, q, *, layout: Layout):
     return jax.vmap(lambda q_: jacobian(model, layout, q_))(q)
 
 
-def crlb_batch(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None) -> np.ndarray:
-    """Cramér–Rao covariance of the base parameters for each robot's pose set ``q (R, K, n)`` at
-    the nominal model, averaged over robots: :func:`jaxcal.identifiability.crlb` for all robots
-    at once (:func:`jaxcal.identifiability.base_covariance` on the stacked Jacobians)."""
+@eqx.filter_jit
+def _information(robot, q, w, *, layout: Layout, base: tuple[int, ...]):
+    """``(R, r, r)`` Fisher information ``Jb^T Jb`` of the base columns, rows weighted by ``w``:
+    each robot's Jacobian reduced where it is made."""
+    model = Model(robot, jnp.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+
+    def one(q_):
+        Jb = jacobian(model, layout, q_).reshape(-1, layout.size)[:, list(base)] * w[:, None]
+        return Jb.T @ Jb
+
+    return jax.vmap(one)(q)
+
+
+def crlb_variances(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None) -> np.ndarray:
+    """``(R, r)`` Cramér–Rao variances of the base parameters for each robot's pose set ``q (R,
+    K, n)`` at the nominal model: the diagonal of :func:`jaxcal.identifiability.crlb`, from each
+    robot's column-scaled information matrix, :data:`CRLB_SLICE` robots at a time (a slice's
+    Jacobians are the largest arrays of a study)."""
+    q = np.asarray(q)
+    R, K = q.shape[:2]
+    sig = row_sigmas(
+        K,
+        position_only=layout.n_points > 0,
+        sigma_pos_mm=sigma_pos,
+        sigma_rot_rad=None if layout.n_points else sigma_rot,
+    )
+    step = min(R, CRLB_SLICE)
+    padded = np.concatenate([q, np.repeat(q[-1:], -R % step, 0)])  # whole slices: one compile
+    fn = lambda s: _information(robot.stripped(), padded[s : s + step], 1 / sig, layout=layout, base=tuple(ident.base))  # noqa: E731
+    N = np.concatenate([np.asarray(fn(s)) for s in range(0, len(padded), step)])[:R]
+    d = np.sqrt(np.diagonal(N, axis1=-2, axis2=-1))  # column scales: inv of a matrix with unit diagonal
+    return np.diagonal(np.linalg.inv(N / (d[:, :, None] * d[:, None, :])), axis1=-2, axis2=-1) / d**2
+
+
+CRLB_SLICE = 256
+"""Robots per Cramér–Rao evaluation of :func:`crlb_variances`."""
+
+
+def _crlb_each(robot, q, ident, layout, sigma_pos, sigma_rot) -> np.ndarray:
     J = np.asarray(_jacobians(robot.stripped(), jnp.asarray(q), layout=layout))
     R, K = np.shape(q)[:2]
     sig = row_sigmas(
@@ -59,17 +98,58 @@ def crlb_batch(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigm
         sigma_rot_rad=None if layout.n_points else sigma_rot,
     )
     Jb = J.reshape(R, -1, J.shape[-1])[..., list(ident.base)] / sig[:, None]
-    return np.mean(base_covariance(Jb), axis=0)
+    return base_covariance(Jb)
 
 
-def _true_x(robot: Robot, sim, layout: Layout) -> np.ndarray:
+def crlb_batch(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None) -> np.ndarray:
+    """Cramér–Rao covariance of the base parameters for each robot's pose set ``q (R, K, n)`` at
+    the nominal model, averaged over robots: :func:`jaxcal.identifiability.crlb` for all robots
+    at once (:func:`jaxcal.identifiability.base_covariance` on the stacked Jacobians)."""
+    return np.mean(_crlb_each(robot, q, ident, layout, sigma_pos, sigma_rot), axis=0)
+
+
+def _true_x(x_true, layout: Layout) -> np.ndarray:
     """The simulated truth in the calibration's layout: a tool twist becomes the tool point's
     offset for position data."""
-    x = np.asarray(sim.x_true)
+    x = np.asarray(x_true)
     if not (layout.n_points and layout.tool):
         return x
     k = layout.n_kin + 6 * layout.base
     return x[:, : k + 3]  # the tool's translation is the point's offset (perturb's chart)
+
+
+@eqx.filter_jit
+def _draw(robot: Robot, key, idx, scales, q_given, sigmas, *, n_poses: int, n_val: int, base: bool, tool: bool, design):
+    """Robots ``idx`` of a study: true errors, poses, noisy measurements, inspection poses and
+    their true poses. Robot ``i``'s draw depends on ``(key, i)`` alone, so a study's results do
+    not depend on how it is chunked, on the devices, or on being resumed."""
+
+    def one(i):
+        kx, kq, kv, kn = jax.random.split(jax.random.fold_in(key, i), 4)
+        x = jax.random.normal(kx, scales.shape, dtype=jnp.float64) * scales
+        if design is not None:
+            q = design_poses(kq, robot, n_pairs=design[0], n_abs=design[1])
+        else:
+            q = sample_poses(kq, robot, (n_poses,)) if q_given is None else q_given
+        meas = measure(robot, x, q, kn, sigma_pos=sigmas[0], sigma_rot=sigmas[1], base=base, tool=tool)
+        qv = sample_poses(kv, robot, (n_val,))
+        return x, q, meas, qv, fk(perturb(robot, x, base=base, tool=tool), qv)
+
+    return jax.vmap(one)(idx)
+
+
+def default_chunk(n_robots: int, n_poses: int, n_val: int, n_joints: int, memory_mb: float, n_devices: int) -> int:
+    """Robots per study chunk within ``memory_mb``: the chunk's draws (poses, measurements,
+    inspection poses) and their few working copies; all robots when they fit, else a power of
+    two, at least one per device and at most :data:`MAX_CHUNK_ROBOTS`."""
+    per_robot = 8 * (n_poses + n_val) * (16 + n_joints) * 6
+    cap = max(int(memory_mb * 2**20 // per_robot), n_devices, 1)
+    cap = min(2 ** int(np.log2(cap)), MAX_CHUNK_ROBOTS)
+    return int(n_robots if n_robots <= cap else cap)
+
+
+MAX_CHUNK_ROBOTS = 8192
+"""Most robots per study chunk: a chunk is also the unit of work lost to an interruption."""
 
 
 def run_montecarlo(
@@ -89,14 +169,27 @@ def run_montecarlo(
     repeats: int = 3,
     memory_mb: float = 1024.0,
     progress=None,
+    devices: str | int | None = "all",
+    out=None,
+    chunk_robots: int | None = None,
+    max_chunks: int | None = None,
 ) -> dict:
     """Simulate ``n_robots`` robots, calibrate them all, and summarise against the truth and the
     Cramér–Rao bound.
 
-    The simulated robots carry DH errors, and base and tool errors when those are estimated.
-    ``q`` gives the calibration poses of every robot (``(K, n)``, e.g. a pose design) instead of
-    drawing them. ``progress(stage: str)`` is called before each stage. Timing: the first call
-    (compile + run) and ``repeats`` further runs; ``compile_seconds`` = first - median run.
+    The robots are drawn, calibrated and summarised in chunks of ``chunk_robots`` (default: as
+    many as fit in ``memory_mb``, :func:`default_chunk`), so memory does not grow with
+    ``n_robots``; each chunk is shared over ``devices`` (:func:`jaxcal.calibrate_batch`). With
+    ``out`` (a folder), each chunk's results are written as it completes and a rerun continues
+    where the last stopped (:class:`._study.StudyFolder`); ``max_chunks`` stops after that many
+    chunks of this call (a job with a time limit). The simulated robots carry DH errors, and base
+    and tool errors when those are estimated. ``q`` gives the calibration poses of every robot
+    (``(K, n)``, e.g. a pose design) instead of drawing them. ``progress(done, total, stage)`` is
+    called as robots complete.
+
+    Timing: the first chunk of this call includes compiling; the later chunks are warm runs. A
+    call that computes a single chunk reruns it ``repeats`` times to time it warm (the chunk,
+    never the whole study). ``compile_seconds`` = the first chunk's time minus its warm estimate.
     """
     from ..errors import DataError
     from ..solvers import METHODS
@@ -104,36 +197,49 @@ def run_montecarlo(
     for name, v in (("robots", n_robots), ("poses", n_poses), ("val_poses", n_val), ("repeats", repeats + 1)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
             raise DataError(f"{name} must be an integer >= 1, got {v!r}", option=name)
+    for name, v in (("chunk_robots", chunk_robots), ("max_chunks", max_chunks)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1):
+            raise DataError(f"{name} must be an integer >= 1, got {v!r}", option=name)
     methods = METHODS + ("elimination", "elimination-literal")
     if method not in methods:
         raise DataError(f"method must be one of {', '.join(methods)}, got {method!r}", option="method")
     for name, v in (("noise_mm", sigma_pos), ("noise_rad", sigma_rot)):
         if not (np.isfinite(v) and v >= 0):
             raise DataError(f"{name} must be >= 0, got {v}", option=name)
-    step = progress or (lambda s: None)
+    if not (np.isfinite(memory_mb) and memory_mb > 0):
+        raise DataError(f"memory_mb must be > 0, got {memory_mb}", option="memory_mb")
+    devs = select_devices(devices)
+    step = progress or (lambda done, total, stage: None)
     noisy = sigma_pos > 0 or sigma_rot > 0
-    step("simulating")
-    if method.startswith("elimination"):
-        # the elimination method needs its pair design; n_poses sets the pairs per step
-        n_pairs = max(1, (n_poses - 2) // (2 * (robot.n_joints - 1)))
-        q = design_poses(
-            jax.random.fold_in(jax.random.PRNGKey(seed), 7), robot, n_pairs=n_pairs, n_abs=2, batch_shape=(n_robots,)
-        )
-    if q is not None:
-        n_poses = int(np.shape(q)[-2])
-    sim = simulate(
-        robot,
-        n_robots=n_robots,
-        n_poses=n_poses,
-        n_val=n_val,
-        seed=seed,
-        sigma_pos=sigma_pos,
-        sigma_rot=sigma_rot,
-        base=estimate_base,
-        tool=estimate_tool,
-        q=q,
-    )
-    measured = sim.measured[..., :3, 3] if position_only else sim.measured
+    design = None
+    if method.startswith("elimination"):  # its pair design; n_poses sets the pairs per step
+        design = (max(1, (n_poses - 2) // (2 * (robot.n_joints - 1))), 2)
+        n_poses = 2 * (robot.n_joints - 1) * design[0] + design[1]
+        q = None
+    elif q is not None:
+        q = np.asarray(as_f64(q, "q"))
+        if q.ndim != 2 or q.shape[1] != robot.n_joints or not np.all(np.isfinite(q)):
+            raise DataError(f"q must be finite with shape (K, {robot.n_joints}), got {q.shape}", option="q")
+        n_poses = q.shape[0]
+    definition = {
+        "robot": robot.name,
+        "robot_fingerprint": fingerprint(robot.stripped()),
+        "method": method,
+        "n_robots": n_robots,
+        "n_poses": n_poses,
+        "n_val": n_val,
+        "noise": {"sigma_pos_mm": sigma_pos, "sigma_rot_rad": sigma_rot},
+        "seed": seed,
+        "position_only": position_only,
+        "estimate_base": estimate_base,
+        "estimate_tool": estimate_tool,
+        "poses_fingerprint": None if q is None else fingerprint(q),
+        "chunk_robots": chunk_robots or default_chunk(n_robots, n_poses, n_val, robot.n_joints, memory_mb, len(devs)),
+    }
+    folder = StudyFolder(out, definition) if out is not None else None
+    c = folder.chunk_robots if folder is not None else definition["chunk_robots"]
+    n_chunks = -(-n_robots // c)
+    done = folder.done(n_chunks) if folder is not None else np.zeros(n_chunks, bool)
     opts = Options(
         method=method,
         estimate_base=estimate_base,
@@ -143,26 +249,53 @@ def run_montecarlo(
         sigma_rot_rad=sigma_rot if noisy else None,
         memory_mb=memory_mb,
     )
-    ident = identify(robot, sim.q[0], opts, n_points=int(position_only))
-    step("compiling (first call)")
-    t0 = time.perf_counter()
-    res = calibrate_batch(robot, sim.q, measured, opts, ident=ident)
-    first = time.perf_counter() - t0
-    runs = []
-    for i in range(repeats):
-        step(f"timing run {i + 1}/{repeats}")
-        t0 = time.perf_counter()
-        res = calibrate_batch(robot, sim.q, measured, opts, ident=ident)
-        runs.append(time.perf_counter() - t0)
-    run_s = statistics.median(runs) if runs else first
-    step("evaluating")
-    layout = res.layout
+    stripped = robot.stripped()
+    scales = error_scales(robot, base=estimate_base, tool=estimate_tool)
+
+    def draw(i):  # chunk i, the last padded to a whole chunk by repeating its last robot: one compile
+        idx = np.minimum(np.arange(i * c, (i + 1) * c), n_robots - 1)
+        kw = dict(n_poses=n_poses, n_val=n_val, base=estimate_base, tool=estimate_tool, design=design)
+        sigmas = np.array([sigma_pos, sigma_rot])
+        return [np.asarray(a) for a in _draw(stripped, jax.random.PRNGKey(seed), idx, scales, q, sigmas, **kw)]
+
+    ident = identify(robot, draw(0)[1][0], opts, n_points=int(position_only))  # on robot 0's poses
     base_idx = list(ident.base)
-    x_true = _true_x(robot, sim, layout)
-    target = x_true @ ident.combination_matrix.T  # what the base set estimates
-    err = res.x[:, base_idx] - target  # (R, r)
-    names = [ident.names[i] for i in base_idx]
-    out = {
+    acc = _Sums.empty(len(base_idx))
+    for i in np.flatnonzero(done):
+        acc.add(folder.load(int(i)))
+    step(acc.n, n_robots, "robots")
+    first, warm, computed = None, [], 0
+    t_start = time.perf_counter()
+    for i in np.flatnonzero(~done):
+        if max_chunks is not None and computed >= max_chunks:
+            break
+        x_true, q_i, meas, q_val, true_val = draw(int(i))
+        measured = _measured(meas, position_only)
+        t0 = time.perf_counter()
+        res = calibrate_batch(robot, q_i, measured, opts, ident=ident, devices=devs)
+        dt = time.perf_counter() - t0
+        if first is None:
+            first = (len(q_i), dt, (q_i, measured))
+        else:  # warm chunks time themselves: the first chunk's data are not needed again
+            warm.append((len(q_i), dt))
+            first = first[:2] + (None,)
+        rec = _record(robot, res, x_true, q_i, q_val, true_val, ident, sigma_pos, sigma_rot, noisy)
+        n_i = min(c, n_robots - i * c)  # without the padding
+        rec = {k: v[:n_i] for k, v in rec.items()}
+        rec["robots"] = np.array([i * c, i * c + n_i])
+        if folder is not None:
+            folder.save(int(i), rec)
+        acc.add(rec)
+        computed += 1
+        step(acc.n, n_robots, "robots")
+    wall = time.perf_counter() - t_start
+    if first is not None and not warm:  # one chunk: time it again, warm (that chunk alone)
+        for r in range(repeats):
+            step(r, repeats, "timing")
+            t0 = time.perf_counter()
+            calibrate_batch(robot, *first[2], opts, ident=ident, devices=devs)
+            warm.append((first[0], time.perf_counter() - t0))
+    out_d = {
         "robot": robot.name,
         "method": method,
         "n_robots": n_robots,
@@ -173,41 +306,108 @@ def run_montecarlo(
         "position_only": position_only,
         "estimate_base": estimate_base,
         "estimate_tool": estimate_tool,
-        "robots_per_second": n_robots / run_s,
-        "run_seconds": run_s,
-        "run_seconds_all": runs,
-        "compile_seconds": max(first - run_s, 0.0),
-        "first_call_seconds": first,
-        "converged_fraction": float(res.converged.mean()),
-        "max_steps_taken": int(res.num_steps.max()),
+        "devices": describe(devs),
+        "chunk_robots": c,
+        "chunks": n_chunks,
+        "chunks_done": int(done.sum()) + computed,
+        "chunks_computed": computed,
+        "complete": acc.n == n_robots,
+        **_timing(first, warm, wall),
         "rank": ident.rank,
         "n_params": len(ident.names),
-        "fixed": [ident.names[i] for i in ident.fixed],
+        "fixed": [ident.names[k] for k in ident.fixed],
         "combinations": list(ident.combinations),
-        "param_rms_error": dict(zip(names, np.sqrt(np.mean(err**2, 0)).tolist())),
-        "param_rms_error_max": float(np.sqrt(np.mean(err**2, 0)).max()),
-        "validation_pos_rms_mm": float(
-            np.sqrt(
-                np.mean(
-                    np.asarray(
-                        _validation_rms(
-                            robot.stripped(),
-                            jnp.asarray(res.x),
-                            jnp.asarray(sim.q_val),
-                            jnp.asarray(sim.true_val),
-                            layout=layout,
-                        )
-                    )
-                    ** 2
-                )
-            )
-        ),
+        **acc.summary([ident.names[k] for k in base_idx], noisy),
         "machine": machine_info(),
     }
-    if noisy:
-        cov = crlb_batch(robot, sim.q, ident, layout, sigma_pos=sigma_pos, sigma_rot=sigma_rot)
-        emp = np.mean(err**2, 0)
-        eff = np.diag(cov) / emp
-        out["crlb_efficiency"] = dict(zip(names, eff.tolist()))
-        out["crlb_efficiency_mean"] = float(eff.mean())
-    return out
+    if folder is not None and out_d["complete"]:
+        folder.write_summary(out_d)
+    return out_d
+
+
+def _measured(meas, position_only: bool):
+    return meas[..., :3, 3] if position_only else meas
+
+
+def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot, noisy) -> dict:
+    """One chunk's results: per robot the estimates, truths, base-set errors, convergence and
+    inspection RMS; the chunk's sum of Cramér–Rao covariances."""
+    layout = res.layout
+    x_t = _true_x(x_true, layout)
+    err = res.x[:, list(ident.base)] - x_t @ ident.combination_matrix.T  # what the base set estimates
+    val = _validation_rms(
+        robot.stripped(), jnp.asarray(res.x), jnp.asarray(q_val), jnp.asarray(true_val), layout=layout
+    )
+    rec = {
+        "x": res.x,
+        "x_true": x_t,
+        "err": err,
+        "converged": res.converged,
+        "steps": res.num_steps,
+        "val_rms": np.asarray(val),
+    }
+    if noisy:  # each robot's bound on the base set's variances
+        rec["crlb_var"] = crlb_variances(robot, q, ident, layout, sigma_pos=sigma_pos, sigma_rot=sigma_rot)
+    return rec
+
+
+class _Sums:
+    """Running sums over chunks, from which the summary follows (memory independent of the
+    robot count)."""
+
+    def __init__(self, r: int):
+        self.n, self.conv, self.max_steps = 0, 0, 0
+        self.err2, self.val2, self.crlb = np.zeros(r), 0.0, np.zeros(r)
+
+    @classmethod
+    def empty(cls, r: int) -> _Sums:
+        return cls(r)
+
+    def add(self, rec: dict) -> None:
+        self.n += len(rec["err"])
+        self.conv += int(np.sum(rec["converged"]))
+        self.max_steps = max(self.max_steps, int(np.max(rec["steps"])))
+        self.err2 = self.err2 + np.sum(rec["err"] ** 2, 0)
+        self.val2 += float(np.sum(rec["val_rms"] ** 2))
+        if "crlb_var" in rec:
+            self.crlb = self.crlb + np.sum(rec["crlb_var"], 0)
+
+    def summary(self, names, noisy: bool) -> dict:
+        n = max(self.n, 1)
+        rms = np.sqrt(self.err2 / n)
+        out = {
+            "robots_done": self.n,
+            "converged_fraction": self.conv / n,
+            "max_steps_taken": self.max_steps,
+            "param_rms_error": dict(zip(names, rms.tolist())),
+            "param_rms_error_max": float(rms.max()),
+            "validation_pos_rms_mm": float(np.sqrt(self.val2 / n)),
+        }
+        if noisy:
+            eff = (self.crlb / n) / (self.err2 / n)
+            out["crlb_efficiency"] = dict(zip(names, eff.tolist()))
+            out["crlb_efficiency_mean"] = float(eff.mean())
+        return out
+
+
+def _timing(first, warm, wall: float) -> dict:
+    """Speed of this call's chunks: warm robots per second, compile time apart."""
+    if first is None:  # nothing left to compute
+        return {
+            "robots_per_second": None,
+            "run_seconds": None,
+            "run_seconds_all": [],
+            "compile_seconds": None,
+            "first_call_seconds": None,
+            "wall_seconds": wall,
+        }
+    runs = [t for _, t in warm]
+    rate = sum(n for n, _ in warm) / sum(runs) if warm else first[0] / first[1]
+    return {
+        "robots_per_second": rate,
+        "run_seconds": statistics.median(runs) if runs else first[1],
+        "run_seconds_all": runs,
+        "compile_seconds": max(first[1] - first[0] / rate, 0.0),
+        "first_call_seconds": first[1],
+        "wall_seconds": wall,
+    }

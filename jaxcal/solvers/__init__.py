@@ -16,6 +16,7 @@ from ._engine import METHODS as METHODS
 from ._engine import PIN as PIN
 from ._engine import Solution as Solution
 from ._engine import fit as fit
+from ._engine import gauss_newton as gauss_newton
 from ._engine import least_squares as least_squares
 from ._engine import outlier_threshold as outlier_threshold
 from ._engine import robust_scale as robust_scale

@@ -1,10 +1,13 @@
-r"""The one Gauss–Newton / Levenberg–Marquardt engine: optimistix on a residual whose Jacobian is
-given analytically.
+r"""The one Gauss–Newton / Levenberg–Marquardt engine, on residuals whose Jacobian is given
+analytically.
 
 :func:`least_squares` wraps ``optx.least_squares`` for any residual that comes with its exact
 Jacobian (``jax.custom_jvp``, so optimistix never differentiates through forward kinematics;
-that made Gauss–Newton several times faster, ``benchmarks/bench_gn_batch.py``). :func:`fit` is
-the calibration solve built on it and used by every workflow:
+that made Gauss–Newton several times faster, ``benchmarks/bench_gn_batch.py``).
+:func:`gauss_newton` is Gauss–Newton on the normal equations, for small full-rank problems whose
+``J^T J`` can be formed where the Jacobian is made. :func:`fit` is the calibration solve used by
+every workflow: Gauss–Newton (and the one-step ``linear``) on :func:`gauss_newton`,
+Levenberg–Marquardt on :func:`least_squares`:
 
 $$\min_y \sum_k w_k |W e_k(x)|^2 + \sum_j (p_j x_j)^2,\qquad x = \text{scatter}(\text{free}, y)$$
 
@@ -129,7 +132,7 @@ class Solution(eqx.Module):
     x: Float[Array, " m"]
     """The full parameter vector (non-free entries at their reference, 0)."""
     converged: Bool[Array, ""]
-    """optimistix reported success (tolerances met) and every value is finite."""
+    """The solver met its tolerances and every value is finite."""
     steps: Int[Array, ""]
     """Solver steps taken (summed over robust rounds)."""
 
@@ -184,6 +187,37 @@ def least_squares(
     sol = optx.least_squares(fn, _solver(method, rtol, atol), y0, args=args, max_steps=max_steps, throw=False)
     ok = (sol.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(sol.value))
     return sol.value, ok, sol.stats["num_steps"]
+
+
+def gauss_newton(normal, z0: Float[Array, " p"], args, *, max_steps: int = 50, rtol: float = 1e-8, atol: float = 1e-8):
+    r"""Gauss–Newton on the normal equations: ``normal(z, args) -> (A, g)`` gives ``J^T J`` and
+    ``J^T r`` at ``z``, and each step solves ``A dz = g`` by Cholesky and moves to ``z - dz``. Pure
+    and vmappable.
+
+    Made for the small, full-rank, column-scaled problems of :func:`fit`: ``normal`` reduces each
+    Jacobian to its ``p x p`` normal matrix where it is made, so no Jacobian is carried from step
+    to step (optimistix's Gauss–Newton keeps it as a linear operator in its loop state), and a
+    step is one Jacobian, one product and one ``p x p`` Cholesky. It stops when a step is within
+    the tolerances, ``max_j |dz_j| / (atol + rtol |z_j|) < 1``, and returns the point after that
+    step: Newton's quadratic convergence makes it as accurate as one more step would.
+
+    **Returns** ``(z, converged, steps)``; ``converged`` is False when ``max_steps`` was reached
+    or a value is not finite (a singular ``A``).
+    """
+
+    def body(c):
+        z, _, k, _ = c
+        A, g = normal(z, args)
+        dz = jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(A), True), g)
+        small = jnp.max(jnp.abs(dz) / (atol + rtol * jnp.abs(z))) < 1
+        return z - dz, small, k + 1, jnp.all(jnp.isfinite(dz))
+
+    def more(c):
+        return ~c[1] & (c[2] < max_steps) & c[3]
+
+    c0 = (z0, jnp.asarray(False), jnp.asarray(0), jnp.asarray(True))
+    z, small, steps, finite = jax.lax.while_loop(more, body, c0)
+    return z, small & finite & jnp.all(jnp.isfinite(z)), steps
 
 
 def fit(
@@ -253,7 +287,21 @@ def fit(
         JT = jnp.concatenate([Jw.reshape(len(free), -1) * scale[:, None], jnp.diag(prior * scale)], 1)
         return r, JT
 
+    def normal(z, sqrt_pw):  # J^T J and J^T r of rj's system, the data rows reduced where they are made
+        y = scale * z
+        ew, Jw = weighted(y, sqrt_pw)
+        Jf = Jw.reshape(len(free), -1)
+        ps = prior * scale
+        A = scale[:, None] * (Jf @ Jf.T) * scale[None, :] + jnp.diag(ps**2)
+        return A, scale * (Jf @ ew.reshape(-1)) + ps * (prior * y)
+
     def solve(z0, pw):
+        if method == "gn":
+            return gauss_newton(normal, z0, jnp.sqrt(pw), max_steps=max_steps, rtol=rtol, atol=atol)
+        if method == "linear":  # one Gauss-Newton step from the start
+            A, g = normal(z0, jnp.sqrt(pw))
+            z = z0 - jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(A), True), g)
+            return z, jnp.all(jnp.isfinite(z)), jnp.asarray(1)
         return least_squares(
             rj, z0, jnp.sqrt(pw), method=method, max_steps=max_steps, rtol=rtol, atol=atol, transposed=True
         )

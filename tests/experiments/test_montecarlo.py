@@ -7,7 +7,7 @@ import pytest
 
 import jaxcal
 from jaxcal.calibration import calibrate_batch, identify
-from jaxcal.experiments import crlb_batch, run_montecarlo
+from jaxcal.experiments import crlb_batch, crlb_variances, run_montecarlo
 from jaxcal.simulation import simulate
 
 DH = dict(estimate_base=False, estimate_tool=False)
@@ -117,3 +117,7 @@ def test_batched_crlb_equals_per_robot_crlb():
         )
         got = crlb_batch(robot, q, ident, Layout.of(robot, n_points=int(position_only)), sigma_pos=0.02, sigma_rot=2e-5)
         np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+        each = crlb_variances(
+            robot, q, ident, Layout.of(robot, n_points=int(position_only)), sigma_pos=0.02, sigma_rot=2e-5
+        )  # the study's per-robot variances, from the information matrix
+        np.testing.assert_allclose(each.mean(0), np.diag(ref), rtol=1e-9)

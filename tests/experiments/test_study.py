@@ -1,0 +1,55 @@
+"""A Monte Carlo study in chunks: interrupted after a chunk, rerun with the same folder, it
+computes only the missing chunks and ends with the summary of an uninterrupted study."""
+
+import json
+
+import numpy as np
+import pytest
+
+import jaxcal
+from jaxcal.errors import DataError
+from jaxcal.experiments import run_montecarlo
+from jaxcal.simulation import error_scales
+
+ROBOT = jaxcal.preset("paper-6r")
+STUDY = dict(n_robots=20, n_poses=12, n_val=4, seed=7, chunk_robots=8, repeats=0, devices=None)
+SAME = ("robots_done", "converged_fraction", "max_steps_taken", "param_rms_error", "validation_pos_rms_mm")
+
+
+def _chunks(folder):
+    return sorted(folder.glob("chunk-*.npz"))
+
+
+def test_an_interrupted_study_resumes_where_it_stopped(tmp_path):
+    whole = run_montecarlo(ROBOT, out=tmp_path / "whole", **STUDY)
+    assert whole["complete"] and whole["chunks"] == 3 and whole["chunks_computed"] == 3
+    assert whole["devices"] == ["cpu:0 (process 0)"]  # the report names the devices used
+    assert json.loads((tmp_path / "whole" / "summary.json").read_text())["robots_done"] == 20
+
+    part = tmp_path / "part"
+    a = run_montecarlo(ROBOT, out=part, max_chunks=1, **STUDY)
+    assert not a["complete"] and a["robots_done"] == 8 and len(_chunks(part)) == 1
+    assert not (part / "summary.json").exists()
+    first = _chunks(part)[0].read_bytes()
+    b = run_montecarlo(ROBOT, out=part, **STUDY)
+    assert b["complete"] and b["chunks_computed"] == 2 and b["chunks_done"] == 3
+    assert _chunks(part)[0].read_bytes() == first  # the finished chunk was not computed again
+    for k in SAME:
+        assert b[k] == pytest.approx(whole[k], rel=1e-12, abs=0), k
+    # every robot's results in the files, the last chunk without its padding
+    x = np.concatenate([np.load(f)["x"] for f in _chunks(part)])
+    ref = np.concatenate([np.load(f)["x"] for f in _chunks(tmp_path / "whole")])
+    assert x.shape == (20, 24) and np.abs(x - ref).max() < 1e-12
+    # the truths are the simulated errors: distinct robots, at the documented scales
+    xt = np.concatenate([np.load(f)["x_true"] for f in _chunks(part)])
+    assert len(np.unique(xt[:, 0])) == 20
+    assert np.std(xt / error_scales(ROBOT), axis=0).mean() == pytest.approx(1.0, abs=0.25)
+
+
+def test_a_folder_of_another_study_is_refused(tmp_path):
+    run_montecarlo(ROBOT, out=tmp_path, max_chunks=1, **STUDY)
+    with pytest.raises(DataError, match=r"holds another study \(n_poses: 12 there, 14 now\)"):
+        run_montecarlo(ROBOT, out=tmp_path, **dict(STUDY, n_poses=14))
+    (tmp_path / "file").write_text("")
+    with pytest.raises(DataError, match="is a file, not a folder"):
+        run_montecarlo(ROBOT, out=tmp_path / "file", **STUDY)
