@@ -295,17 +295,9 @@ def run_montecarlo(
             t0 = time.perf_counter()
             calibrate_batch(robot, *first[2], opts, ident=ident, devices=devs)
             warm.append((first[0], time.perf_counter() - t0))
-    out_d = {
-        "robot": robot.name,
-        "method": method,
-        "n_robots": n_robots,
-        "n_poses": n_poses,
-        "n_val": n_val,
-        "noise": {"sigma_pos_mm": sigma_pos, "sigma_rot_rad": sigma_rot},
-        "seed": seed,
-        "position_only": position_only,
-        "estimate_base": estimate_base,
-        "estimate_tool": estimate_tool,
+    described = ("robot", "method", "n_robots", "n_poses", "n_val", "noise", "seed")
+    described += ("position_only", "estimate_base", "estimate_tool")
+    out_d = {k: definition[k] for k in described} | {
         "devices": describe(devs),
         "chunk_robots": c,
         "chunks": n_chunks,
