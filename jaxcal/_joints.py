@@ -26,6 +26,13 @@ def _corrections(robot: Robot):
     return robot.origins @ E
 
 
+def _motion(axis, value, turn):
+    """``M(value)``: a turn about (``turn`` 1) or a shift along (``turn`` 0) the unit ``axis``;
+    ``value`` of any shape, the transforms ``(*value.shape, 4, 4)``."""
+    v = value[..., None]
+    return make_transform(so3_exp(axis * v * turn), axis * v * (1.0 - turn))
+
+
 def joint_chain(robot: Robot, q: Float[Array, "K n"]):
     """``(F (n, K, 4, 4), R_H (n, K, 3, 3), G (K, 4, 4))``: each joint's frame before its motion
     (correction applied), the rotation before the correction, and ``base O_1 E_1 M_1 ... M_n``."""
@@ -38,8 +45,7 @@ def joint_chain(robot: Robot, q: Float[Array, "K n"]):
         OE_i, O_i, a_i, r_i, v_i = xs
         F = G @ OE_i
         R_H = G[:, :3, :3] @ O_i[:3, :3]
-        M = make_transform(so3_exp(a_i * (v_i * r_i)[:, None]), a_i * (v_i * (1.0 - r_i))[:, None])
-        return F @ M, (F, R_H)
+        return F @ _motion(a_i, v_i, r_i), (F, R_H)
 
     G0 = jnp.broadcast_to(robot.base, (K, 4, 4))
     G, (F, R_H) = jax.lax.scan(step, G0, (OE, robot.origins, robot.axes, rev, val))
@@ -54,10 +60,8 @@ def joint_fk(robot: Robot, q: Float[Array, "K n"]) -> Float[Array, "K 4 4"]:
 def joint_frames_after(robot: Robot, q: Float[Array, "K n"]) -> Float[Array, "K n 4 4"]:
     """Each joint's frame after its motion (the child link's frame)."""
     F, _, _ = joint_chain(robot, q)
-    rev = robot.revolute_mask
-    val = q.T + robot.dh[:, 0:1]
-    a = robot.axes[:, None, :]
-    M = make_transform(so3_exp(a * (val * rev[:, None])[..., None]), a * (val * (1.0 - rev[:, None]))[..., None])
+    val = q.T + robot.dh[:, 0:1]  # (n, K)
+    M = _motion(robot.axes[:, None, :], val, robot.revolute_mask[:, None, None])
     return jnp.swapaxes(F @ M, 0, 1)
 
 

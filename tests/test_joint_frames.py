@@ -97,3 +97,13 @@ def test_recovers_a_perturbed_urdf_from_four_points(tmp_path, tiago):
     before = np.linalg.norm(np.asarray(predict(nominal, q_val)) - truth(q_val), axis=-1)
     assert before.max() > 100 * err.max()  # the perturbation mattered
     assert err.max() < 5e-3, err.max()  # recovered to the noise level (0.1 um per coordinate)
+
+
+def test_frames_end_in_the_tool_pose(tiago):
+    """``fk_frames``' last frame (the last joint after its motion) times the tool is ``fk``."""
+    from jaxcal import fk, fk_frames
+
+    q = _q(tiago, np.random.default_rng(4), 5)
+    frames = np.asarray(fk_frames(tiago, q))
+    assert frames.shape == (5, tiago.n_joints, 4, 4)
+    np.testing.assert_allclose(frames[:, -1] @ np.asarray(tiago.tool), np.asarray(fk(tiago, q)), atol=1e-9)

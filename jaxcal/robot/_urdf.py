@@ -226,7 +226,7 @@ def urdf_text(
             j.origin = _m(_mm(j.origin) @ _folded(robot, i))
         base_link, tip_link = _chain(doc, str(template), base_link, tip_link)[1:]
         # the nominal tool is the template's fixed joints after the last movable one
-        _, nominal_tool = _tool_of(doc, robot.joint_names[-1], tip_link)
+        nominal_tool = _tool_of(doc, robot.joint_names[-1], tip_link)
     else:
         doc = yourdfpy.Robot(name=robot.name)
         doc.links.append(yourdfpy.Link(name="base_link"))
@@ -288,18 +288,15 @@ def urdf_text(
     return text
 
 
-def _tool_of(doc, last_joint: str, tip_link: str):
-    """``(link, T)``: the last movable joint's child and the product of the fixed joints from it
-    to ``tip_link`` (mm)."""
+def _tool_of(doc, last_joint: str, tip_link: str) -> np.ndarray:
+    """The product of the fixed joints from the last movable joint's child to ``tip_link`` (mm):
+    the nominal tool as :func:`read_urdf` builds it."""
     by_child = {j.child: j for j in doc.joints}
     T, link = np.eye(4), tip_link
-    chain = []
     while by_child[link].name != last_joint:
-        chain.append(by_child[link])
+        T = _mm(by_child[link].origin) @ T
         link = by_child[link].parent
-    for j in reversed(chain):
-        T = T @ _mm(j.origin)
-    return link, T
+    return T
 
 
 def save_urdf(robot: Robot, path, *, points=None, template=None, base_link=None, tip_link=None, comment=None) -> None:

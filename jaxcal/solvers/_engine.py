@@ -189,6 +189,12 @@ def least_squares(
     return sol.value, ok, sol.stats["num_steps"]
 
 
+def newton_step(normal, z: Float[Array, " p"], args) -> Float[Array, " p"]:
+    """The Gauss–Newton step ``dz`` (move to ``z - dz``) of the normal equations at ``z``."""
+    A, g = normal(z, args)
+    return jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(A), True), g)
+
+
 def gauss_newton(normal, z0: Float[Array, " p"], args, *, max_steps: int = 50, rtol: float = 1e-8, atol: float = 1e-8):
     r"""Gauss–Newton on the normal equations: ``normal(z, args) -> (A, g)`` gives ``J^T J`` and
     ``J^T r`` at ``z``, and each step solves ``A dz = g`` by Cholesky and moves to ``z - dz``. Pure
@@ -207,8 +213,7 @@ def gauss_newton(normal, z0: Float[Array, " p"], args, *, max_steps: int = 50, r
 
     def body(c):
         z, _, k, _ = c
-        A, g = normal(z, args)
-        dz = jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(A), True), g)
+        dz = newton_step(normal, z, args)
         small = jnp.max(jnp.abs(dz) / (atol + rtol * jnp.abs(z))) < 1
         return z - dz, small, k + 1, jnp.all(jnp.isfinite(dz))
 
@@ -299,8 +304,7 @@ def fit(
         if method == "gn":
             return gauss_newton(normal, z0, jnp.sqrt(pw), max_steps=max_steps, rtol=rtol, atol=atol)
         if method == "linear":  # one Gauss-Newton step from the start
-            A, g = normal(z0, jnp.sqrt(pw))
-            z = z0 - jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(A), True), g)
+            z = z0 - newton_step(normal, z0, jnp.sqrt(pw))
             return z, jnp.all(jnp.isfinite(z)), jnp.asarray(1)
         return least_squares(
             rj, z0, jnp.sqrt(pw), method=method, max_steps=max_steps, rtol=rtol, atol=atol, transposed=True

@@ -2,6 +2,8 @@
 kinematics (NumPy DH products), errors per point and pose, rotation in degrees, and posture
 groups relative to training data."""
 
+import json
+
 import numpy as np
 import pytest
 from helpers import dh_fk, measurement_csv, run_cli
@@ -49,9 +51,12 @@ def test_cli_on_a_toml_model_with_points(tmp_path, monkeypatch, capsys):
     rows = [",".join(repr(float(v)) for v in np.concatenate([q[k], meas[k].ravel()])) for k in range(20)]
     (tmp_path / "d.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
     save_robot(ur5.replace(dh=dh), tmp_path / "true.toml", points=pts)  # the true arm: zero error
-    code, out, err = run_cli(monkeypatch, capsys, "evaluate", tmp_path / "true.toml", tmp_path / "d.csv")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "evaluate", tmp_path / "true.toml", tmp_path / "d.csv", "--json", tmp_path / "e.json"
+    )
     assert code in (0, None), err
-    assert "0.000" in out
+    rep = json.loads((tmp_path / "e.json").read_text())
+    assert len(rep["points"]) == 2 and rep["position_max_mm"] < 1e-9  # the true arm predicts its own data
     save_robot(ur5.replace(dh=dh), tmp_path / "one.toml", points=pts[:1])
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", tmp_path / "one.toml", tmp_path / "d.csv")
     assert code == 2 and "2 point(s) per pose" in err
