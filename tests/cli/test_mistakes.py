@@ -55,6 +55,13 @@ def _quaternion_xyzw(text):
     return "\n".join(out) + "\n"
 
 
+def _mirrored_y(poses):
+    """Positions from a measurement frame whose y axis points the other way (left-handed)."""
+    out = np.array(poses, copy=True)
+    out[:, 1, 3] *= -1
+    return out
+
+
 MISTAKES = {
     "x and y swapped": (lambda t: _relabel(_csv(t), {"x": "y", "y": "x"}), "swapped x, y"),
     "joints 2 and 3 swapped": (lambda t: _relabel(_csv(t), {"q2": "q3", "q3": "q2"}), "joints 2 and 3 swapped"),
@@ -63,6 +70,7 @@ MISTAKES = {
         "joints reversed",
     ),
     "quaternion x, y, z, w": (lambda t: _quaternion_xyzw(_csv(t)), "quaternion written x, y, z, w"),
+    "y axis mirrored": (lambda t: _csv(t, poses=_mirrored_y(t["poses"])), "mirrored y"),
 }
 
 
