@@ -4,10 +4,11 @@ analytically.
 :func:`least_squares` wraps ``optx.least_squares`` for any residual that comes with its exact
 Jacobian (``jax.custom_jvp``, so optimistix never differentiates through forward kinematics;
 that made Gauss–Newton several times faster, ``benchmarks/bench_gn_batch.py``).
-:func:`gauss_newton` is Gauss–Newton on the normal equations, for small full-rank problems whose
-``J^T J`` can be formed where the Jacobian is made. :func:`fit` is the calibration solve used by
-every workflow: Gauss–Newton (and the one-step ``linear``) on :func:`gauss_newton`,
-Levenberg–Marquardt on :func:`least_squares`:
+:func:`gauss_newton` is Gauss–Newton on the normal equations through ``optx.root_find`` (Newton's
+method on the stationarity condition), for small full-rank problems whose ``J^T J`` can be
+formed where the Jacobian is made. :func:`fit` is the calibration solve used by every workflow:
+Gauss–Newton (and the one-step ``linear``) on :func:`gauss_newton`, Levenberg–Marquardt on
+:func:`least_squares`; both optimistix:
 
 $$\min_y \sum_k w_k |W e_k(x)|^2 + \sum_j (p_j x_j)^2,\qquad x = \text{scatter}(\text{free}, y)$$
 
@@ -196,33 +197,45 @@ def newton_step(normal, z: Float[Array, " p"], args) -> Float[Array, " p"]:
 
 
 def gauss_newton(normal, z0: Float[Array, " p"], args, *, max_steps: int = 50, rtol: float = 1e-8, atol: float = 1e-8):
-    r"""Gauss–Newton on the normal equations: ``normal(z, args) -> (A, g)`` gives ``J^T J`` and
-    ``J^T r`` at ``z``, and each step solves ``A dz = g`` by Cholesky and moves to ``z - dz``. Pure
+    r"""Gauss–Newton on the normal equations, run by optimistix's Newton root finder:
+    ``normal(z, args) -> (A, g)`` gives ``A = J^T J = L L^T`` and ``g = J^T r`` at ``z``. Pure
     and vmappable.
 
-    Made for the small, full-rank, column-scaled problems of :func:`fit`: ``normal`` reduces each
-    Jacobian to its ``p x p`` normal matrix where it is made, so no Jacobian is carried from step
-    to step (optimistix's Gauss–Newton keeps it as a linear operator in its loop state), and a
-    step is one Jacobian, one product and one ``p x p`` Cholesky. It stops when a step is within
-    the tolerances, ``max_j |dz_j| / (atol + rtol |z_j|) < 1``, and returns the point after that
-    step: Newton's quadratic convergence makes it as accurate as one more step would.
+    Gauss–Newton is Newton's method on the stationarity condition ``J^T r = 0`` with ``A`` for
+    its Jacobian. ``optx.Newton`` runs it on the whitened gradient ``f = L^{-1} g / c`` (``c =``
+    :data:`COLUMN_NORM`, the scale of ``L`` after :func:`fit`'s column scaling), declared to have
+    the Jacobian ``L^T / c``: each step solves ``L^T dz = L^{-1} g``, i.e. ``A dz = g``, and
+    moves to ``z - dz``. ``f`` is then ``L^T dz / c``, so optimistix's Cauchy test (``|dz_j| <
+    atol + rtol |z_j|`` and ``|f| < atol``) looks at that same step twice, in ``z`` and in the
+    metric of ``A``, and stops after the first step within the tolerances.
+
+    ``normal`` reduces each Jacobian to its ``p x p`` normal matrix where it is made, so no
+    ``(rows, p)`` Jacobian is carried from step to step as in ``optx.GaussNewton``: made for the
+    small, full-rank, column-scaled problems of :func:`fit`.
 
     **Returns** ``(z, converged, steps)``; ``converged`` is False when ``max_steps`` was reached
     or a value is not finite (a singular ``A``).
     """
 
-    def body(c):
-        z, _, k, _ = c
-        dz = newton_step(normal, z, args)
-        small = jnp.max(jnp.abs(dz) / (atol + rtol * jnp.abs(z))) < 1
-        return z - dz, small, k + 1, jnp.all(jnp.isfinite(dz))
+    def whitened(z, args_):
+        A, g = normal(z, args_)
+        L = jnp.linalg.cholesky(A)
+        return jax.scipy.linalg.solve_triangular(L, g, lower=True) / COLUMN_NORM, L
 
-    def more(c):
-        return ~c[1] & (c[2] < max_steps) & c[3]
+    @jax.custom_jvp
+    def f(z, args_):
+        return whitened(z, args_)[0]
 
-    c0 = (z0, jnp.asarray(False), jnp.asarray(0), jnp.asarray(True))
-    z, small, steps, finite = jax.lax.while_loop(more, body, c0)
-    return z, small & finite & jnp.all(jnp.isfinite(z)), steps
+    @f.defjvp
+    def f_jvp(primals, tangents):  # L^T / c stands for f's Jacobian: the Gauss–Newton model
+        f_z, L = whitened(*primals)
+        return f_z, L.T @ tangents[0] / COLUMN_NORM
+
+    solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=lx.Triangular())
+    tags = frozenset({lx.upper_triangular_tag})
+    sol = optx.root_find(f, solver, z0, args, max_steps=max_steps, throw=False, tags=tags)
+    ok = (sol.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(sol.value))
+    return sol.value, ok, sol.stats["num_steps"]
 
 
 def fit(
