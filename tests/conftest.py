@@ -11,6 +11,10 @@ os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 # optimisations compiles about twice as fast, and the tests check values, not speed
 # (benchmarks/ measures speed with the default compiler).
 os.environ.setdefault("JAX_DISABLE_MOST_OPTIMIZATIONS", "1")
+# XLA CPU's older loop emitters compile these programs about twice as fast as its fusion
+# emitters (and run them slower, which the tests do not mind); not for benchmarks or the CLI.
+if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_use_fusion_emitters=false").strip()
 
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
