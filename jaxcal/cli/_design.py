@@ -47,6 +47,12 @@ def design(
         None, help="box the measured point(s) must stay in: xmin,ymin,zmin,xmax,ymax,zmax (mm, robot base frame)"
     ),
     val_poses: int = typer.Option(200, "--val-poses", help="random validation poses of the validation criterion"),
+    validation: Path = typer.Option(
+        None,
+        "--validation",
+        help="pose file of the validation criterion's poses (where the calibrated arm will work); "
+        "replaces the --val-poses random ones",
+    ),
     random_sets: int = typer.Option(200, "--random-sets", help="random pose sets to compare the design with"),
     json_out: Path = typer.Option(None, "--json", help="write the design's summary as JSON"),
 ):
@@ -54,6 +60,7 @@ def design(
     chosen from a pool; compared with random poses of the same count."""
     from .._io import check_writable, write_atomic
     from ..design import design_problem, optimal_poses, read_poses, select_poses, write_poses
+    from ..errors import DataError
 
     check_writable(out, "out")
     if json_out is not None:
@@ -66,6 +73,12 @@ def design(
     points = [_numbers(p, 3, "point") for p in point] if point else None
     n_points = len(points) if points else int(position_only)
     candidates = read_poses(pool, r) if pool is not None else None
+    q_val = None
+    if validation is not None:
+        try:
+            q_val = read_poses(validation, r)
+        except DataError as e:  # the file's own message, said of the option that named it
+            raise DataError(f"validation: {e}", option="validation") from None
     with console.status("building the design problem") as status:
         problem = design_problem(
             r,
@@ -73,6 +86,7 @@ def design(
             n_points=n_points,
             points=points,
             n_val=val_poses,
+            q_val=q_val,
             seed=seed,
             estimate_base=estimate_base,
             estimate_tool=estimate_tool,
@@ -86,9 +100,15 @@ def design(
             result = select_poses(problem, candidates, poses, **common)
         else:
             result = optimal_poses(problem, poses, starts=starts, **common)
+    if q_val is not None:
+        console.print(f"validation poses: {len(q_val)} from {validation}", highlight=False, markup=False)
     console.print(result.report(), highlight=False, markup=False, soft_wrap=True)
     write_poses(out, result.q, r)
     console.print(f"wrote {out}")
     if json_out is not None:
-        write_atomic(json_out, json.dumps(result.to_dict(), indent=2))
+        summary = result.to_dict()
+        summary["validation_poses"] = (
+            {"file": str(validation), "count": len(q_val)} if q_val is not None else {"random": val_poses, "seed": seed}
+        )
+        write_atomic(json_out, json.dumps(summary, indent=2))
         console.print(f"wrote {json_out}")

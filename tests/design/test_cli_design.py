@@ -33,3 +33,53 @@ def test_design_bad_region_names_the_flag(monkeypatch, capsys, tmp_path):
         monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", tmp_path / "p.csv", "--region", "1,2,3"
     )
     assert code == 2 and "--region" in err and not (tmp_path / "p.csv").exists()
+
+
+def _pose_file(path, q):
+    """A pose file written with NumPy (header q1..qN, rad)."""
+    path.write_text(
+        ",".join(f"q{i + 1}" for i in range(q.shape[1]))
+        + "\n"
+        + "\n".join(",".join(repr(float(v)) for v in r) for r in q)
+    )
+    return path
+
+
+def test_validation_file_sets_the_criterion_poses(monkeypatch, capsys, tmp_path):
+    """--validation: the design's validation RMS is the criterion at the file's poses (the API's
+    evaluate with q_val, itself checked against the CRLB in test_design), not at random ones."""
+    import numpy as np
+
+    import jaxcal
+    from jaxcal import design
+
+    robot = jaxcal.preset("paper-6r")
+    lim = np.asarray(robot.q_limits)
+    rng = np.random.default_rng(11)
+    pool = _pose_file(tmp_path / "pool.csv", lim[:, 0] + rng.uniform(size=(40, 6)) * (lim[:, 1] - lim[:, 0]))
+    q_val = rng.uniform(-0.3, 0.3, size=(6, 6))  # a small working region, unlike the random default
+    val = _pose_file(tmp_path / "val.csv", q_val)
+    out, js = tmp_path / "poses.csv", tmp_path / "design.json"
+    code, stdout, err = run_cli(
+        monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", out, "--pool", pool,
+        "--validation", val, "--no-estimate-base", "--no-estimate-tool", "--random-sets", "10", "--json", js,
+    )  # fmt: skip
+    assert code in (0, None), err
+    d = json.loads(js.read_text())
+    assert d["validation_poses"] == {"file": str(val), "count": 6}
+    chosen = design.read_poses(out, robot)
+    frames = dict(estimate_base=False, estimate_tool=False)
+    at_file = design.evaluate(design.design_problem(robot, q_val=q_val, **frames), chosen)["validation_rms_mm"]
+    at_random = design.evaluate(design.design_problem(robot, **frames), chosen)["validation_rms_mm"]
+    np.testing.assert_allclose(d["values"]["validation_rms_mm"], at_file, rtol=1e-9)
+    assert abs(at_file - at_random) > 0.01 * at_random
+
+
+def test_bad_validation_file_names_the_flag(monkeypatch, capsys, tmp_path):
+    val = tmp_path / "val.csv"
+    val.write_text("q1,q2,q3,q4,q5,q6\n0,0,0,zero,0,0\n")
+    out = tmp_path / "p.csv"
+    code, _, err = run_cli(monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", out, "--validation", val)
+    err = " ".join(err.split())
+    assert code == 2 and "--validation" in err and "Traceback" not in err, err
+    assert not out.exists()
