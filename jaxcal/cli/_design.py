@@ -5,20 +5,23 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from ._app import app, console, load_robot_arg
 
 
-def _numbers(text: str, count: int, option: str) -> list[float]:
+def _numbers(text: str, count: int | tuple[int, ...], option: str) -> list[float]:
     from ..errors import DataError
 
+    counts = (count,) if isinstance(count, int) else count
     try:
         out = [float(t) for t in text.split(",")]
     except ValueError:
         out = []
-    if len(out) != count:
-        raise DataError(f"{option} must be {count} comma-separated numbers, got {text!r}", option=option)
+    if len(out) not in counts:
+        said = " or ".join(map(str, counts))
+        raise DataError(f"{option} must be {said} comma-separated numbers, got {text!r}", option=option)
     return out
 
 
@@ -46,6 +49,12 @@ def design(
     region: str = typer.Option(
         None, help="box the measured point(s) must stay in: xmin,ymin,zmin,xmax,ymax,zmax (mm, robot base frame)"
     ),
+    view: str = typer.Option(
+        None,
+        help="a camera's view cone the measured point(s) must stay in: X,Y,Z,DX,DY,DZ,HALF_ANGLE[,NEAR,FAR] "
+        "(camera position and viewing direction in mm, robot base frame; half-angle in deg; range along "
+        "the axis in mm)",
+    ),
     val_poses: int = typer.Option(200, "--val-poses", help="random validation poses of the validation criterion"),
     validation: Path = typer.Option(
         None,
@@ -70,6 +79,10 @@ def design(
     if region is not None:
         v = _numbers(region, 6, "region")
         box = (v[:3], v[3:])
+    cone = None
+    if view is not None:
+        v = _numbers(view, (7, 9), "view")
+        cone = (v[:3], v[3:6], np.radians(v[6]), *v[7:])
     points = [_numbers(p, 3, "point") for p in point] if point else None
     n_points = len(points) if points else int(position_only)
     candidates = read_poses(pool, r) if pool is not None else None
@@ -95,7 +108,7 @@ def design(
             sigma_rot_rad=noise_rad,
         )
         status.update(f"designing {poses} poses ({'pool' if pool else 'gradient'}, {criterion})")
-        common = dict(min_spread=min_spread, region=box, seed=seed, n_random=random_sets)
+        common = dict(min_spread=min_spread, region=box, view=cone, seed=seed, n_random=random_sets)
         if candidates is not None:
             result = select_poses(problem, candidates, poses, **common)
         else:

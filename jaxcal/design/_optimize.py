@@ -4,8 +4,8 @@ once.
 
 The joint limits are kept by a smooth reparametrisation, ``q = c + h sin(u)`` with ``c`` the
 middle and ``h`` the half range of each joint: every ``u`` is a configuration within the
-limits, and the optimiser runs unconstrained. The minimum spread and the region are quadratic
-penalties on slightly tightened constraints (so that the optimum, which sits a hair beyond a
+limits, and the optimiser runs unconstrained. The minimum spread, the box and the view cone are
+quadratic penalties on slightly tightened constraints (so that the optimum, which sits a hair beyond a
 penalised bound, still satisfies the given one); a design is checked against the given
 constraints afterwards.
 """
@@ -23,7 +23,15 @@ from jaxtyping import Array, Float
 
 from ..errors import DataError
 from ._bfgs import minimise
-from ._constraints import Constraints, constraints, feasible, min_distance, random_feasible, random_values
+from ._constraints import (
+    Constraints,
+    constraints,
+    feasible,
+    min_distance,
+    random_feasible,
+    random_values,
+    view_coordinates,
+)
 from ._problem import DesignProblem, information, loss, loss_of, measures, tool_positions, values_of
 from ._result import PoseDesign, frozen
 
@@ -35,6 +43,12 @@ BOX_MARGIN = 0.005
 """The penalised box is this fraction of its size smaller on every side."""
 BOX_LENGTH = 0.01
 """A violation of this fraction of the box's size costs ``PENALTY``."""
+VIEW_MARGIN = 0.01
+"""The penalised view cone's half-angle is this fraction smaller, its range 1 mm shorter at each end."""
+VIEW_ANGLE = 0.01
+"""A point this many rad outside the view cone costs ``PENALTY``."""
+VIEW_LENGTH = 10.0
+"""A point this many mm before or beyond the view's range costs ``PENALTY``."""
 
 
 def penalty(problem: DesignProblem, cons: Constraints, q: Float[Array, "K n"]) -> Float[Array, ""]:
@@ -50,7 +64,10 @@ def penalty(problem: DesignProblem, cons: Constraints, q: Float[Array, "K n"]) -
     lo, hi = cons.box_lower + BOX_MARGIN * size, cons.box_upper - BOX_MARGIN * size
     p = tool_positions(problem.model, problem.layout, q)
     viol = (jax.nn.relu(p - hi) + jax.nn.relu(lo - p)) / (BOX_LENGTH * size)
-    return PENALTY * (pen + cons.box_on * jnp.sum(viol**2))
+    along, angle = view_coordinates(cons, p)
+    off = jax.nn.relu(angle - (1 - VIEW_MARGIN) * cons.view_half_angle) / VIEW_ANGLE
+    off += (jax.nn.relu(cons.view_near + 1.0 - along) + jax.nn.relu(along - cons.view_far + 1.0)) / VIEW_LENGTH
+    return PENALTY * (pen + cons.box_on * jnp.sum(viol**2) + cons.view_on * jnp.sum(off**2))
 
 
 def to_q(problem: DesignProblem, u):
@@ -114,6 +131,7 @@ def optimal_poses(
     seed: int = 0,
     min_spread: float = 0.0,
     region=None,
+    view=None,
     q0=None,
     max_steps: int = 500,
     tol: float = 1e-6,
@@ -129,7 +147,9 @@ def optimal_poses(
       the random comparison. ``q0 (S, N, n)`` or ``(N, n)`` gives the starts instead.
     * ``min_spread``: smallest joint-space Euclidean distance between two configurations (rad;
       mm for prismatic joints). ``region``: ``(lower xyz, upper xyz)`` in mm, a box in the frame
-      of the forward kinematics that every measured point must stay in.
+      of the forward kinematics that every measured point must stay in. ``view``: ``(origin
+      xyz, axis xyz, half_angle[, near, far])`` (mm, rad), a camera's view cone in that frame
+      that every measured point must stay in.
     * ``max_steps``, ``tol``: BFGS's limit on evaluations (trial points) and its tolerance on
       the change of the loss, O(1), and of the reparametrised joint values.
     * ``n_random``: random pose sets of the same count to compare with.
@@ -147,7 +167,7 @@ def optimal_poses(
             f"parameters; need at least {need}",
             option="n_poses",
         )
-    cons = constraints(min_spread, region)
+    cons = constraints(min_spread, region, view)
     rng = np.random.default_rng([seed, 2])
     if q0 is None:
         q0 = random_feasible(problem, cons, (starts, n_poses), rng)
@@ -165,7 +185,7 @@ def optimal_poses(
     best = int(np.lexsort((np.where(np.isfinite(losses), losses, np.inf), ~good))[0])
     if not good[best]:
         warnings.warn(
-            "no start met the constraints (min_spread, region): the design returned violates them; "
+            "no start met the constraints (min_spread, region, view): the design returned violates them; "
             "loosen them or add starts",
             stacklevel=2,
         )

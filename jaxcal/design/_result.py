@@ -81,7 +81,7 @@ class PoseDesign:
                 f"{LABELS[c]:<44} {value(c, self.values):>12.5g} {med:>14.5g} "
                 f"{self.random_fraction_better(c):>13.1%} {self.equivalent_random_poses(c):>22.1f}"
             )
-        lines.append(f"(random: {R} sets of {N} poses uniform within the joint limits, and the region if given)")
+        lines.append(f"(random: {R} sets of {N} poses within the joint limits, region and view if given)")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:

@@ -25,7 +25,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._config import as_f64
 from ..errors import DataError
-from ._constraints import constraints, feasible, in_box, min_distance, positions, random_values
+from ._constraints import constraints, feasible, in_region, min_distance, positions, random_values
 from ._problem import DesignProblem, blocks, measures_batch, values_of
 from ._result import PoseDesign, frozen
 
@@ -141,14 +141,16 @@ def select_poses(
     *,
     min_spread: float = 0.0,
     region=None,
+    view=None,
     max_swaps: int | None = None,
     seed: int = 0,
     n_random: int = 200,
 ) -> PoseDesign:
     """The best ``n_poses`` configurations of ``pool (P, n)`` for the problem's criterion.
 
-    **Arguments**: ``pool`` joint values (rad, mm) within the robot's limits; ``min_spread`` and
-    ``region`` as for :func:`optimal_poses` (pool poses that leave the region are never chosen);
+    **Arguments**: ``pool`` joint values (rad, mm) within the robot's limits; ``min_spread``,
+    ``region`` and ``view`` as for :func:`optimal_poses` (pool poses that leave them are never
+    chosen);
     ``max_swaps`` the most exchanges (default ``10 n_poses``); ``seed`` and ``n_random`` the
     comparison with random pose sets (drawn uniformly within the limits, as for the gradient
     design, not from the pool).
@@ -179,10 +181,10 @@ def select_poses(
         raise DataError(f"pool has {len(pool)} poses, fewer than the {n_poses} asked for", option="pool")
     if problem.layout.rows * n_poses < problem.n_base:
         raise DataError(f"n_poses: {n_poses} poses cannot identify {problem.n_base} base parameters", option="n_poses")
-    cons = constraints(min_spread, region)
+    cons = constraints(min_spread, region, view)
     allowed = np.ones(len(pool), bool)
-    if cons.has_box:
-        allowed = in_box(cons, np.asarray(positions(problem, jnp.asarray(pool))))
+    if cons.has_region:
+        allowed = in_region(cons, np.asarray(positions(problem, jnp.asarray(pool))))
     d = np.sqrt(np.sum((pool[:, None] - pool[None]) ** 2, -1))
     close = d < float(cons.spread)
     t0 = time.perf_counter()
@@ -190,7 +192,7 @@ def select_poses(
     start = np.asarray(_greedy(problem, L, jnp.asarray(allowed), jnp.asarray(close), n_poses))
     if np.any(start < 0):
         raise DataError(
-            f"pool: only {int(np.sum(start >= 0))} poses satisfy the region and the minimum spread together, "
+            f"pool: only {int(np.sum(start >= 0))} poses satisfy the region, the view and the minimum spread together, "
             f"fewer than the {n_poses} asked for",
             option="pool",
         )

@@ -83,3 +83,11 @@ def test_bad_validation_file_names_the_flag(monkeypatch, capsys, tmp_path):
     err = " ".join(err.split())
     assert code == 2 and "--validation" in err and "Traceback" not in err, err
     assert not out.exists()
+
+
+def test_design_bad_view_names_the_flag(monkeypatch, capsys, tmp_path):
+    code, _, err = run_cli(
+        monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", tmp_path / "p.csv", "--view", "0,0,0,1,0,0"
+    )
+    err = " ".join(err.split())
+    assert code == 2 and "--view must be 7 or 9 comma-separated numbers" in err and not (tmp_path / "p.csv").exists()

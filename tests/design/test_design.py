@@ -91,6 +91,51 @@ def test_design_respects_limits_spread_and_region(robot):
         design.optimal_poses(pb, N, region=([0, 1, 0], [1, 0, 1]))
 
 
+VIEW = ([2500.0, 0.0, 300.0], [-1.0, 0.0, 0.0], np.radians(12.0), 1500.0, 3500.0)
+"""A camera 2.5 m in front of the arm looking back at it: about a third of random poses in view."""
+
+
+def _in_view(robot, q):
+    """Angle from the camera's axis (rad) and distance along it (mm) of the tool point, by the
+    NumPy forward kinematics of the tests (apart from jaxcal's)."""
+    from helpers import dh_fk
+
+    T = dh_fk(robot.dh, q, convention=robot.convention, joint_types=robot.joint_types, base=robot.base, tool=robot.tool)
+    v = T[:, :3, 3] - VIEW[0]
+    along = v @ VIEW[1]
+    radial = np.linalg.norm(v - along[:, None] * np.asarray(VIEW[1]), axis=1)
+    return np.arctan2(radial, along), along
+
+
+def test_design_and_pool_keep_the_tool_in_a_camera_view(robot, problem):
+    """The gradient design and the pool selection keep every tool point inside the view cone and
+    its range; random starts of the comparison are drawn inside it too."""
+    d = design.optimal_poses(problem, N, starts=STARTS, seed=2, view=VIEW, n_random=20)
+    assert d.feasible
+    angle, along = _in_view(robot, d.q)
+    assert np.all(angle <= VIEW[2]) and np.all((along >= VIEW[3]) & (along <= VIEW[4])), (angle, along)
+    pool = _random_q(robot, 120, 8)
+    angle_pool, _ = _in_view(robot, pool)
+    assert 0.1 < np.mean(angle_pool <= VIEW[2]) < 0.6  # the cone really excludes poses
+    s = design.select_poses(problem, pool, N, view=VIEW, n_random=20)
+    angle, along = _in_view(robot, s.q)
+    assert np.all(angle <= VIEW[2]) and np.all((along >= VIEW[3]) & (along <= VIEW[4]))
+
+
+@pytest.mark.parametrize(
+    "view, msg",
+    [
+        (([0, 0, 0], [1, 0, 0], np.radians(95)), "half-angle must be between 0 and 90 deg"),
+        (([0, 0, 0], [0, 0, 0], 0.3), "axis must not be zero"),
+        (([0, 0, 0], [1, 0, 0], 0.3, 500.0, 100.0), "need 0 <= near < far"),
+        (([0, 0, 0], [1, 0, 0]), "view must be"),
+    ],
+)
+def test_bad_view_is_named(problem, view, msg):
+    with pytest.raises(DataError, match=msg):
+        design.optimal_poses(problem, N, view=view)
+
+
 def test_pool_selection_no_single_swap_improves(robot, problem):
     """The exchange's Woodbury scores against every swap evaluated directly."""
     pool = _random_q(robot, 30, 7)
