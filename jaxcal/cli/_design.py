@@ -25,6 +25,19 @@ def _numbers(text: str, count: int | tuple[int, ...], option: str) -> list[float
     return out
 
 
+def _read_poses_for(path, robot, option: str):
+    """The pose file given to ``option`` (None if not given); its errors are said of the option."""
+    from ..design import read_poses
+    from ..errors import DataError
+
+    if path is None:
+        return None
+    try:
+        return read_poses(path, robot)
+    except DataError as e:
+        raise DataError(f"{option}: {e}", option=option) from None
+
+
 @app.command()
 def design(
     robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name (paper-6r, puma560, ur5, panda)"),
@@ -68,8 +81,7 @@ def design(
     """Design calibration poses: optimised by gradient through the identification Jacobian, or
     chosen from a pool; compared with random poses of the same count."""
     from .._io import check_writable, write_atomic
-    from ..design import design_problem, optimal_poses, read_poses, select_poses, write_poses
-    from ..errors import DataError
+    from ..design import design_problem, optimal_poses, select_poses, write_poses
 
     check_writable(out, "out")
     if json_out is not None:
@@ -85,13 +97,8 @@ def design(
         cone = (v[:3], v[3:6], np.radians(v[6]), *v[7:])
     points = [_numbers(p, 3, "point") for p in point] if point else None
     n_points = len(points) if points else int(position_only)
-    candidates = read_poses(pool, r) if pool is not None else None
-    q_val = None
-    if validation is not None:
-        try:
-            q_val = read_poses(validation, r)
-        except DataError as e:  # the file's own message, said of the option that named it
-            raise DataError(f"validation: {e}", option="validation") from None
+    candidates = _read_poses_for(pool, r, "pool")
+    q_val = _read_poses_for(validation, r, "validation")
     with console.status("building the design problem") as status:
         problem = design_problem(
             r,

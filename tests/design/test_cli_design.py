@@ -3,6 +3,7 @@ simulated calibration lands near the design's predicted validation RMS."""
 
 import json
 
+import pytest
 from helpers import run_cli
 
 
@@ -75,13 +76,14 @@ def test_validation_file_sets_the_criterion_poses(monkeypatch, capsys, tmp_path)
     assert abs(at_file - at_random) > 0.01 * at_random
 
 
-def test_bad_validation_file_names_the_flag(monkeypatch, capsys, tmp_path):
-    val = tmp_path / "val.csv"
-    val.write_text("q1,q2,q3,q4,q5,q6\n0,0,0,zero,0,0\n")
+@pytest.mark.parametrize("flag", ["--validation", "--pool"])
+def test_bad_pose_file_names_its_flag(monkeypatch, capsys, tmp_path, flag):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("q1,q2,q3,q4,q5,q6\n0,0,0,zero,0,0\n")
     out = tmp_path / "p.csv"
-    code, _, err = run_cli(monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", out, "--validation", val)
+    code, _, err = run_cli(monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", out, flag, bad)
     err = " ".join(err.split())
-    assert code == 2 and "--validation" in err and "Traceback" not in err, err
+    assert code == 2 and f"{flag}: " in err and "column 'q4': not a number" in err and "Traceback" not in err, err
     assert not out.exists()
 
 
