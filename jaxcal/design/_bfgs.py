@@ -6,8 +6,8 @@ Why not :func:`optimistix.minimise`: its compiled program holds the objective's 
 several places, and the design objective (the gradient of a function of the identification
 Jacobian) is expensive to compile; with one evaluation per iteration a first design compiles
 markedly faster, and compile time is most of what a user waits for (``benchmarks/bench_design.py``
-times it). Each iteration either accepts a trial point (and
-updates the inverse Hessian) or halves the step.
+times it). Each iteration either accepts a trial point (and updates the inverse Hessian) or
+halves the step.
 """
 
 from __future__ import annotations

@@ -188,12 +188,12 @@ def random_feasible(problem: DesignProblem, cons: Constraints, shape: tuple[int,
         tried += n
     pool = np.concatenate(found)
     if len(pool) < K:
+        option = "region" if cons.has_box else "view"
+        shape = " and the ".join(n for n, on in (("box", cons.has_box), ("view cone", cons.has_view)) if on)
         raise DataError(
-            f"{'region' if cons.has_box else 'view'}: only {len(pool)} of {tried} random configurations within "
-            f"the joint limits keep the tool in the {'box' if cons.has_box else 'view cone'}"
-            f"{' and the view cone' if cons.has_box and cons.has_view else ''}, fewer than the {K} poses asked "
-            f"for; check it (mm, robot base frame)",
-            option="region" if cons.has_box else "view",
+            f"{option}: only {len(pool)} of {tried} random configurations within the joint limits keep the "
+            f"tool in the {shape}, fewer than the {K} poses asked for; check it (mm, robot base frame)",
+            option=option,
         )
     idx = rng.choice(len(pool), size=want, replace=len(pool) < want)
     return pool[idx].reshape(R, K, -1)

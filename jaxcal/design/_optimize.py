@@ -88,14 +88,15 @@ def _objective(u, args):
 
 @eqx.filter_jit
 def _optimise(problem: DesignProblem, cons: Constraints, q0: Float[Array, "S K n"], *, max_steps: int, tol: float):
-    """BFGS from every start ``q0[s]`` in one program: final configurations, their :func:`measures`,
-    convergence flags and evaluations."""
+    """BFGS from every start ``q0[s]`` in one program: final configurations, their :func:`measures`
+    and criterion loss (without penalty), convergence flags and evaluations."""
     vg = jax.value_and_grad(_objective)
 
     def one(q_):
         u, f, conv, n = minimise(vg, to_u(problem, q_), (problem, cons), max_evals=max_steps, tol=tol)
         q = to_q(problem, u)
-        return q, measures(problem, information(problem, q)), conv, n
+        m = measures(problem, information(problem, q))
+        return q, m, loss_of(problem, m), conv, n
 
     # one start after another: batched LAPACK calls (Cholesky) inside a vmapped while_loop ran
     # 10-40x slower than the same starts in turn on the CPU backend
@@ -107,14 +108,6 @@ def objective_and_grad(problem: DesignProblem, q: Float[Array, "K n"]):
     """The criterion's loss (:func:`jaxcal.design.loss`) and its gradient with respect to the
     joint values."""
     return jax.value_and_grad(lambda q_: loss(problem, q_))(q)
-
-
-def _loss_np(problem: DesignProblem, m) -> float:
-    """:func:`loss_of` of one row of :func:`measures_batch`, in NumPy (inf when singular)."""
-    if not np.all(np.isfinite(m)):
-        return np.inf
-    terms = np.array([-m[0] / problem.n_base, np.log(m[1]), np.log(m[2])])
-    return float(terms[np.asarray(problem.weights) > 0][0])
 
 
 def _count(name: str, v, lo: int) -> int:
@@ -177,10 +170,10 @@ def optimal_poses(
         if q0.shape[1:] != (n_poses, problem.lower.shape[0]):
             raise DataError(f"q0 must have shape (S, {n_poses}, {problem.lower.shape[0]}), got {q0.shape}", option="q0")
     t0 = time.perf_counter()
-    q, m, ok, evals = (np.asarray(a) for a in _optimise(problem, cons, jnp.asarray(q0), max_steps=max_steps, tol=tol))
+    out = _optimise(problem, cons, jnp.asarray(q0), max_steps=max_steps, tol=tol)
+    q, m, losses, ok, evals = (np.asarray(a) for a in out)
     seconds = time.perf_counter() - t0
     q = np.clip(q, np.asarray(problem.lower), np.asarray(problem.upper))  # rounding of c + h sin(u)
-    losses = np.array([_loss_np(problem, r) for r in m])
     good = np.array([np.isfinite(losses[s]) and feasible(problem, cons, q[s]) for s in range(len(q))])
     best = int(np.lexsort((np.where(np.isfinite(losses), losses, np.inf), ~good))[0])
     if not good[best]:

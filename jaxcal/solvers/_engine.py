@@ -163,17 +163,9 @@ def least_squares(
     parameter by parameter needs no transpose). Pure and vmappable.
 
     **Returns** ``(y, converged, steps)``; ``converged`` is False when optimistix did not report
-    success (e.g. ``max_steps`` reached) or the result is not finite. ``method="linear"`` takes
-    one Gauss–Newton step from ``y0``.
+    success (e.g. ``max_steps`` reached) or the result is not finite. ``method``: ``"gn"`` or
+    ``"lm"`` (:func:`fit` takes its one-step ``"linear"`` on the normal equations itself).
     """
-    if method == "linear":
-        r, J = rj(y0, args)
-        J = J.T if transposed else J
-        # the normal equations, as GN: full rank (base set, scaled columns), and LAPACK QR of a tall
-        # matrix per robot was slower than the whole GN solve in a batch
-        dy = lx.linear_solve(lx.MatrixLinearOperator(J), -r, lx.Normal(lx.Cholesky()), throw=False).value
-        y = y0 + dy
-        return y, jnp.all(jnp.isfinite(y)), jnp.asarray(1)
 
     @jax.custom_jvp
     def fn(y, args):

@@ -129,6 +129,7 @@ def test_design_and_pool_keep_the_tool_in_a_camera_view(robot, problem):
         (([0, 0, 0], [0, 0, 0], 0.3), "axis must not be zero"),
         (([0, 0, 0], [1, 0, 0], 0.3, 500.0, 100.0), "need 0 <= near < far"),
         (([0, 0, 0], [1, 0, 0]), "view must be"),
+        (([5000, 0, 0], [1, 0, 0], 0.1), r"view: only 0 of \d+ random configurations .* in the view cone"),
     ],
 )
 def test_bad_view_is_named(problem, view, msg):
