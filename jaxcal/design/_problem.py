@@ -39,6 +39,7 @@ from ..identifiability import analyze
 from ..kinematics import check_q
 from ..model import Layout, Model, jacobian, predict, row_weights
 from ..robot import Robot
+from ._report import report_options
 
 CRITERIA = ("d", "a", "validation")
 DEFAULT_SIGMA_POS_MM = 0.02
@@ -197,6 +198,7 @@ def design_problem(
     q_val=None,
     n_val: int = 200,
     seed: int = 0,
+    params_from=None,
     **kw,
 ) -> DesignProblem:
     """The design problem of a calibration of ``robot`` with these options.
@@ -214,9 +216,14 @@ def design_problem(
       the tool origin).
     * ``q_val (V, n)``: the validation poses; default ``n_val`` poses uniform within the joint
       limits, drawn with ``seed``. They also fix the base set and the column scale.
+    * ``params_from``: a ``jaxcal calibrate --json`` report (path or dict): design for the
+      parameters that calibration estimated, and its ``estimate_base``/``estimate_tool``
+      (:func:`jaxcal.design.report_options`); keywords given here win over the report.
     """
     if criterion not in CRITERIA:
         raise DataError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", option="criterion")
+    if params_from is not None:
+        kw = report_options(params_from, robot) | kw
     opts = options_of(options, kw)
     for name, v, lo in (("n_points", n_points, 0), ("n_val", n_val, 1), ("seed", seed, 0)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:

@@ -5,6 +5,7 @@ constraints, and the pool exchange against a brute-force check of every single s
 One small problem (paper 6R arm, full pose, frames known, 8 poses, 2 starts) serves every test,
 so that they share their compiled programs with the command-line test."""
 
+import jax
 import numpy as np
 import pytest
 
@@ -172,3 +173,57 @@ def test_pose_file_round_trip_and_errors(robot, tmp_path):
     (tmp_path / "short.csv").write_text("q1,q2,q3,q4,q5\n0,0,0,0,0\n")
     with pytest.raises(DataError, match="q1..q5"):
         design.read_poses(tmp_path / "short.csv", robot)
+
+
+def test_random_poses_keep_the_conditions_and_depend_on_the_set_index(robot):
+    """The sampler the design and the Monte Carlo share: every pose in the view cone (and, with a
+    box, in the box) by the NumPy forward kinematics, the spread kept, and set i the same
+    whichever sets are drawn with it."""
+    from helpers import dh_fk
+
+    q = design.random_poses(robot, N, n_sets=3, view=VIEW, min_spread=0.5, seed=4)
+    assert q.shape == (3, N, 6)
+    lim = np.asarray(robot.q_limits)
+    assert np.all(q >= lim[:, 0]) and np.all(q <= lim[:, 1])
+    angle, along = _in_view(robot, q.reshape(-1, 6))
+    assert np.all(angle <= VIEW[2]) and np.all((along >= VIEW[3]) & (along <= VIEW[4]))
+    assert min(design.min_distance(s) for s in q) >= 0.5
+    assert len(np.unique(q.reshape(-1, 6), axis=0)) == 3 * N
+    box = ([300.0, -600.0, -800.0], [1500.0, 600.0, 400.0])
+    qb = design.random_poses(robot, N, region=box, seed=1)
+    p = dh_fk(robot.dh, qb, convention=robot.convention, base=robot.base, tool=robot.tool)[:, :3, 3]
+    assert np.all(p >= box[0]) and np.all(p <= box[1])
+    sampler = design.PoseSampler(design.workspace(robot), design.constraints(0.0, None, VIEW), N, jax.random.PRNGKey(2))
+    assert 0.1 < sampler.acceptance < 0.6  # the cone really excludes configurations
+    np.testing.assert_array_equal(sampler.sets([0, 1, 2, 3])[3], sampler.sets([3])[0])
+    with pytest.raises(DataError, match="min_spread: fewer than"):
+        design.random_poses(robot, N, view=VIEW, min_spread=20.0)
+
+
+def test_params_from_a_calibration_report(robot, tmp_path):
+    """design_problem(params_from=report) designs for the parameters a real calibrate_data
+    report estimated, as if they were given by name; names the robot lacks are refused."""
+    import json
+
+    from jaxcal.simulation import simulate
+
+    sim = simulate(robot, n_robots=1, n_poses=30, seed=5, sigma_pos=0.02, sigma_rot=2e-5)
+    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(sim.q[0], sim.measured[0]), params="offsets", folds=2)
+    path = tmp_path / "report.json"
+    path.write_text(rep.to_json())
+    names = json.loads(path.read_text())["estimated_dh"]
+    assert names and all(n.startswith("theta") for n in names)
+    got = design.design_problem(robot, params_from=path, n_val=60, seed=1)
+    ref = design.design_problem(
+        robot, params=",".join(names), estimate_base=rep.report["estimate_base"],
+        estimate_tool=rep.report["estimate_tool"], n_val=60, seed=1,
+    )  # fmt: skip
+    assert got.base_names() == ref.base_names()
+    assert [n for n in got.base_names() if not n.startswith(("base_", "tool_"))] == names
+    assert design.report_options({"parameters": {"theta2": {}, "base_x": {}}}, robot)["params"] == "theta2"
+    assert design.report_options({"estimated_dh": []}, robot)["params"] == "frames"
+    with pytest.raises(DataError, match=r"params_from: .*theta7 is not a parameter of robot"):
+        design.design_problem(robot, params_from={"estimated_dh": ["theta2", "theta7"], "robot": "other"})
+    (tmp_path / "bad.json").write_text("{not json")
+    with pytest.raises(DataError, match=r"params_from: .*bad.json: not JSON"):
+        design.design_problem(robot, params_from=tmp_path / "bad.json")
