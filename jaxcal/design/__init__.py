@@ -5,6 +5,7 @@ pool of candidates (:func:`select_poses`); random poses under the same condition
 (:class:`PoseSampler`, :func:`random_poses`); pose files (:func:`read_poses`, :func:`write_poses`).
 See docs/design.md."""
 
+from ._bound import design_bound as design_bound
 from ._constraints import PoseSampler as PoseSampler
 from ._constraints import Workspace as Workspace
 from ._constraints import constraints as constraints

@@ -14,7 +14,7 @@ from .._config import as_f64
 from ..errors import DataError
 from ..model import Layout, Model
 from ..robot import Robot
-from ._problem import DesignProblem, measures_batch, tool_positions, uniform_poses, values_of
+from ._problem import DesignProblem, measures_batch, reference, tool_positions, uniform_poses, values_of
 
 
 class Constraints(eqx.Module):
@@ -144,9 +144,10 @@ def workspace(robot: Robot, n_points: int = 0, points=None) -> Workspace:
     return Workspace(model, jnp.asarray(lim[:, 0]), jnp.asarray(lim[:, 1]), layout)
 
 
-@eqx.filter_jit
-def positions(space: Workspace | DesignProblem, q):
-    return tool_positions(space.model, space.layout, q)
+def positions(space: Workspace | DesignProblem, q) -> np.ndarray:
+    """Positions ``(K, P, 3)`` of the measured points at the poses ``q (K, n)`` (the design's one
+    compiled Jacobian program, :func:`reference`)."""
+    return reference(space.model, space.layout, q)[1]
 
 
 @eqx.filter_jit
@@ -182,7 +183,7 @@ def feasible(space: Workspace | DesignProblem, cons: Constraints, q) -> bool:
     ok = bool(np.all(q >= np.asarray(space.lower)) and np.all(q <= np.asarray(space.upper)))
     ok &= min_distance(q) >= float(cons.spread) * (1 - 1e-9)
     if cons.has_region:
-        ok &= bool(np.all(in_region(cons, np.asarray(positions(space, jnp.asarray(q))))))
+        ok &= bool(np.all(in_region(cons, positions(space, q))))
     return ok
 
 
@@ -341,7 +342,7 @@ def random_feasible(space, cons: Constraints, shape: tuple[int, int], rng) -> np
 def random_values(problem: DesignProblem, cons: Constraints, n_poses: int, n_random: int, rng) -> dict:
     """All three criteria of ``n_random`` random feasible pose sets of ``n_poses``, ``(R,)`` each."""
     q = random_feasible(problem, cons, (n_random, n_poses), rng)
-    m = np.asarray(measures_batch(problem, jnp.asarray(q)))
+    m = measures_batch(problem, q)
     out = {k: np.array([values_of(r)[k] for r in m]) for k in ("log_det", "a_trace", "validation_rms_mm")}
     for v in out.values():
         v.flags.writeable = False

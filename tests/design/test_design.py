@@ -227,3 +227,32 @@ def test_params_from_a_calibration_report(robot, tmp_path):
     (tmp_path / "bad.json").write_text("{not json")
     with pytest.raises(DataError, match=r"params_from: .*bad.json: not JSON"):
         design.design_problem(robot, params_from=tmp_path / "bad.json")
+
+
+@pytest.mark.parametrize("case", ["pose, base and tool", "two points, tool", "joint frames", "camera"])
+def test_design_jacobian_is_the_model_jacobian(robot, case):
+    """The design's Jacobian (autodiff of the measurement model) against the analytic
+    jaxcal.model.jacobian, for poses, points, a joint-frame robot and a camera model, at a
+    perturbed camera and frames (so no entry is trivially zero)."""
+    from helpers import random_transform
+
+    from jaxcal.design._problem import identification_jacobian
+    from jaxcal.kinematics import to_joint
+    from jaxcal.model import Layout, Model, jacobian
+
+    rng = np.random.default_rng(6)
+    r, points, camera, cam_params = robot, None, "none", None
+    if case == "joint frames":
+        r = to_joint(robot)
+    if case == "two points, tool":
+        points = rng.normal(size=(2, 3)) * 50.0
+    if case == "camera":
+        camera, cam_params = "linear", rng.normal(size=8) * 1e-3
+    r = r.replace(base=random_transform(rng, 300.0), tool=random_transform(rng, 100.0))
+    layout = Layout.of(r, base=True, tool=True, n_points=0 if points is None else len(points), camera=camera)
+    model = Model(r, points, cam_params, camera=camera)
+    q = _random_q(robot, 5, 9)
+    got = np.asarray(identification_jacobian(model, layout, q))
+    ref = np.asarray(jacobian(model, layout, q))
+    assert got.shape == ref.shape
+    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-10 * np.abs(ref).max())
