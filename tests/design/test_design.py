@@ -256,3 +256,28 @@ def test_design_jacobian_is_the_model_jacobian(robot, case):
     ref = np.asarray(jacobian(model, layout, q))
     assert got.shape == ref.shape
     np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-10 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("criterion", ["validation", "d"])
+def test_design_bound_holds_for_every_design_of_the_candidates(robot, problem, criterion):
+    """No N poses of the candidates beat the bound: not the exchange's choice, not random
+    subsets, not all candidates with equal weights (evaluate on the whole pool, scaled to N); the
+    relaxed optimum sits within its tolerance of the bound."""
+    pb = design.with_criterion(problem, criterion)
+    pool = _random_q(robot, 60, 12)
+    b = design.design_bound(pb, pool, N, tol=1e-4)
+    assert b["candidates"] == 60 and b["weights"].shape == (60,) and abs(b["weights"].sum() - 1) < 1e-12
+    rng = np.random.default_rng(3)
+    subsets = [design.evaluate(pb, pool[rng.choice(60, N, replace=False)]) for _ in range(30)]
+    chosen = design.select_poses(pb, pool, N, n_random=10).values
+    key = {"validation": "validation_rms_mm", "d": "log_det"}[criterion]
+    uniform = design.evaluate(pb, pool)[key]  # equal weights: the information scaled by N / 60
+    uniform = uniform * np.sqrt(60 / N) if criterion == "validation" else uniform + pb.n_base * np.log(N / 60)
+    if criterion == "validation":
+        assert all(b["bound"] <= v[key] for v in [*subsets, chosen])
+        assert b["bound"] <= b["relaxed"][key] <= min(uniform, chosen[key])
+        assert b["relaxed"][key] <= b["bound"] * np.exp(1e-4)
+    else:  # log det: larger is better, the bound an upper one
+        assert all(b["bound"] >= v[key] for v in [*subsets, chosen])
+        assert b["bound"] >= b["relaxed"][key] >= max(uniform, chosen[key])
+        assert b["relaxed"][key] >= b["bound"] - 1e-4
