@@ -282,10 +282,10 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
                 "heldout_rot_rms_deg": None if n_points else _rms(re[:F, c][held]),
                 "train_rms_mm": _rms(t_pe),
                 "converged": bool(b["converged"].reshape(T, C)[:F, c].all()),
-                "failure": fit_failure(
-                    b["converged"].reshape(T, C)[:, c],
-                    np.isfinite(b["x"].reshape(T, C, -1)[:, c]).all(-1),
-                    b["steps"].reshape(T, C)[:, c],
+                "failure": fit_failure(  # its fits on every training set and on all poses
+                    np.r_[b["converged"].reshape(T, C)[:, c], allp["converged"][c]],
+                    np.isfinite(np.r_[b["x"].reshape(T, C, -1)[:, c], allp["x"][[c]]]).all(-1),
+                    np.r_[b["steps"].reshape(T, C)[:, c], allp["steps"][c]],
                     opts.max_steps,
                     lambda i=c: condition(i),
                 ),

@@ -345,7 +345,8 @@ def urdf_text(
 
     # the record (module docstring): measurement frame under the base link, tool under the tip
     fixed(base_link, MEASUREMENT_FRAME, np.linalg.inv(np.asarray(robot.base)))
-    fixed(tip_link, TOOL_LINK, np.linalg.solve(nominal_tool, np.asarray(robot.tool)))
+    tool = np.linalg.solve(nominal_tool, np.asarray(robot.tool))
+    fixed(tip_link, TOOL_LINK, np.eye(4) if np.allclose(tool, np.eye(4), atol=1e-12, rtol=0) else tool)
     for k, p in enumerate(np.zeros((0, 3)) if points is None else np.asarray(points), start=1):
         T = np.eye(4)
         T[:3, 3] = p
