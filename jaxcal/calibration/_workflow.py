@@ -66,6 +66,27 @@ def choose(scores: list[float], candidates) -> int:
     return min(ok, key=lambda i: candidates[i].complexity)
 
 
+def fit_failure(converged, finite, steps, max_steps: int, condition) -> str | None:
+    """Why a candidate's cross-validation fits failed (``None`` when all converged): how many
+    gave non-finite parameters (with ``condition()``, the condition number of its free
+    parameters at the start) and how many stopped short of the tolerances."""
+    converged, finite, steps = np.asarray(converged), np.asarray(finite), np.asarray(steps)
+    n, why = len(converged), []
+    if not finite.all():
+        why.append(
+            f"non-finite parameters in {int(np.sum(~finite))} of {n} fits (the normal equations were singular; "
+            f"condition number {condition():.3g} of its free parameters at the start)"
+        )
+    short = ~converged & finite
+    if short.any():
+        limit = int(np.sum(short & (steps >= max_steps)))
+        why.append(
+            f"no convergence in {int(np.sum(short))} of {n} fits"
+            + (f" ({limit} reached max_steps {max_steps})" if limit else "")
+        )
+    return "; ".join(why) or None
+
+
 def _rms(v) -> float:
     return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
 
@@ -126,7 +147,8 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     **Returns** a :class:`DataCalibration` whose ``report`` holds ``train_rms_mm``,
     ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_median_mm``, ``heldout_rot_rms_deg``
     (nested cross-validation unless ``nested`` is false), ``frames_only_*`` (the same with
-    nominal DH and fitted frames), ``choice``, ``cv`` (one row per candidate), ``parameters``
+    nominal DH and fitted frames), ``choice``, ``cv`` (one row per candidate; its ``failure``
+    says which of its fits gave non-finite parameters or did not converge, and why), ``parameters``
     (values, standard errors, units), ``unidentifiable``, ``combinations``,
     ``condition_number``, ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``,
     ``camera_model``, ``camera_parameters``, ``base``, ``tool`` and, for points, ``points``.
@@ -245,6 +267,11 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     re = np.degrees(b["rot_err"].reshape(T, C, K))
     held = ~outer
     cv_table, scores = [], []
+
+    def condition(c):  # of candidate c's free parameters, weighted, at the start (all poses)
+        Jw = J0 * w_all[0][:, None]
+        return core.condition_number(np.einsum("kri,krj->ij", Jw, Jw), list(estimated(priors[c])))
+
     for c, cand in enumerate(candidates):
         h_pe, t_pe = pe[:F, c][held], pe[:F, c][outer]
         cv_table.append(
@@ -255,6 +282,13 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
                 "heldout_rot_rms_deg": None if n_points else _rms(re[:F, c][held]),
                 "train_rms_mm": _rms(t_pe),
                 "converged": bool(b["converged"].reshape(T, C)[:F, c].all()),
+                "failure": fit_failure(  # its fits on every training set and on all poses
+                    np.r_[b["converged"].reshape(T, C)[:, c], allp["converged"][c]],
+                    np.isfinite(np.r_[b["x"].reshape(T, C, -1)[:, c], allp["x"][[c]]]).all(-1),
+                    np.r_[b["steps"].reshape(T, C)[:, c], allp["steps"][c]],
+                    opts.max_steps,
+                    lambda i=c: condition(i),
+                ),
             }
         )
         scores.append(_rms(h_pe))

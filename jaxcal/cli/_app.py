@@ -66,8 +66,8 @@ def load_robot_arg(robot: str, base_link: str | None = None, tip_link: str | Non
     return load_robot(robot, base_link=base_link, tip_link=tip_link)
 
 
-BASE_LINK_HELP = "URDF: the chain's first link (default: the root)"
-TIP_LINK_HELP = "URDF: the chain's last link (default: the one leaf)"
+BASE_LINK_HELP = "URDF: the chain's first link (default: a calibrated model's own, else the root)"
+TIP_LINK_HELP = "URDF: the chain's last link (default: a calibrated model's own, else the one leaf)"
 
 
 @contextlib.contextmanager

@@ -172,6 +172,9 @@ def show(rep: dict, meas) -> None:
             _fmt(row["train_rms_mm"]),
         )
     console.print(cv)
+    for row in rep["cv"]:
+        if row.get("failure"):
+            console.print(f"[yellow]failed:[/yellow] {row['name']}: {row['failure']}", highlight=False)
     kind = "nested cross-validation" if rep["nested"] else "K-fold cross-validation"
     summary = Table(title=f"summary (held-out = {kind})")
     for col in ("model", "train RMS (mm)", "held-out RMS (mm)", "held-out max (mm)", "held-out rot RMS (deg)"):

@@ -1,5 +1,6 @@
 """Robot models: a DH table or joint frames (URDF) with base and tool frames, published presets, and robot files."""
 
+from ._files import calibrated_chain as calibrated_chain
 from ._files import load_robot as load_robot
 from ._files import read_robot_file as read_robot_file
 from ._files import save_robot as save_robot

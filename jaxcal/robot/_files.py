@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import RobotFileError
 from ._robot import Robot
 from ._toml import read_toml, save_toml
+from ._urdf import calibrated_chain as _urdf_chain
 from ._urdf import read_urdf, save_urdf
 
 
@@ -24,6 +25,12 @@ def read_robot_file(path, *, base_link: str | None = None, tip_link: str | None 
     if base_link is not None or tip_link is not None:
         raise RobotFileError(f"{path}: base_link and tip_link choose the chain of a URDF file")
     return read_toml(path)
+
+
+def calibrated_chain(path) -> tuple[str, str | None] | None:
+    """``(base link, tip link)`` of the chain a calibrated URDF was written for (its
+    ``jaxcal_measurement_frame`` and ``jaxcal_tool`` links); ``None`` for any other file."""
+    return _urdf_chain(path) if _is_urdf(path) and Path(path).exists() else None
 
 
 def load_robot(path, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:

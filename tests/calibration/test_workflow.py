@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from jaxcal import DataError, Measurements, fk, preset
 from jaxcal.calibration import calibrate_data, fold_ids
 from jaxcal.calibration._initial import initial_frames
-from jaxcal.calibration._workflow import choose
+from jaxcal.calibration._workflow import choose, fit_failure
 from jaxcal.error_model import perturb
 from jaxcal.simulation import simulate
 
@@ -146,6 +146,17 @@ def test_choice_ignores_failed_fits_and_refuses_when_all_failed():
     assert choose([1.005, np.nan, 1.0], c) == 0  # simpler within 1 %
     with pytest.raises(DataError, match="every candidate parameter set .* failed to fit"):
         choose([np.nan, np.inf, np.nan], c)
+
+
+def test_a_failed_fit_says_how_and_why():
+    ok, fin = np.array([True, False, False, False]), np.array([True, True, False, True])
+    steps = np.array([5, 50, 3, 12])
+    why = fit_failure(ok, fin, steps, 50, lambda: 1.5e6)
+    assert why == (
+        "non-finite parameters in 1 of 4 fits (the normal equations were singular; condition number 1.5e+06 of "
+        "its free parameters at the start); no convergence in 2 of 4 fits (1 reached max_steps 50)"
+    )
+    assert fit_failure(ok[:1], fin[:1], steps[:1], 50, lambda: 1.0) is None
 
 
 def test_quadratic_camera_model_recovered_on_franka_geometry(rng):

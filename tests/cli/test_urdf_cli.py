@@ -55,6 +55,8 @@ def test_calibrate_then_evaluate(monkeypatch, capsys, split):
     assert held["groups"]["repeated"]["poses"] == 3  # the three training rows appended
     assert sum(g["poses"] for g in held["groups"].values()) == 15
     assert "out of training ranges" in out
+    code, out, err = run_cli(monkeypatch, capsys, "info", d / "cal.urdf")
+    assert code in (0, None) and "calibrated model of the chain base_footprint -> wrist_ft_tool_link" in out, err
 
 
 def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):
