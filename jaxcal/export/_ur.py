@@ -42,15 +42,13 @@ from ..robot import UR_KEYS, UR_ORIGINS, Robot
 def check_ur(robot: Robot, option: str | None = None) -> None:
     """Raise :class:`jaxcal.RobotFileError` unless ``robot`` is a DH robot with six revolute
     joints, the arms a UR kinematics file describes."""
-    why = (
-        "it is described by joint frames (a URDF), not a DH table"
-        if robot.convention == "joint"
-        else f"it has {robot.n_joints} joints, not 6"
-        if robot.n_joints != 6
-        else f"joint {robot.joint_types.index('P') + 1} is prismatic"
-        if "P" in robot.joint_types
-        else ""
-    )
+    why = ""
+    if robot.convention == "joint":
+        why = "it is described by joint frames (a URDF), not a DH table"
+    elif robot.n_joints != 6:
+        why = f"it has {robot.n_joints} joints, not 6"
+    elif "P" in robot.joint_types:
+        why = f"joint {robot.joint_types.index('P') + 1} is prismatic"
     if why:
         raise RobotFileError(
             f"{option or 'a UR kinematics file'} needs a six-joint revolute DH robot in UR's convention; "
