@@ -47,7 +47,8 @@ def test_ur_kinematics_reproduce_the_calibrated_model(tmp_path, monkeypatch, cap
     # with the calibrated base in front and the tool (the reflector) behind: the measured points
     ends = np.asarray(cal.base) @ chain @ np.asarray(cal.tool)
     np.testing.assert_allclose(ends[:, :3, 3], np.asarray(jaxcal.fk(cal, q))[:, :3, 3], atol=1e-6)
-    assert "not in it" in out and "base (measurement frame -> base)" in out
+    out = " ".join(out.split())  # as rich wrapped it
+    assert "not in it" in out and "base (measurement frame -> base)" in out and "tool (tool0 -> TCP)" in out
     text = (tmp_path / "cal.yaml").read_text()
     assert "# not in this file" in text and "heldout_rms_mm" in text
     # the DH table holds the calibrated table of the robot file
