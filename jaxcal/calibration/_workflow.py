@@ -120,6 +120,11 @@ class DataCalibration:
     deltas: dict
     """name -> (value, standard error, unit) of every estimated parameter (DH errors relative to
     the nominal table; frame twists relative to the closed-form guess)."""
+    covariance: np.ndarray | None = None
+    """``(m, m)`` covariance of the final fit's parameters, named by ``layout.names()`` (mm, rad;
+    0 where a parameter is held), whose diagonal gives the standard errors of :attr:`deltas`."""
+    layout: Layout | None = None
+    """The parameters of :attr:`covariance` (the largest camera model tried)."""
 
     @property
     def robot(self) -> Robot:
@@ -406,7 +411,14 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
         "frames_only": frames_only,
     }
     return DataCalibration(
-        model=core.described(model, robot), nominal=robot, choice=cand, report=rep, per_pose=per_pose, deltas=deltas
+        model=core.described(model, robot),
+        nominal=robot,
+        choice=cand,
+        report=rep,
+        per_pose=per_pose,
+        deltas=deltas,
+        covariance=cov,
+        layout=layout,
     )
 
 

@@ -71,6 +71,11 @@ def calibrate(
         "corrections in its joints' origins, the measurement frame and the points as links) or TOML",
     ),
     plots: Path = typer.Option(None, help="write plots into this folder"),
+    out_ur_kinematics: Path = typer.Option(
+        None, help="write the calibrated arm as a UR kinematics file (YAML, ur_robot_driver's kinematics_params_file)"
+    ),
+    out_dh: Path = typer.Option(None, help="write the DH table: nominal, calibrated, delta, std error (CSV)"),
+    report: Path = typer.Option(None, help="write a one-page report (self-contained HTML)"),
     points: str = typer.Option(None, help="use only these measured points, e.g. 1 or 1,3 (default: all)"),
     base_link: str = typer.Option(None, help=BASE_LINK_HELP),
     tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
@@ -79,15 +84,21 @@ def calibrate(
     from .._io import check_writable, write_atomic
     from ..calibration import GAUGE, calibrate_data
     from ..errors import DataError, ImplausibleFitError
+    from ..export import check_dh, check_ur
     from ..measurements import read_measurements
     from ..model import Model, save_model
     from ..robot import save_robot
 
     outputs = {"json_out": json_out, "out_robot": out_robot, "out_model": out_model, "plots": plots}
+    outputs |= {"out_ur_kinematics": out_ur_kinematics, "out_dh": out_dh, "report": report}
     for name, path in outputs.items():
         if path is not None:
             check_writable(path / "x.png" if name == "plots" else path, name)
     nominal = load_robot_arg(robot, base_link, tip_link)
+    if out_ur_kinematics is not None:
+        check_ur(nominal, "out_ur_kinematics")
+    if out_dh is not None:
+        check_dh(nominal, "out_dh")
     for name, path in (("out_robot", out_robot), ("out_model", out_model)):
         if path is not None and (path.suffix.lower() == ".urdf") != (nominal.convention == "joint"):
             kind = "a URDF robot is written as URDF (.urdf)" if nominal.convention == "joint" else "a DH robot as TOML"
@@ -153,6 +164,25 @@ def calibrate(
 
         for p in calibration_figures(res, plots):
             console.print(f"plot written to {p}")
+    _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment)
+
+
+def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:
+    """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
+    from ..export import save_dh_table, save_report, save_ur_kinematics
+
+    if out_ur_kinematics is not None:
+        robot = res.robot.replace(name=f"{res.nominal.name}-calibrated")
+        base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment)
+        console.print(f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):")
+        for what, T in (("base (measurement frame -> base)", base), ("tool (tool0 -> TCP)", tool)):
+            console.print(f"  {what}: xyz {', '.join(f'{v:.4f}' for v in T[:3, 3])} mm", highlight=False)
+    if out_dh is not None:
+        save_dh_table(res, out_dh)
+        console.print(f"DH table written to {out_dh}")
+    if report is not None:
+        save_report(res, meas, report)
+        console.print(f"report written to {report}")
 
 
 def show(rep: dict, meas) -> None:

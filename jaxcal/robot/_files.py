@@ -1,4 +1,5 @@
-"""Robot files by their suffix: TOML (DH tables) or URDF (joint frames)."""
+"""Robot files by their suffix: TOML (DH tables), URDF (joint frames) or a UR kinematics file
+(``.yaml``, :mod:`._ur`)."""
 
 from __future__ import annotations
 
@@ -9,12 +10,17 @@ import numpy as np
 from ..errors import RobotFileError
 from ._robot import Robot
 from ._toml import read_toml, save_toml
+from ._ur import read_ur_kinematics
 from ._urdf import calibrated_chain as _urdf_chain
 from ._urdf import read_urdf, save_urdf
 
 
 def _is_urdf(path) -> bool:
     return Path(path).suffix.lower() in (".urdf", ".xml")
+
+
+def _is_yaml(path) -> bool:
+    return Path(path).suffix.lower() in (".yaml", ".yml")
 
 
 def read_robot_file(path, *, base_link: str | None = None, tip_link: str | None = None):
@@ -24,6 +30,8 @@ def read_robot_file(path, *, base_link: str | None = None, tip_link: str | None 
         return read_urdf(path, base_link=base_link, tip_link=tip_link)
     if base_link is not None or tip_link is not None:
         raise RobotFileError(f"{path}: base_link and tip_link choose the chain of a URDF file")
+    if _is_yaml(path):
+        return read_ur_kinematics(path), None
     return read_toml(path)
 
 
@@ -34,8 +42,9 @@ def calibrated_chain(path) -> tuple[str, str | None] | None:
 
 
 def load_robot(path, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:
-    """Read a robot file: TOML (a DH table, :mod:`jaxcal.robot._toml`) or URDF (the chain from
-    ``base_link`` to ``tip_link``, :mod:`jaxcal.robot._urdf`)."""
+    """Read a robot file: TOML (a DH table, :mod:`jaxcal.robot._toml`), URDF (the chain from
+    ``base_link`` to ``tip_link``, :mod:`jaxcal.robot._urdf`) or a UR kinematics file (``.yaml``,
+    :mod:`jaxcal.robot._ur`)."""
     return read_robot_file(path, base_link=base_link, tip_link=tip_link)[0]
 
 
