@@ -361,7 +361,7 @@ def relative_x(reference, layout: Layout, model: Model) -> np.ndarray:
     points' offsets and the camera unknowns' changes, so that ``apply(reference, layout, x)`` is
     ``model``."""
     if isinstance(reference, Robot):
-        reference = Model(reference, np.zeros((layout.n_points, 3)) if layout.n_points else None)
+        reference = Model(reference, np.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
     r0, r1 = reference.robot, model.robot
     lead = np.broadcast_shapes(np.shape(r1.dh)[:-2], np.shape(r0.dh)[:-2])
     out = [(np.asarray(r1.dh) - np.asarray(r0.dh)).reshape(lead + (-1,))]

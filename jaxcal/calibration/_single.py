@@ -133,9 +133,10 @@ class BatchResult:
 
 
 def kinematic_set(opts: Options, robot: Robot) -> Candidate:
-    """The one parameter set of a single fit: ``params`` (``auto`` = ``all``) with ``ridge_mm``."""
+    """The one parameter set of a single fit: ``params`` (``auto`` = ``all``) with ``ridge_mm``, and
+    the camera model's unknowns."""
     spec = "all" if opts.params == "auto" else opts.params
-    return parse_params(spec, robot, opts.ridge_mm)[0]
+    return dataclasses.replace(parse_params(spec, robot, opts.ridge_mm)[0], camera=opts.camera)
 
 
 def make_layout(robot: Robot, opts: Options, n_points: int, camera: str | None = None) -> Layout:
