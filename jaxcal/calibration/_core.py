@@ -332,10 +332,10 @@ def analyse(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray]:
 
 def identify(J, layout: Layout, *, rtol: float = 1e-8) -> Identifiability:
     """Identifiability of every parameter of ``layout`` from the Jacobian ``J`` (:func:`analyse`),
-    the frames offered first (they keep what they can absorb), then the DH errors, then the
-    camera."""
+    the frames offered first (they keep what they can absorb), then the DH errors and the joint
+    compliances, then the camera."""
     frames, cams = list(layout.frames), list(layout.cameras)
-    kin = list(range(layout.n_kin))
+    kin = list(range(layout.n_kin)) + list(layout.compliances)
     return analyze(np.asarray(J).reshape(-1, layout.size), layout.names(), rtol=rtol, priority=frames + kin + cams)
 
 
@@ -387,6 +387,11 @@ def relative_x(reference, layout: Layout, model: Model) -> np.ndarray:
             )
         else:
             out.append((np.asarray(model.points) - np.asarray(reference.points)).reshape(lead + (-1,)))
+    if layout.n_comp:
+        c0, c1 = (
+            np.zeros(lead + (layout.n_comp,)) if c is None else np.asarray(c) for c in (r0.compliance, r1.compliance)
+        )
+        out.append(c1 - c0)
     cam = np.asarray(model.camera_params) - np.asarray(reference.camera_params)
     out.append(cam.reshape(cam.shape[:-1] + (-1,))[..., : layout.n_camera])
     return np.concatenate([np.broadcast_to(o, lead + o.shape[-1:]) for o in out], -1)

@@ -40,6 +40,9 @@ from ._robot import Robot
 
 M_TO_MM = 1000.0
 MEASUREMENT_FRAME = "jaxcal_measurement_frame"
+COMPLIANCE = "jaxcal_compliance"
+"""Element of a calibrated file holding a joint's compliance (:attr:`jaxcal.Robot.compliance`,
+in rad per metre of gravity moment arm)."""
 TOOL_LINK = "jaxcal_tool"
 POINT_LINK = "jaxcal_point"
 MOVABLE = {"revolute": "R", "continuous": "R", "prismatic": "P"}
@@ -247,9 +250,11 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         names.append(j.name)
     if not types:
         raise RobotFileError(f"{source}: no movable joint between {base_link!r} and {tip_link!r}")
+    compliance = _compliance(path, names)
     robot = Robot(
         None,
         convention="joint",
+        compliance=compliance,
         origins=np.stack(origins),
         axes=np.stack(axes),
         joint_types=types,
@@ -267,6 +272,22 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
     pts = [j for _, j in pts if j.parent == tip_link]
     points = np.stack([_mm(j.origin)[:3, 3] for j in pts]) if pts else None
     return robot, points
+
+
+def _compliance(path: Path, names: list[str]) -> np.ndarray | None:
+    """The chain's joint compliances (rad/mm) from the file's ``<jaxcal_compliance>`` elements,
+    ``None`` without any."""
+    from lxml import etree  # yourdfpy's XML library
+
+    found = {}
+    for el in etree.parse(str(path)).getroot().iter(COMPLIANCE):
+        try:
+            found[el.get("joint")] = float(el.get("rad_per_m")) / M_TO_MM
+        except (TypeError, ValueError):
+            raise RobotFileError(f"{path}: <{COMPLIANCE} joint={el.get('joint')!r}> needs a number rad_per_m") from None
+    if not found:
+        return None
+    return np.array([found.get(nm, 0.0) for nm in names])
 
 
 def _folded(robot: Robot, i: int) -> np.ndarray:
@@ -354,6 +375,9 @@ def urdf_text(
     from lxml import etree  # yourdfpy's XML library
 
     xml = yourdfpy.URDF(robot=doc, build_scene_graph=False, load_meshes=False).write_xml()
+    if robot.compliance is not None:  # not URDF's: an element of jaxcal's own, other readers skip it
+        for nm, c in zip(robot.joint_names, np.asarray(robot.compliance)):
+            xml.getroot().append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM)))
     text = etree.tostring(xml, xml_declaration=True, pretty_print=True).decode()
     if comment:
         note = "; ".join(f"{k}: {v}" for k, v in comment.items()).replace("--", "- -")
