@@ -24,6 +24,7 @@ GAUGE = (
 """How a calibrated model's parameters are fixed where several give the same kinematics: written into
 the robot files the command line saves."""
 CAMERA_CHOICES = CAMERA_MODELS + ("auto",)
+COMPLIANCE_CHOICES = ("auto", "yes", "no")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,6 +45,10 @@ class Options:
       base transform and the tool (a frame for poses, a point per measured point), starting
       from a closed-form guess. The base keeps what belongs to it: a DH error that the base or
       tool frame can absorb (``theta1``, ``d1``, the last joint's offset, ...) is held at 0.
+    - ``compliance`` (``"auto"``): estimate a compliance per revolute joint, a turn proportional to
+      the gravity moment of a weight at the tool (:attr:`jaxcal.Robot.compliance`): ``"yes"``,
+      ``"no"``, or ``"auto"`` (in :func:`calibrate_data` the model selection decides; a single
+      fit, :func:`calibrate`, is rigid).
     - ``camera`` (``"none"``): a camera measurement model (:mod:`jaxcal.camera`) for pose data
       from a camera on the flange, ``none | depth | linear | quadratic``, or ``auto`` (chosen by
       cross-validation, :func:`calibrate_data` only).
@@ -97,6 +102,7 @@ class Options:
     estimate_base: bool = True
     estimate_tool: bool = True
     camera: str = "none"
+    compliance: str = "auto"
     sigma_pos_mm: float | None = None
     sigma_rot_rad: float | None = None
     loss: str = "l2"
@@ -122,6 +128,11 @@ class Options:
         cams = CAMERA_CHOICES if camera_auto else CAMERA_MODELS
         if self.camera not in cams:
             raise DataError(f"camera must be one of {', '.join(cams)}, got {self.camera!r}", option="camera")
+        if self.compliance not in COMPLIANCE_CHOICES:
+            raise DataError(
+                f"compliance must be one of {', '.join(COMPLIANCE_CHOICES)}, got {self.compliance!r}",
+                option="compliance",
+            )
         if self.loss not in LOSSES:
             raise DataError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}", option="loss")
         if self.loss != "l2" and self.method not in ("gn", "lm"):

@@ -30,6 +30,8 @@ class Candidate:
     """Camera measurement model (:mod:`jaxcal.camera`) whose unknowns are free in this candidate."""
     units: tuple[str, ...] = ()
     """``mm`` or ``rad`` per kinematic parameter (:meth:`jaxcal.Robot.param_units`)."""
+    compliance: bool = False
+    """The joint compliances (:attr:`jaxcal.Robot.compliance`) are estimated with the set."""
 
     @property
     def complexity(self) -> tuple[int, float]:

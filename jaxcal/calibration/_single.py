@@ -136,11 +136,18 @@ def kinematic_set(opts: Options, robot: Robot) -> Candidate:
     """The one parameter set of a single fit: ``params`` (``auto`` = ``all``) with ``ridge_mm``, and
     the camera model's unknowns."""
     spec = "all" if opts.params == "auto" else opts.params
-    return dataclasses.replace(parse_params(spec, robot, opts.ridge_mm)[0], camera=opts.camera)
+    return dataclasses.replace(
+        parse_params(spec, robot, opts.ridge_mm)[0], camera=opts.camera, compliance=opts.compliance == "yes"
+    )
 
 
-def make_layout(robot: Robot, opts: Options, n_points: int, camera: str | None = None) -> Layout:
+def make_layout(
+    robot: Robot, opts: Options, n_points: int, camera: str | None = None, compliance: bool | None = None
+) -> Layout:
+    """The parameters a fit with these options carries; ``camera`` and ``compliance`` override the
+    options' (a workflow's layout holds every candidate's)."""
     camera = opts.camera if camera is None else camera
+    compliance = opts.compliance == "yes" if compliance is None else compliance
     if n_points and camera != "none":
         raise DataError(
             f"the camera model {camera!r} needs full poses (the camera's axes); the data are position-only",
@@ -152,7 +159,9 @@ def make_layout(robot: Robot, opts: Options, n_points: int, camera: str | None =
             f"estimated (estimate_tool)",
             option="estimate_tool",
         )
-    return Layout.of(robot, base=opts.estimate_base, tool=opts.estimate_tool, n_points=n_points, camera=camera)
+    return Layout.of(
+        robot, base=opts.estimate_base, tool=opts.estimate_tool, n_points=n_points, camera=camera, compliance=compliance
+    )
 
 
 def check_enough_poses(n_poses: int, layout: Layout, needed: int) -> None:
@@ -181,6 +190,8 @@ def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, 
         elif i in cams:
             k = i - cams[0]
             out[i] = PIN if frames_only or cand is None or k >= camera_size(cand.camera) else 0.0
+        elif i in layout.compliances:
+            out[i] = PIN if frames_only or cand is None or not cand.compliance else 0.0
     return out
 
 
@@ -265,6 +276,7 @@ def calibrate(
     K = q.shape[0]
     cand = kinematic_set(opts, robot)
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
+    wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
     masks = np.ones((1, K))
     ref = (
@@ -379,6 +391,7 @@ def calibrate_batch(
         return _elimination_batch(robot, q, target, n_points, layout, opts)
     cand = kinematic_set(opts, robot)
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
+    wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
     check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
     masks = np.ones((R, K))
