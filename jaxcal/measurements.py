@@ -72,6 +72,8 @@ class Measurements:
     * ``ignored`` — the file's columns that are neither joints nor measurements.
     * ``units`` — the ``(length, angle)`` units the file was read in.
     * ``dropped_rows`` — data rows left out because none of their points was seen.
+    * ``point_numbers`` — the file's number of each measured point (after :meth:`select_points`);
+      empty: 1..M.
 
     A point not seen at a pose (a lost marker) is NaN in ``measured`` (:attr:`lost_points`).
     """
@@ -83,6 +85,7 @@ class Measurements:
     ignored: tuple[str, ...] = ()
     units: tuple[str, str] = ("mm", "rad")
     dropped_rows: tuple[int, ...] = ()
+    point_numbers: tuple[int, ...] = ()
 
     def __post_init__(self):
         q, meas = _frozen(self.q), _frozen(self.measured)
@@ -126,11 +129,12 @@ class Measurements:
 
     @property
     def lost_points(self) -> list[tuple[int, int]]:
-        """``(data row, point number)`` of every point not seen (NaN), in file order."""
+        """``(data row, point number in the file)`` of every point not seen (NaN), in file order."""
         if self.n_points == 0:
             return []
+        numbers = self.point_numbers or tuple(range(1, self.n_points + 1))
         lost = np.argwhere(np.isnan(self.measured).any(-1))
-        return [(int(self.rows[k]), int(j) + 1) for k, j in lost]
+        return [(int(self.rows[k]), numbers[j]) for k, j in lost]
 
     @property
     def rows_per_pose(self) -> int:
@@ -158,7 +162,13 @@ class Measurements:
         if not seen.any():
             raise DataError(f"{self.source}: point(s) {idx} (points) were not seen in any row", option="points")
         gone = tuple(int(r) for r in self.rows[~seen])
-        out = dataclasses.replace(self, measured=meas, dropped_rows=tuple(sorted(self.dropped_rows + gone)))
+        numbers = self.point_numbers or tuple(range(1, self.n_points + 1))
+        out = dataclasses.replace(
+            self,
+            measured=meas,
+            dropped_rows=tuple(sorted(self.dropped_rows + gone)),
+            point_numbers=tuple(numbers[p - 1] for p in idx),
+        )
         return out.subset(seen) if gone else out
 
 
@@ -415,7 +425,7 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) 
     ignored = tuple(c for c in header if c not in used)
     require_rows(records, src)
     values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else points)
-    seen = ~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(points), 3).any(-1).any(-1)
+    seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(points), 3).any(-1)).any(-1)
     if not seen.any():
         raise DataError(f"{src}: no row has a measured point (every point cell is empty)")
     dropped = tuple(int(r) for r in rows[~seen])

@@ -471,8 +471,8 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
         "max_outlier_fraction": opts.max_outlier_fraction,
         "heldout_rms_mm_all_poses": _rms(nested_pe),  # the flagged poses too: what dropping them hides
     }
-    lost = np.argwhere(~np.isfinite(target).all(-1)) if n_points else np.zeros((0, 2), int)
-    rep["lost_points"] = [{"row": int(rows_in_file[k]), "point": int(j) + 1} for k, j in lost]
+    lost = getattr(data, "lost_points", [])  # in the file's rows and point numbers
+    rep["lost_points"] = [{"row": r, "point": j} for r, j in lost]
     rep["dropped_rows"] = [int(r) for r in getattr(data, "dropped_rows", ())]
     if n_points:
         rep["points_mm"] = np.asarray(model.points).tolist()
