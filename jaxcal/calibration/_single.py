@@ -3,8 +3,9 @@
 
 The pipeline: the closed-form guess of the frames; the identifiable (base) set over the poses,
 frames offered first; a frames-only fit (DH held), whose residual gives the noise weights when
-none are given; the fit of the chosen parameter set; residual statistics, outliers, standard
-errors. Both stages run through one compiled solve (:mod:`._core`).
+none are given; the fit of the chosen parameter set; the outliers (:mod:`._outliers`), and when
+there are some, the whole pipeline again without them; residual statistics, standard errors.
+Every stage runs through one compiled solve (:mod:`._core`).
 """
 
 from __future__ import annotations
@@ -263,7 +264,8 @@ def calibrate(
 
     **Returns** a :class:`CalibrationResult`; ``converged`` is False (never silently) when the
     solver did not meet its tolerances; ``not_identified()`` says which parameters were held at
-    0 and why.
+    0 and why; ``outliers`` the poses left out (:mod:`._outliers`; ``keep_outliers`` fits them).
+    A point lost at a pose is NaN (all three coordinates) and weighs nothing.
 
     **Raises** :class:`jaxcal.DataError` for bad input (shapes, non-finite values, poses that are
     not rigid, lengths apparently not in mm, too few poses, bad options).

@@ -12,6 +12,11 @@ starting frames and its noise weights (the RMS per coordinate and per axis); the
 candidate parameter set (:func:`parse_params`) is fitted on every training set from there, with
 those weights. All of it is one compiled solve (:mod:`._core`).
 
+## Outliers
+Every training set (and all poses) finds its outliers on its own (:mod:`._outliers`, with the
+candidate that fits its poses best); then both stages run again with them left out. The
+held-out and training figures leave out the poses flagged on all poses; the report names them.
+
 ## Cross-validation
 Folds are a seeded permutation of the poses cut into ``folds`` nearly equal parts. Each
 candidate is fitted on ``folds - 1`` folds and evaluated on the one held out; the held-out
@@ -250,7 +255,9 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     nominal DH and fitted frames), ``choice``, ``cv`` (one row per candidate), ``parameters``
     (values, standard errors, units), ``unidentifiable``, ``combinations``,
     ``condition_number``, ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``,
-    ``camera_model``, ``camera_parameters``, ``base``, ``tool`` and, for points, ``points``.
+    ``camera_model``, ``camera_parameters``, ``base``, ``tool``, ``outliers`` and
+    ``outlier_detection`` (docs/conventions.md), ``lost_points``, ``dropped_rows`` and, for
+    points, ``points``. Training and held-out figures are over the poses not found outliers.
     """
     opts = make_options(options, kw, camera_auto=True)
     q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
