@@ -17,11 +17,12 @@ of one compiled solve; a pose's weight is data, so nothing is compiled again):
 2. else a few Cauchy-reweighted refits (pose weights ``1 / (1 + (u/c)^2)``, warm-started), so
    that the outliers no longer pull the model and hide among the clean poses' residuals;
 3. the poses beyond the threshold are excluded (weight 0) and the plain fit repeated, until the
-   excluded set is stable (the scale over the poses kept).
+   excluded set is stable (the scales stay medians over every pose: they need no trimming, and
+   trimming them would flag ever more poses of data whose residuals have heavy tails).
 
-The caller then refits its whole pipeline without the excluded poses (:func:`excluded_masks`).
-More than ``max_outlier_fraction`` of the poses flagged is not a few bad measurements but a
-data set that does not fit the model: :func:`too_many` says so, and the fit is refused.
+The caller then refits its whole pipeline without the excluded poses. More than
+``max_outlier_fraction`` of the poses flagged is not a few bad measurements but a data set that
+does not fit the model: :func:`too_many` says so, and the fit is refused.
 """
 
 from __future__ import annotations
