@@ -8,7 +8,9 @@ What is measured per pose is one of
 * the **tool's pose** (``n_points = 0``): 6 residual rows ``[p_m - p, log(R_m R^T)]`` (mm, rad),
   optionally through a camera model (:mod:`jaxcal.camera`);
 * **points** fixed to the tool (``n_points = M >= 1``, e.g. a laser tracker's reflector, or the
-  markers of a motion-capture rigid body): ``3 M`` rows ``p_m,j - p_j`` (mm).
+  markers of a motion-capture rigid body): ``3 M`` rows ``p_m,j - p_j`` (mm). A point not seen
+  at a pose (an occluded marker) is NaN in the measurements: its rows are not observed
+  (:func:`observed`) and weigh nothing in a fit; its errors come out NaN.
 
 The parameters ``x`` are laid out by a :class:`Layout`::
 
@@ -32,7 +34,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Bool, Float
 
 from .camera import apply_camera, camera_jacobian
 from .camera import n_params as camera_size
@@ -200,6 +202,22 @@ def errors(model: Model, q, target) -> Float[Array, "K rows"]:
     if model.n_points == 0:
         return pose_error(target, pred)
     return (target - pred).reshape(target.shape[0], -1)
+
+
+def observed(target) -> Bool[Array, "*K rows"]:
+    """Which residual rows of each pose (any leading axes) were measured: all of a pose's; a
+    point's three unless it is NaN (lost at that pose). NumPy in, NumPy out; traceable."""
+    xp = np if isinstance(target, np.ndarray) else jnp
+    lead = target.shape[:-2]
+    if target.shape[-2:] == (4, 4):
+        return xp.ones(lead + (6,), bool)
+    return xp.isfinite(target).reshape(lead + (-1,))
+
+
+def filled(target):
+    """``target`` with its lost (NaN) coordinates set to 0, for a fit that gives them no weight."""
+    xp = np if isinstance(target, np.ndarray) else jnp
+    return xp.where(xp.isfinite(target), target, 0.0)
 
 
 def _times(A, C):

@@ -92,17 +92,19 @@ def timing(path, runs_ms: dict, compile_s: dict, *, title: str) -> None:
 
 
 def heldout_errors(result):
-    """Held-out and frames-only held-out position error per pose (mm; the RMS over a pose's points)."""
+    """Held-out and frames-only held-out position error per pose (mm; the RMS over the points a
+    pose saw)."""
     pp = result.per_pose
     ho, fo = np.asarray(pp["heldout"]), np.asarray(pp["frames_only_heldout"])
-    if ho.ndim == 2:  # several points per pose: the RMS over the points
-        ho, fo = np.sqrt(np.mean(ho**2, -1)), np.sqrt(np.mean(fo**2, -1))
+    if ho.ndim == 2:  # several points per pose: the RMS over the points seen
+        ho, fo = np.sqrt(np.nanmean(ho**2, -1)), np.sqrt(np.nanmean(fo**2, -1))
     return ho, fo
 
 
 def pose_errors_figure(result):
-    """Held-out position error per pose, frames only vs calibrated (a :class:`DataCalibration`)."""
-    rep = result.report
+    """Held-out position error per pose, frames only vs calibrated, the outlier poses marked (a
+    :class:`DataCalibration`)."""
+    rep, pp = result.report, result.per_pose
     ho, fo = heldout_errors(result)
     fig, ax = plt.subplots(figsize=(10, 4))
     x = np.arange(len(ho))
@@ -116,6 +118,19 @@ def pose_errors_figure(result):
         color="tab:blue",
         label=f"calibrated, {rep['choice']} (RMS {rep['heldout_rms_mm']:.2f} mm)",
     )
+    bad = np.flatnonzero(pp.get("outlier", np.zeros(len(x), bool)))
+    if bad.size:
+        left = rep["outlier_detection"]["excluded"]
+        ax.scatter(
+            x[bad],
+            np.maximum(ho, fo)[bad] * 1.05,
+            marker="v",
+            color="tab:red",
+            zorder=3,
+            label=f"outlier ({'left out of the fit and the RMS' if left else 'kept'}): rows "
+            + ", ".join(str(int(r)) for r in np.asarray(pp["rows"])[bad][:8])
+            + (", ..." if bad.size > 8 else ""),
+        )
     ax.set_xlabel("pose (CSV data row - 1)")
     ax.set_ylabel("held-out position error (mm)")
     ax.set_title(f"{rep['folds']}-fold cross-validation: error on poses not used for fitting")

@@ -18,8 +18,10 @@ GROUPS = ("repeated", "new within training ranges", "out of training ranges")
 
 
 def _stats(err: np.ndarray) -> dict:
-    """RMS, max and median of error norms (any shape), or ``None`` entries without data."""
+    """RMS, max and median of error norms (any shape; NaN, a lost point, left out), or ``None``
+    entries without data."""
     e = np.ravel(err)
+    e = e[np.isfinite(e)]
     if e.size == 0:
         return {"rms_mm": None, "max_mm": None, "median_mm": None}
     return {"rms_mm": float(np.sqrt(np.mean(e**2))), "max_mm": float(e.max()), "median_mm": float(np.median(e))}
@@ -44,7 +46,9 @@ def evaluate(model: Model, meas, *, training=None) -> dict:
       pose (error norms), and ``points``: per measured point in column order, ``rms_mm``,
       ``max_mm``, ``median_mm``;
     * ``rotation_rms_deg`` (and max, median) when poses are measured;
-    * ``poses``: per pose its data row and error (mm; per point, and deg for poses);
+    * ``poses``: per pose its data row and error (mm; per point, None for a point not seen, and
+      deg for poses); ``lost_points``: ``{row, point}`` of the points not seen, ``dropped_rows``
+      the rows with none;
     * ``groups`` (given the ``training`` measurements): the same summary for repeated postures,
       new ones within the training ranges and ones out of them.
 
@@ -71,10 +75,12 @@ def evaluate(model: Model, meas, *, training=None) -> dict:
     if rot is not None:
         out.update({f"rotation_{k.replace('_mm', '_deg')}": v for k, v in _stats(rot).items()})
     out["poses"] = [
-        {"row": int(r), "error_mm": [float(v) for v in pos[i]]}
+        {"row": int(r), "error_mm": [float(v) if np.isfinite(v) else None for v in pos[i]]}
         | ({} if rot is None else {"rotation_deg": float(rot[i])})
         for i, r in enumerate(meas.rows)
     ]
+    out["lost_points"] = [{"row": r, "point": j} for r, j in getattr(meas, "lost_points", [])]
+    out["dropped_rows"] = [int(r) for r in getattr(meas, "dropped_rows", ())]
     if training is not None:
         if training.q.shape[1] != meas.q.shape[1]:
             raise DataError(f"{training.source}: {training.q.shape[1]} joints, the data {meas.q.shape[1]}")

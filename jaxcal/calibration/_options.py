@@ -13,7 +13,7 @@ import numbers
 
 from ..camera import CAMERA_MODELS
 from ..errors import DataError
-from ..solvers import LOSSES, METHODS
+from ..solvers import LOSSES, METHODS, OUTLIER_SIGMAS
 
 ELIMINATION_METHODS = ("elimination", "elimination-literal")
 GAUGE = (
@@ -63,6 +63,15 @@ class Options:
       outlier poses (iteratively reweighted), ``loss_scale`` the noise scale per row in units of
       sigma (None: a robust estimate).
 
+    **Outliers** (:mod:`jaxcal.calibration._outliers`)
+
+    - ``outlier_sigmas`` (5): a pose whose residual is as improbable under the estimated noise as
+      a one-sided 5-sigma normal deviation (2.9e-7 per pose) is an outlier: named in the report
+      and left out of the fit (and of every cross-validation fit and held-out figure).
+    - ``keep_outliers`` (False): find and name them, but fit every pose.
+    - ``max_outlier_fraction`` (0.2): more outliers than this share of the poses make the fit
+      implausible (refused by the command line), with the worst rows named.
+
     **Solver**
 
     - ``method`` (``"gn"``): ``gn`` (Gauss–Newton), ``lm`` (Levenberg–Marquardt), both optimistix,
@@ -107,6 +116,9 @@ class Options:
     sigma_rot_rad: float | None = None
     loss: str = "l2"
     loss_scale: float | None = None
+    outlier_sigmas: float = OUTLIER_SIGMAS
+    keep_outliers: bool = False
+    max_outlier_fraction: float = 0.2
     max_steps: int = 50
     rtol: float = 1e-8
     atol: float = 1e-8
@@ -157,7 +169,12 @@ class Options:
             v = getattr(self, name)
             if not isinstance(v, numbers.Integral) or isinstance(v, bool) or v < lo:
                 raise DataError(f"{name} must be an integer >= {lo}, got {v!r}", option=name)
-        for name in ("rtol", "atol", "memory_mb", "max_rotation_deg", "max_angle_change_deg"):
+        if not isinstance(self.keep_outliers, bool):
+            raise DataError(f"keep_outliers must be True or False, got {self.keep_outliers!r}", option="keep_outliers")
+        v = self.max_outlier_fraction
+        if not _number(v) or not 0 < v <= 1:
+            raise DataError(f"max_outlier_fraction must be in (0, 1], got {v!r}", option="max_outlier_fraction")
+        for name in ("rtol", "atol", "memory_mb", "max_rotation_deg", "max_angle_change_deg", "outlier_sigmas"):
             v = getattr(self, name)
             if not _number(v) or not math.isfinite(v) or v <= 0:
                 raise DataError(f"{name} must be a finite positive number, got {v!r}", option=name)

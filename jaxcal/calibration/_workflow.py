@@ -12,6 +12,11 @@ starting frames and its noise weights (the RMS per coordinate and per axis); the
 candidate parameter set (:func:`parse_params`) is fitted on every training set from there, with
 those weights. All of it is one compiled solve (:mod:`._core`).
 
+## Outliers
+Every training set (and all poses) finds its outliers on its own (:mod:`._outliers`, with the
+candidate that fits its poses best); then both stages run again with them left out. The
+held-out and training figures leave out the poses flagged on all poses; the report names them.
+
 ## Cross-validation
 Folds are a seeded permutation of the poses cut into ``folds`` nearly equal parts. Each
 candidate is fitted on ``folds - 1`` folds and evaluated on the one held out; the held-out
@@ -34,9 +39,10 @@ import numpy as np
 from ..camera import CAMERA_MODELS, check_target_in_front
 from ..camera import n_params as camera_size
 from ..errors import DataError
-from ..model import Layout, Model, measured_robot
+from ..model import Layout, Model, measured_robot, observed
 from ..robot import Robot
 from . import _core as core
+from . import _outliers as outliers
 from ._checks import as_target, check_units
 from ._options import Options, make_options
 from ._param_sets import Candidate, parse_params
@@ -88,7 +94,22 @@ def fit_failure(converged, finite, steps, max_steps: int, condition) -> str | No
 
 
 def _rms(v) -> float:
+    """RMS of the finite values (a lost point is NaN)."""
+    v = np.asarray(v)
+    v = v[np.isfinite(v)]
     return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
+
+
+def _max(v) -> float:
+    v = np.asarray(v)
+    v = v[np.isfinite(v)]
+    return float(v.max()) if v.size else float("nan")
+
+
+def _median_pose(pe) -> float:
+    """Median over poses of each pose's RMS over its points (``pe (K, M)``, NaN: lost)."""
+    pe = np.asarray(pe)
+    return float(np.median(np.sqrt(np.nanmean(pe**2, -1)))) if len(pe) else float("nan")
 
 
 def frame_doc(T) -> dict:
@@ -142,6 +163,111 @@ def _layout_for(robot, opts, n_points, cameras) -> Layout:
     return make_layout(robot, opts, n_points, camera=cameras[-1])
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Fits:
+    """Every fit of the workflow on one set of training masks (:func:`_stages`); members of a
+    stage: the training sets (``masks[:-1]``), then all poses."""
+
+    ref: Model
+    """The closed-form starting frames of each training set."""
+    a: dict
+    """Stage A, frames only: ``x``, ``converged``, ``pos_err``, ``rot_err`` per training set."""
+    refB: Model
+    """Stage A's models: the reference of stage B."""
+    sig: np.ndarray
+    """``(S, 2)`` noise weights (mm, rad) of each training set."""
+    allp: dict
+    """Stage B on all poses, one member per candidate."""
+    b: dict
+    """Stage B on the training sets, ``T x C`` members (training set major)."""
+
+
+def _stages(
+    cfg: core.Config, ref: Model, q, target, masks, ident, priors, opts: Options, run: dict, n_points: int
+) -> _Fits:
+    """Stage A (frames only, all poses, then every training set from there) and stage B (every
+    candidate on all poses, then on every training set from there: the same optimum, reached
+    in a few steps) on the training ``masks (S, K)`` (the last: all poses)."""
+    layout = cfg.layout
+    S, C = len(masks), len(priors)
+    T = S - 1
+    fw = np.asarray(masks, float)
+    unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), S, 0)
+    pa = np.repeat(prior_of(layout, ident, None, frames_only=True)[None], S, 0)
+    a_all = core.run_members(
+        cfg, core.take(ref, [T]), q, target, fw[[T]], unit[[T]], pa[[T]], **run, label="frames only"
+    )
+    a_folds = core.run_members(
+        cfg,
+        core.take(ref, np.arange(T)),
+        q,
+        target,
+        fw[:T],
+        unit[:T],
+        pa[:T],
+        x0=core.relative_x(core.take(ref, np.arange(T)), layout, a_all["model"]),
+        **run,
+        label="frames only, training sets",
+    )
+    a = {k: np.concatenate([a_folds[k], a_all[k]]) for k in ("x", "converged", "pos_err", "rot_err")}
+    refB = jax.tree.map(lambda u, v: np.concatenate([u, v]), a_folds["model"], a_all["model"])
+    sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
+    if opts.sigma_pos_mm is not None:
+        sig[:, 0] = opts.sigma_pos_mm
+    if opts.sigma_rot_rad is not None:
+        sig[:, 1] = opts.sigma_rot_rad
+    allp = core.run_members(
+        cfg,
+        core.take(refB, np.full(C, T)),
+        q,
+        target,
+        np.repeat(fw[[T]], C, 0),
+        np.repeat(core.weights_of(layout, sig[[T]]), C, 0),
+        priors,
+        opts.loss_scale,
+        **run,
+        label="candidates, all poses",
+    )
+    pick = np.repeat(np.arange(T), C)
+    models_b = core.take(refB, pick)
+    b = core.run_members(
+        cfg,
+        models_b,
+        q,
+        target,
+        fw[pick],
+        core.weights_of(layout, sig[pick]),
+        np.tile(priors, (T, 1)),
+        opts.loss_scale,
+        x0=core.relative_x(models_b, layout, core.take(allp["model"], np.tile(np.arange(C), T))),
+        **run,
+        label="cross-validation",
+    )
+    return _Fits(ref, a, refB, sig, allp, b)
+
+
+def _outliers_of(cfg: core.Config, fits: _Fits, q, target, masks, dof, priors, opts: Options, run: dict):
+    """The outliers of every training set (and of all poses), found with the candidate that fits
+    its poses best (the lowest robust noise scale): :func:`._outliers.detect` on those fits."""
+    S, K = masks.shape
+    T, C = S - 1, len(priors)
+    keys = ("x", "norms", "pos_norms", "rot_norms")
+    per = {k: np.concatenate([fits.b[k].reshape((T, C) + fits.b[k].shape[1:]), fits.allp[k][None]]) for k in keys}
+    poses = cfg.layout.n_points == 0
+    sizes = [outliers.standardised({k: v[:, c] for k, v in per.items()}, dof, masks, poses=poses)[1] for c in range(C)]
+    size = np.stack([np.sum(np.log(sc[:, : 1 + poses]), -1) for sc in sizes], 1)  # (S, C)
+    best = np.argmin(np.where(np.isfinite(size), size, np.inf), 1)
+    fit = {k: v[np.arange(S), best] for k, v in per.items()}
+    found = dict(poses=poses, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+    if opts.keep_outliers:
+        return outliers.assess(fit, masks, dof, **found)
+    weights, prior = core.weights_of(cfg.layout, fits.sig), priors[best]
+    refit = lambda w, x0: core.run_members(  # noqa: E731
+        cfg, fits.refB, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
+    )
+    return outliers.detect(refit, fit, masks, dof, **found)
+
+
 def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, progress=None, **kw) -> DataCalibration:
     """Calibrate from measured data with K-fold (and nested) cross-validation.
 
@@ -156,7 +282,9 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     says which of its fits gave non-finite parameters or did not converge, and why), ``parameters``
     (values, standard errors, units), ``unidentifiable``, ``combinations``,
     ``condition_number``, ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``,
-    ``camera_model``, ``camera_parameters``, ``base``, ``tool`` and, for points, ``points``.
+    ``camera_model``, ``camera_parameters``, ``base``, ``tool``, ``outliers`` and
+    ``outlier_detection`` (docs/conventions.md), ``lost_points``, ``dropped_rows`` and, for
+    points, ``points``. Training and held-out figures are over the poses not found outliers.
     """
     opts = make_options(options, kw, camera_auto=True)
     q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
@@ -202,72 +330,38 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     S = len(masks)
     ref = core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
-    ref_all = core.member(ref, S - 1)
-    J0, pos0 = core.analyse(ref_all, layout, q)
+    J0, pos0 = core.analyse(core.member(ref, S - 1), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
     ident = core.identify(J0, layout)
-    fw = masks.astype(float)
-    q_, t_ = q, target
-
-    # stage A: frames only, all poses, then every training set from there
     C, T = len(candidates), S - 1
     chunk = core.chunk_size(max(T * C, C, S), K, layout, opts.memory_mb)
     run = dict(J0=J0, chunk=chunk, memory_mb=opts.memory_mb, progress=progress)
-    unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), S, 0)
-    pa = np.repeat(prior_of(layout, ident, None, frames_only=True)[None], S, 0)
-    a_all = core.run_members(cfg, core.take(ref, [T]), q_, t_, fw[[T]], unit[[T]], pa[[T]], **run, label="frames only")
-    a_folds = core.run_members(
-        cfg,
-        core.take(ref, np.arange(T)),
-        q_,
-        t_,
-        fw[:T],
-        unit[:T],
-        pa[:T],
-        x0=core.relative_x(core.take(ref, np.arange(T)), layout, a_all["model"]),
-        **run,
-        label="frames only, training sets",
-    )
-    a = {k: np.concatenate([a_folds[k], a_all[k]]) for k in ("x", "converged", "pos_err", "rot_err")}
-    refB = jax.tree.map(lambda u, v: np.concatenate([u, v]), a_folds["model"], a_all["model"])
-    sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
-    if opts.sigma_pos_mm is not None:
-        sig[:, 0] = opts.sigma_pos_mm
-    if opts.sigma_rot_rad is not None:
-        sig[:, 1] = opts.sigma_rot_rad
-
-    # stage B: every candidate on all poses, then on every training set from there (the same
-    # optimum, reached in a few steps)
     priors = np.stack([prior_of(layout, ident, c) for c in candidates])
+    fits = _stages(cfg, ref, q, target, masks, ident, priors, opts, run, n_points)
+
+    # outliers: found in every training set (and all poses) on its own, then everything refitted
+    # without them; the held-out figures leave out the poses found in all poses
+    dof = outliers.position_rows(target)
+    det = _outliers_of(cfg, fits, q, target, masks, dof, priors, opts, run)
+    if det.flags.any() and not opts.keep_outliers:
+        kept = masks & ~det.flags
+        fits = _stages(
+            cfg,
+            core.start_models(robot.stripped(), layout, q, target, kept, shared=True),
+            q,
+            target,
+            kept,
+            ident,
+            priors,
+            opts,
+            run,
+            n_points,
+        )
+    left = det.flags if not opts.keep_outliers else np.zeros_like(masks)  # out of every fit
+    gone = left[T]  # out of every figure
+    a, refB, sig, allp, b = fits.a, fits.refB, fits.sig, fits.allp, fits.b
+    ref_all = core.member(fits.ref, T)
     w_all = core.weights_of(layout, sig[[T]])
-    allp = core.run_members(
-        cfg,
-        core.take(refB, np.full(C, T)),
-        q_,
-        t_,
-        np.repeat(fw[[T]], C, 0),
-        np.repeat(w_all, C, 0),
-        priors,
-        opts.loss_scale,
-        **run,
-        label="candidates, all poses",
-    )
-    pick = np.repeat(np.arange(T), C)
-    models_b = core.take(refB, pick)
-    start = core.relative_x(models_b, layout, core.take(allp["model"], np.tile(np.arange(C), T)))
-    b = core.run_members(
-        cfg,
-        models_b,
-        q_,
-        t_,
-        fw[pick],
-        core.weights_of(layout, sig[pick]),
-        np.tile(priors, (T, 1)),
-        opts.loss_scale,
-        x0=start,
-        **run,
-        label="cross-validation",
-    )
     pe = b["pos_err"].reshape(T, C, K, -1)
     re = np.degrees(b["rot_err"].reshape(T, C, K))
     held = ~outer
@@ -278,13 +372,13 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
         return core.condition_number(np.einsum("kri,krj->ij", Jw, Jw), list(estimated(priors[c])))
 
     for c, cand in enumerate(candidates):
-        h_pe, t_pe = pe[:F, c][held], pe[:F, c][outer]
+        h_pe, t_pe = pe[:F, c][held & ~gone], pe[:F, c][outer & ~left[:F]]
         cv_table.append(
             {
                 "name": cand.name,
                 "heldout_rms_mm": _rms(h_pe),
-                "heldout_max_mm": float(h_pe.max()),
-                "heldout_rot_rms_deg": None if n_points else _rms(re[:F, c][held]),
+                "heldout_max_mm": _max(h_pe),
+                "heldout_rot_rms_deg": None if n_points else _rms(re[:F, c][held & ~gone]),
                 "train_rms_mm": _rms(t_pe),
                 "converged": bool(b["converged"].reshape(T, C)[:F, c].all()),
                 "failure": fit_failure(  # its fits on every training set and on all poses
@@ -303,7 +397,7 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     for o in range(F):
         if nested:
             rows_o = [F + j for j, oo in enumerate(inner_of) if oo == o]
-            ho = ~masks[rows_o] & outer[o]
+            ho = ~masks[rows_o] & outer[o] & ~left[o]
             c_o = choose([_rms(pe[rows_o, c][ho]) for c in range(C)], candidates)
         else:
             c_o = c_final
@@ -328,7 +422,14 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             full.robot, full.points, np.asarray(full.camera_params)[: camera_size(cand.camera)], camera=cand.camera
         )
     st = core.fit_statistics(
-        J0, w_all[0], fw[T], fin["norms"][0], loss=opts.loss, loss_scale=opts.loss_scale, rows=layout.rows
+        J0,
+        w_all[0],
+        (~gone).astype(float),
+        fin["norms"][0],
+        loss=opts.loss,
+        loss_scale=opts.loss_scale,
+        rows=layout.rows,
+        seen=observed(target),
     )
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
     active = list(estimated(prior))
@@ -338,10 +439,16 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     cam_names = [names[i] for i in layout.cameras[: camera_size(cand.camera)]]
     cond = core.condition_number(st["normal"], active)
     frames_only = core.described(core.member(refB, T), robot).robot
-    tr_pe, tr_re = fin["pos_err"][0], np.degrees(fin["rot_err"][0])
+    tr_pe, tr_re = fin["pos_err"][0][~gone], np.degrees(fin["rot_err"][0])[~gone]
     rot = n_points == 0
-    train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], n_points=n_points)
-    why = judge(robot, q, target, n_points, layout, opts, train, x_rel, active)
+    train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], ~gone, n_points=n_points)
+    found = dict(poses=not n_points, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+    final = outliers.assess(fin, masks[[T]], dof, excluded=None if opts.keep_outliers else gone[None], **found)
+    pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
+    many = outliers.too_many(final.flags[0], final.sigmas[0], pos_mm, rows_in_file, opts.max_outlier_fraction)
+    why = judge(robot, q, target, n_points, layout, opts, train, x_rel, active, many)
+    ho_pe, fo_pe = nested_pe[~gone], f_pe[~gone]
+    tr_re_all = np.degrees(fin["rot_err"][0])
     rep = {
         "robot": robot.name,
         "data": getattr(data, "source", "arrays"),
@@ -360,19 +467,19 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
         "nested": nested,
         "nested_choices": nested_choice,
         "train_rms_mm": _rms(tr_pe),
-        "train_max_mm": float(tr_pe.max()),
+        "train_max_mm": _max(tr_pe),
         "train_rot_rms_deg": _rms(tr_re) if rot else None,
-        "heldout_rms_mm": _rms(nested_pe),
-        "heldout_max_mm": float(nested_pe.max()),
-        "heldout_median_mm": float(np.median(np.sqrt(np.mean(nested_pe**2, -1)))),
-        "heldout_rot_rms_deg": _rms(nested_re) if rot else None,
-        "frames_only_train_rms_mm": _rms(a["pos_err"][T]),
-        "frames_only_train_max_mm": float(a["pos_err"][T].max()),
-        "frames_only_train_rot_rms_deg": _rms(np.degrees(a["rot_err"][T])) if rot else None,
-        "frames_only_heldout_rms_mm": _rms(f_pe),
-        "frames_only_heldout_max_mm": float(f_pe.max()),
-        "frames_only_heldout_median_mm": float(np.median(np.sqrt(np.mean(f_pe**2, -1)))),
-        "frames_only_heldout_rot_rms_deg": _rms(f_re) if rot else None,
+        "heldout_rms_mm": _rms(ho_pe),
+        "heldout_max_mm": _max(ho_pe),
+        "heldout_median_mm": _median_pose(ho_pe),
+        "heldout_rot_rms_deg": _rms(nested_re[~gone]) if rot else None,
+        "frames_only_train_rms_mm": _rms(a["pos_err"][T][~gone]),
+        "frames_only_train_max_mm": _max(a["pos_err"][T][~gone]),
+        "frames_only_train_rot_rms_deg": _rms(np.degrees(a["rot_err"][T])[~gone]) if rot else None,
+        "frames_only_heldout_rms_mm": _rms(fo_pe),
+        "frames_only_heldout_max_mm": _max(fo_pe),
+        "frames_only_heldout_median_mm": _median_pose(fo_pe),
+        "frames_only_heldout_rot_rms_deg": _rms(f_re[~gone]) if rot else None,
         "cv": cv_table,
         "camera_model": cand.camera,
         "camera_model_option": opts.camera,
@@ -397,15 +504,33 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
         "implausible": why or None,
         "notes": list(still_joint_notes(robot, q)),
     }
+    rep["outliers"] = outliers.describe(
+        final, 0, fin["pos_err"][0], tr_re_all if rot else None, rows_in_file, excluded=not opts.keep_outliers
+    )
+    rep["outlier_detection"] = {
+        "excluded": not opts.keep_outliers,
+        "outlier_sigmas": opts.outlier_sigmas,
+        "false_alarm_per_pose": outliers.false_alarm(opts.outlier_sigmas),
+        "threshold_sigmas": float(outliers.thresholds(layout.rows, opts.outlier_sigmas)),
+        "noise_pos_mm": float(final.scale[0, 0] * sig[T, 0]),
+        "noise_rot_deg": float(np.degrees(final.scale[0, 1] * sig[T, 1])) if rot else None,
+        "max_outlier_fraction": opts.max_outlier_fraction,
+        "heldout_rms_mm_all_poses": _rms(nested_pe),  # the flagged poses too: what dropping them hides
+    }
+    lost = getattr(data, "lost_points", [])  # in the file's rows and point numbers
+    rep["lost_points"] = [{"row": r, "point": j} for r, j in lost]
+    rep["dropped_rows"] = [int(r) for r in getattr(data, "dropped_rows", ())]
     if n_points:
         rep["points_mm"] = np.asarray(model.points).tolist()
-        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.mean(nested_pe**2, 0))]
+        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.nanmean(ho_pe**2, 0))]
     per_pose = {
         "rows": rows_in_file,
         "frames_only_heldout": _squeeze(f_pe),
         "heldout": _squeeze(nested_pe),
         "frames_only_train": _squeeze(a["pos_err"][T]),
-        "train": _squeeze(tr_pe),
+        "train": _squeeze(fin["pos_err"][0]),
+        "outlier": final.flags[0],
+        "sigmas": final.sigmas[0],
         "frames_only_heldout_rot": f_re,
         "heldout_rot": nested_re,
         "frames_only": frames_only,

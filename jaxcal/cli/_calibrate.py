@@ -8,7 +8,7 @@ import typer
 from rich.table import Table
 
 from ..calibration import Options
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg, progress
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg, lost_notes, parse_points, progress
 
 _D = Options()
 
@@ -42,6 +42,16 @@ def calibrate(
     ),
     loss: str = typer.Option(_D.loss, help="l2 | huber | cauchy (robust to outlier poses)"),
     loss_scale: float = typer.Option(None, help="robust loss scale in units of sigma (default: estimated)"),
+    outlier_sigmas: float = typer.Option(
+        _D.outlier_sigmas,
+        help="a pose whose residual is as improbable as this many sigmas of a normal deviation is an outlier",
+    ),
+    keep_outliers: bool = typer.Option(
+        _D.keep_outliers, "--keep-outliers", help="name the outlier poses but fit them (default: left out)"
+    ),
+    max_outlier_fraction: float = typer.Option(
+        _D.max_outlier_fraction, help="refuse the fit when more than this share of the poses are outliers"
+    ),
     sigma_pos_mm: float = typer.Option(None, help="position noise per coordinate (default: estimated)"),
     sigma_rot_rad: float = typer.Option(None, help="rotation noise per axis (default: estimated)"),
     max_steps: int = typer.Option(_D.max_steps, help="solver step limit"),
@@ -105,7 +115,7 @@ def calibrate(
             raise DataError(f"{name}: {kind}; nothing was computed", option=name)
     meas = read_measurements(data, nominal, length_unit=length_unit, angle_unit=angle_unit)
     if points is not None:
-        meas = meas.select_points([int(p) for p in points.split(",") if p.strip()])
+        meas = meas.select_points(parse_points(points))
     opts = Options(
         method=method,
         params=params,
@@ -115,6 +125,9 @@ def calibrate(
         camera=camera,
         loss=loss,
         loss_scale=loss_scale,
+        outlier_sigmas=outlier_sigmas,
+        keep_outliers=keep_outliers,
+        max_outlier_fraction=max_outlier_fraction,
         sigma_pos_mm=sigma_pos_mm,
         sigma_rot_rad=sigma_rot_rad,
         max_steps=max_steps,
@@ -260,3 +273,30 @@ def show(rep: dict, meas) -> None:
         console.print(f"camera model {rep['camera_model']}: {vals} (a sensor property, not written to the robot file)")
     if rep.get("ignored_columns"):
         console.print(f"ignored columns: {', '.join(rep['ignored_columns'])}")
+    lost_notes(meas)
+    show_outliers(rep)
+
+
+def show_outliers(rep: dict) -> None:
+    """The outlier poses by file row, or that there were none, with the threshold."""
+    d, found = rep["outlier_detection"], rep["outliers"]
+    noise = f"{d['noise_pos_mm']:.3g} mm" + (f", {d['noise_rot_deg']:.3g} deg" if d.get("noise_rot_deg") else "")
+    rule = f"a residual beyond {d['threshold_sigmas']:.3g} sigma of the noise ({noise} per coordinate, robust)"
+    if not found:
+        console.print(f"outliers: none ({rule})")
+        return
+    t = Table(title=f"{len(found)} outlier pose(s)")
+    rot = "rotation_deg" in found[0]
+    for col in ("row", "position error (mm)") + (("rotation error (deg)",) if rot else ()) + ("sigmas",):
+        t.add_column(col, justify="right")
+    for o in found:
+        cells = [str(o["row"]), f"{o['position_mm']:.3f}"] + ([f"{o['rotation_deg']:.3f}"] if rot else [])
+        t.add_row(*cells, f"{o['sigmas']:.1f}")
+    console.print(t)
+    if d["excluded"]:
+        console.print(
+            f"outliers: {rule}; left out of the fit and of the held-out figures (held-out RMS with them "
+            f"scored too: {d['heldout_rms_mm_all_poses']:.3f} mm; --keep-outliers fits them)"
+        )
+    else:
+        console.print(f"outliers: {rule}; kept in the fit (--keep-outliers)")

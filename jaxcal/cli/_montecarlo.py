@@ -53,6 +53,9 @@ def montecarlo(
     ),
     memory_mb: float = typer.Option(1024.0, "--memory-mb", help="memory budget of a chunk of robots (MB)"),
     max_chunks: int = typer.Option(None, "--max-chunks", help="stop after this many chunks (rerun to continue)"),
+    outliers: float = typer.Option(0.0, "--outliers", help="share of each robot's poses given a gross position error"),
+    outlier_mm: str = typer.Option("3,6", "--outlier-mm", help="A,B: the gross errors' length, uniform in [A, B] mm"),
+    keep_outliers: bool = typer.Option(False, "--keep-outliers", help="fit the outlier poses (default: left out)"),
 ):
     """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
     from .._io import check_writable, write_atomic
@@ -89,6 +92,9 @@ def montecarlo(
             out=out_dir,
             memory_mb=memory_mb,
             max_chunks=max_chunks,
+            outliers=outliers,
+            outlier_mm=_pair(outlier_mm),
+            keep_outliers=keep_outliers,
         )
     if not out["complete"]:
         console.print(
@@ -113,6 +119,14 @@ def montecarlo(
         ("parameter RMS error vs truth, worst", f"{out['param_rms_error_max']:.3g}"),
         ("validation position RMS (mm)", f"{out['validation_pos_rms_mm']:.4g}"),
     ]
+    if "outliers" in out or out["false_alarms"]:
+        rows.append(
+            (
+                "outlier poses found / missed; clean poses flagged",
+                f"{out['outliers_found']} / {out['outliers_missed']}; {out['false_alarms']}"
+                + (" (kept in the fits)" if keep_outliers else ""),
+            )
+        )
     if "crlb_efficiency_mean" in out:
         rows.append(("CRLB efficiency (CRLB var / empirical var), mean", f"{out['crlb_efficiency_mean']:.3f}"))
     for k, v in rows:
@@ -121,3 +135,14 @@ def montecarlo(
     if json_out and out["complete"]:  # a summary of part of a study is not written
         write_atomic(json_out, json.dumps(out, indent=2))
         console.print(f"wrote {json_out}")
+
+
+def _pair(text: str) -> tuple[float, float]:
+    """``--outlier-mm A,B``."""
+    from ..errors import DataError
+
+    try:
+        a, b = (float(v) for v in text.split(","))
+    except ValueError:
+        raise DataError(f"outlier_mm must be A,B in mm (e.g. 3,6), got {text!r}", option="outlier_mm") from None
+    return a, b

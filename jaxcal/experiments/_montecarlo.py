@@ -20,7 +20,7 @@ from ..kinematics import fk
 from ..model import Layout, Model, jacobian
 from ..robot import Robot
 from ..sharding import describe, select_devices
-from ..simulation import error_scales, measure, sample_poses
+from ..simulation import error_scales, inject_outliers, measure, sample_poses
 from ..solvers import design_poses
 from ._study import StudyFolder, fingerprint
 from ._timing import machine_info
@@ -119,7 +119,7 @@ def _true_x(x_true, layout: Layout) -> np.ndarray:
 
 
 @eqx.filter_jit
-def _draw(robot: Robot, key, idx, scales, q_given, sigmas, *, n_poses: int, n_val: int, base: bool, tool: bool, design):
+def _draw(robot: Robot, key, idx, scales, q_given, sigmas, *, n_poses, n_val, base: bool, tool: bool, design, outliers):
     """Robots ``idx`` of a study: true errors, poses, noisy measurements, inspection poses and
     their true poses. Robot ``i``'s draw depends on ``(key, i)`` alone, so a study's results do
     not depend on how it is chunked, on the devices, or on being resumed."""
@@ -132,8 +132,11 @@ def _draw(robot: Robot, key, idx, scales, q_given, sigmas, *, n_poses: int, n_va
         else:
             q = sample_poses(kq, robot, (n_poses,)) if q_given is None else q_given
         meas = measure(robot, x, q, kn, sigma_pos=sigmas[0], sigma_rot=sigmas[1], base=base, tool=tool)
+        bad = jnp.zeros(q.shape[0], bool)
+        if outliers is not None:  # gross errors, on a key of their own (the clean draws unchanged)
+            meas, bad = inject_outliers(jax.random.fold_in(kn, 1), meas, *outliers)
         qv = sample_poses(kv, robot, (n_val,))
-        return x, q, meas, qv, fk(perturb(robot, x, base=base, tool=tool), qv)
+        return x, q, meas, qv, fk(perturb(robot, x, base=base, tool=tool), qv), bad
 
     return jax.vmap(one)(idx)
 
@@ -173,6 +176,9 @@ def run_montecarlo(
     out=None,
     chunk_robots: int | None = None,
     max_chunks: int | None = None,
+    outliers: float = 0.0,
+    outlier_mm=(3.0, 6.0),
+    keep_outliers: bool = False,
 ) -> dict:
     """Simulate ``n_robots`` robots, calibrate them all, and summarise against the truth and the
     Cramér–Rao bound.
@@ -190,6 +196,11 @@ def run_montecarlo(
     Timing: the first chunk of this call includes compiling; the later chunks are warm runs. A
     call that computes a single chunk reruns it ``repeats`` times to time it warm (the chunk,
     never the whole study). ``compile_seconds`` = the first chunk's time minus its warm estimate.
+
+    Outliers: ``outliers`` the share of each robot's poses given a gross position error of
+    ``outlier_mm = (A, B)`` mm (:func:`jaxcal.simulation.inject_outliers`); the calibration finds
+    and leaves them out unless ``keep_outliers``; the summary counts the poses flagged, injected
+    or not (``outliers_found``, ``outliers_missed``, ``false_alarms``).
     """
     from ..errors import DataError
     from ..solvers import METHODS
@@ -236,6 +247,11 @@ def run_montecarlo(
         "poses_fingerprint": None if q is None else fingerprint(q),
         "chunk_robots": chunk_robots or default_chunk(n_robots, n_poses, n_val, robot.n_joints, memory_mb, len(devs)),
     }
+    gross = _gross(outliers, outlier_mm, n_poses)  # (count, A, B) or None; in the definition only when used
+    if gross is not None:
+        definition["outliers"] = {"fraction": outliers, "outlier_mm": list(gross[1:])}
+    if keep_outliers:
+        definition["keep_outliers"] = True
     folder = StudyFolder(out, definition) if out is not None else None
     c = folder.chunk_robots if folder is not None else definition["chunk_robots"]
     n_chunks = -(-n_robots // c)
@@ -248,13 +264,14 @@ def run_montecarlo(
         sigma_pos_mm=sigma_pos if noisy else None,
         sigma_rot_rad=sigma_rot if noisy else None,
         memory_mb=memory_mb,
+        keep_outliers=keep_outliers,
     )
     stripped = robot.stripped()
     scales = error_scales(robot, base=estimate_base, tool=estimate_tool)
 
     def draw(i):  # chunk i, the last padded to a whole chunk by repeating its last robot: one compile
         idx = np.minimum(np.arange(i * c, (i + 1) * c), n_robots - 1)
-        kw = dict(n_poses=n_poses, n_val=n_val, base=estimate_base, tool=estimate_tool, design=design)
+        kw = dict(n_poses=n_poses, n_val=n_val, base=estimate_base, tool=estimate_tool, design=design, outliers=gross)
         sigmas = np.array([sigma_pos, sigma_rot])
         return [np.asarray(a) for a in _draw(stripped, jax.random.PRNGKey(seed), idx, scales, q, sigmas, **kw)]
 
@@ -269,7 +286,7 @@ def run_montecarlo(
     for i in np.flatnonzero(~done):
         if max_chunks is not None and computed >= max_chunks:
             break
-        x_true, q_i, meas, q_val, true_val = draw(int(i))
+        x_true, q_i, meas, q_val, true_val, bad = draw(int(i))
         measured = _measured(meas, position_only)
         t0 = time.perf_counter()
         res = calibrate_batch(robot, q_i, measured, opts, ident=ident, devices=devs)
@@ -280,6 +297,7 @@ def run_montecarlo(
             warm.append((len(q_i), dt))
             first = first[:2] + (None,)
         rec = _record(robot, res, x_true, q_i, q_val, true_val, ident, sigma_pos, sigma_rot, noisy)
+        rec |= _flag_counts(res, bad)
         n_i = min(c, n_robots - i * c)  # without the padding
         rec = {k: v[:n_i] for k, v in rec.items()}
         rec["robots"] = np.array([i * c, i * c + n_i])
@@ -297,6 +315,7 @@ def run_montecarlo(
             warm.append((first[0], time.perf_counter() - t0))
     described = ("robot", "method", "n_robots", "n_poses", "n_val", "noise", "seed")
     described += ("position_only", "estimate_base", "estimate_tool")
+    described += tuple(k for k in ("outliers", "keep_outliers") if k in definition)
     out_d = {k: definition[k] for k in described} | {
         "devices": describe(devs),
         "chunk_robots": c,
@@ -315,6 +334,25 @@ def run_montecarlo(
     if folder is not None and out_d["complete"]:
         folder.write_summary(out_d)
     return out_d
+
+
+def _gross(fraction, outlier_mm, n_poses: int):
+    """``(poses per robot, A, B)`` of the outlier injection, None without; checked."""
+    from ..errors import DataError
+
+    if isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.number)) or not 0 <= fraction <= 1:
+        raise DataError(f"outliers must be a share of the poses in [0, 1], got {fraction!r}", option="outliers")
+    lo_hi = np.asarray(outlier_mm, float) if np.shape(outlier_mm) == (2,) else np.full(2, np.nan)
+    if not 0 <= lo_hi[0] <= lo_hi[1] < np.inf:
+        raise DataError(f"outlier_mm must be A,B with 0 <= A <= B (mm), got {outlier_mm!r}", option="outlier_mm")
+    n = int(round(fraction * n_poses))
+    return (n, float(lo_hi[0]), float(lo_hi[1])) if n else None
+
+
+def _flag_counts(res, bad) -> dict:
+    """Per robot: injected outliers flagged, injected ones missed, clean poses flagged."""
+    flag = np.zeros_like(bad) if res.outlier_mask is None else res.outlier_mask
+    return {"flags": np.stack([(flag & bad).sum(1), (~flag & bad).sum(1), (flag & ~bad).sum(1)], 1)}
 
 
 def _measured(meas, position_only: bool):
@@ -350,6 +388,7 @@ class _Sums:
     def __init__(self, r: int):
         self.n, self.conv, self.max_steps = 0, 0, 0
         self.err2, self.val2, self.crlb = np.zeros(r), 0.0, np.zeros(r)
+        self.flags = np.zeros(3, int)  # outliers found, missed, false alarms
 
     @classmethod
     def empty(cls, r: int) -> _Sums:
@@ -363,6 +402,8 @@ class _Sums:
         self.val2 += float(np.sum(rec["val_rms"] ** 2))
         if "crlb_var" in rec:
             self.crlb = self.crlb + np.sum(rec["crlb_var"], 0)
+        if "flags" in rec:
+            self.flags = self.flags + np.sum(rec["flags"], 0)
 
     def summary(self, names, noisy: bool) -> dict:
         n = max(self.n, 1)
@@ -374,6 +415,7 @@ class _Sums:
             "param_rms_error": dict(zip(names, rms.tolist())),
             "param_rms_error_max": float(rms.max()),
             "validation_pos_rms_mm": float(np.sqrt(self.val2 / n)),
+            **dict(zip(("outliers_found", "outliers_missed", "false_alarms"), map(int, self.flags))),
         }
         if noisy:
             eff = (self.crlb / n) / (self.err2 / n)
