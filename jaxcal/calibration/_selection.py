@@ -35,8 +35,9 @@ the points, whatever its unit: 1 mm and the angle that moves the points 1 mm wei
 
 ## Parameter-level selection
 The chosen candidate's parameters are then pruned one at a time, the least significant first
-(smallest ``|x_j| / se_j`` of the fit on all poses), as long as the score stays within
-:data:`PRUNE_TOLERANCE` of the candidate's: what remains are the parameters the data support.
+(smallest ``|x_j| / se_j`` of the fit on all poses), down to none; of the models on that path
+the sparsest whose score is within one standard error of the best is kept (the "one standard
+error" rule of cross-validation): what remains are the parameters the data support.
 """
 
 from __future__ import annotations
@@ -49,9 +50,14 @@ from jaxtyping import Bool, Float
 END_FRACTION = 0.15
 """Share of the poses at each end of a joint's range that a range-end fold holds out."""
 PRUNE_TOLERANCE = 0.01
-"""Pruning keeps a parameter out while the score stays within this fraction of the candidate's."""
+"""Pruning keeps the sparsest model whose score is within one standard error of the best, and at
+least within this fraction of it."""
 SIMPLER_TOLERANCE = 0.01
 """A simpler candidate whose score is within this fraction of the best wins."""
+MAX_CONDITION = 1e6
+"""A candidate whose column-scaled, weighted Jacobian (prior rows included) is worse conditioned
+than this fails: its parameters are not separable on these poses, and its full fit's normal
+equations (condition number squared) would be rounding error."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -66,6 +72,8 @@ class Linear:
     pos_scale: Float[np.ndarray, " rows"]
     """mm per weighted unit of each position row; 0 for rotation rows."""
     n_points: int
+    blocks: np.ndarray | None = None
+    """``(K, m m)`` each pose's ``J_k^T J_k``, formed by the first :func:`sums` (small problems)."""
 
     @property
     def K(self) -> int:
@@ -90,14 +98,21 @@ def linearise(J, r, weights, n_points: int) -> Linear:
     return Linear(Jw, rw, seen, scale, n_points)
 
 
+BLOCKS_MAX = 2**24
+"""Largest number of entries of the per-pose normal blocks kept in memory (:func:`sums`)."""
+
+
 def sums(lin: Linear, train) -> tuple[np.ndarray, np.ndarray]:
     """``(sum_k w_fk J_k^T J_k (F, m, m), sum_k w_fk J_k^T r_k (F, m))`` of the pose weights
-    ``train (F, K)``."""
+    ``train (F, K)``: a product with the per-pose blocks where they fit in memory."""
     train = np.atleast_2d(np.asarray(train, float))
-    return (
-        np.einsum("fk,kri,krj->fij", train, lin.J, lin.J, optimize=True),
-        np.einsum("fk,kri,kr->fi", train, lin.J, lin.r, optimize=True),
-    )
+    K, m = lin.K, lin.m
+    b = np.einsum("fk,kri,kr->fi", train, lin.J, lin.r, optimize=True)
+    if K * m * m > BLOCKS_MAX:
+        return np.einsum("fk,kri,krj->fij", train, lin.J, lin.J, optimize=True), b
+    if lin.blocks is None:  # formed once per linearisation
+        object.__setattr__(lin, "blocks", np.einsum("kri,krj->kij", lin.J, lin.J).reshape(K, m * m))
+    return (train @ lin.blocks).reshape(-1, m, m), b
 
 
 def lever(J, n_points: int) -> Float[np.ndarray, " m"]:
@@ -211,24 +226,48 @@ def errors_mm(lin: Linear, x, poses) -> Float[np.ndarray, "C P M"]:
     return np.where(seen, np.linalg.norm(pos, axis=-1), np.nan)
 
 
-def _mse(lin: Linear, rule: Rule, x, folds) -> np.ndarray:
-    tot, n = 0.0, 0
+def _squares(lin: Linear, rule: Rule, x, folds) -> list[np.ndarray]:
+    """Squared held-out position errors (mm², lost points left out) of every candidate: one
+    ``(C, n)`` array per fold."""
+    out = []
     for f in folds:
-        poses = np.flatnonzero(rule.held[f])
-        e = errors_mm(lin, x[:, f], poses)  # (C, P, M)
-        tot = tot + np.nansum(e**2, axis=(1, 2))
-        n += int(np.sum(np.isfinite(e[0])))
-    return tot / n if n else np.full(x.shape[0], np.nan)
+        e = errors_mm(lin, x[:, f], np.flatnonzero(rule.held[f])).reshape(x.shape[0], -1)  # (C, P M)
+        out.append(e[:, np.isfinite(e[0])] ** 2)
+    return out
+
+
+def _mse(lin: Linear, rule: Rule, x, folds) -> np.ndarray:
+    sq = _squares(lin, rule, x, folds)
+    return np.concatenate(sq, 1).mean(1) if sq and sum(a.shape[1] for a in sq) else np.full(x.shape[0], np.nan)
+
+
+def score_error(lin: Linear, rule: Rule, free, prior) -> tuple[float, float]:
+    """The score of one candidate and its standard error (mm): the spread of the held-out squared
+    errors it averages, by the delta method."""
+    x = solve(rule.A, rule.b, np.atleast_2d(free), np.atleast_2d(prior))
+    F = rule.held.shape[0]
+    parts = [np.concatenate(_squares(lin, rule, x, r), 1)[0] for r in (range(rule.n_kfold), range(rule.n_kfold, F))]
+    parts = [p for p in parts if p.size]
+    w = 1.0 / len(parts)
+    ms = w * sum(p.mean() for p in parts)
+    var = w**2 * sum(p.var(ddof=1) / p.size if p.size > 1 else 0.0 for p in parts)
+    return float(np.sqrt(ms)), float(np.sqrt(var) / (2 * np.sqrt(ms))) if ms > 0 else 0.0
+
+
+def score_parts(lin: Linear, rule: Rule, free, prior) -> tuple[np.ndarray, np.ndarray]:
+    """``(K-fold, range-end)`` held-out RMS (mm) of each candidate; the second NaN without
+    range-end folds."""
+    x = solve(rule.A, rule.b, free, prior)  # (C, F, m)
+    F = rule.held.shape[0]
+    a = _mse(lin, rule, x, range(rule.n_kfold))
+    b = _mse(lin, rule, x, range(rule.n_kfold, F)) if F > rule.n_kfold else np.full_like(a, np.nan)
+    return np.sqrt(a), np.sqrt(b)
 
 
 def score(lin: Linear, rule: Rule, free, prior) -> Float[np.ndarray, " C"]:
     """The scoring rule (module docstring) of each candidate, mm."""
-    x = solve(rule.A, rule.b, free, prior)  # (C, F, m)
-    F = rule.held.shape[0]
-    a = _mse(lin, rule, x, range(rule.n_kfold))
-    if F == rule.n_kfold:
-        return np.sqrt(a)
-    return np.sqrt(0.5 * a + 0.5 * _mse(lin, rule, x, range(rule.n_kfold, F)))
+    a, b = score_parts(lin, rule, free, prior)
+    return np.where(np.isnan(b), a, np.sqrt(0.5 * a**2 + 0.5 * b**2))
 
 
 def standard_errors(lin: Linear, rule: Rule, free, prior, x) -> Float[np.ndarray, " m"]:
@@ -236,7 +275,11 @@ def standard_errors(lin: Linear, rule: Rule, free, prior, x) -> Float[np.ndarray
     ``s^2 N^-1 J^T J N^-1``, ``s^2`` the weighted residual variance (0 outside ``free``)."""
     free = np.asarray(free, bool)
     JJ = rule.A_all[np.ix_(free, free)]
-    Ni = np.linalg.pinv(JJ + np.diag(np.asarray(prior, float)[free] ** 2))
+    Nf = JJ + np.diag(np.asarray(prior, float)[free] ** 2)
+    try:
+        Ni = np.linalg.inv(Nf)
+    except np.linalg.LinAlgError:
+        Ni = np.linalg.pinv(Nf)
     w = rule.valid.astype(float)
     e = lin.r - np.einsum("krm,m->kr", lin.J, x)
     dof = max(float(np.sum(w[:, None] * lin.seen)) - free.sum(), 1.0)
@@ -259,6 +302,10 @@ class Choice:
     """Its free parameters after pruning."""
     scores: Float[np.ndarray, " C"]
     """Every candidate's score (mm)."""
+    parts: tuple
+    """Every candidate's K-fold and range-end held-out RMS (mm), the two parts of its score."""
+    conditions: Float[np.ndarray, " C"]
+    """Condition number of every candidate's column-scaled normal equations on all the poses."""
     score: float
     """The pruned model's score (mm)."""
     pruned: tuple[tuple[int, float, float], ...] = ()
@@ -279,37 +326,53 @@ def choose(scores, complexity) -> int:
 
 
 def prune(lin: Linear, rule: Rule, free, prior, prunable, start: float):
-    """Drop the least significant prunable parameter while the score stays within
-    :data:`PRUNE_TOLERANCE` of the best score so far (``start``, the candidate's, at first; module
-    docstring). Returns ``(free, dropped, kept_t)``."""
+    """Drop the prunable parameters one at a time, the least significant first (smallest
+    ``|x| / se`` of the fit on all the rule's poses), down to none, scoring each model on the way;
+    keep the sparsest one whose score is within one standard error (and at least
+    :data:`PRUNE_TOLERANCE`) of the best on the path. Returns ``(free, dropped, kept_t)``:
+    ``dropped`` as :attr:`Choice.pruned`, ``kept_t`` the kept parameters' ``|x| / se``."""
     free = np.array(free, bool)
     prior = np.asarray(prior, float)
     prunable = np.asarray(prunable, bool)
-    best, dropped = start, []
+    path, ts = [(free, -1, np.nan, start)], []
     while True:
         x = solve(rule.A_all[None], rule.b_all[None], free[None], prior[None])[0, 0]
         se = standard_errors(lin, rule, free, prior, x)
         t = {int(j): (abs(x[j]) / se[j] if se[j] > 0 else np.inf) for j in np.flatnonzero(free & prunable)}
+        ts.append(t)
         if not t:
-            return free, tuple(dropped), t
+            break
         j = min(t, key=t.get)
-        trial = free.copy()
-        trial[j] = False
-        s = float(score(lin, rule, trial[None], prior[None])[0])
-        if not s <= (1 + PRUNE_TOLERANCE) * best:
-            return free, tuple(dropped), t
-        free, best = trial, min(best, s)
-        dropped.append((j, t[j], s))
+        free = free.copy()
+        free[j] = False
+        path.append((free, j, t[j], float(score(lin, rule, free[None], prior[None])[0])))
+    scores = np.array([p[3] for p in path])
+    best = int(np.nanargmin(scores))
+    _, err = score_error(lin, rule, path[best][0], prior)
+    limit = scores[best] + max(err, PRUNE_TOLERANCE * scores[best])
+    k = max(i for i in range(len(path)) if scores[i] <= limit)
+    return path[k][0], tuple((j, t, s) for _, j, t, s in path[1 : k + 1]), ts[k]
+
+
+def condition(A, free) -> float:
+    """Condition number of the normal matrix ``A`` of the ``free`` parameters, columns scaled."""
+    N = np.asarray(A)[np.ix_(free, free)]
+    d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
+    ev = np.linalg.eigvalsh(N / np.outer(d, d))
+    return float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
 
 
 def select(lin: Linear, rule: Rule, free, prior, complexity, prunable) -> Choice:
     """Score every candidate (``free (C, m)``, ``prior (C, m)``), choose one (:func:`choose`) and
     prune it (:func:`prune`). ``index`` -1: every candidate failed (non-finite scores)."""
     free, prior = np.atleast_2d(free), np.atleast_2d(prior)
-    scores = score(lin, rule, free, prior)
+    a, b = score_parts(lin, rule, free, prior)
+    scores = np.where(np.isnan(b), a, np.sqrt(0.5 * a**2 + 0.5 * b**2))
+    conds = np.array([condition(rule.A_all + np.diag(p**2), f) for f, p in zip(free, prior)])
+    scores = np.where(conds < MAX_CONDITION, scores, np.nan)
     c = choose(scores, complexity)
     if c < 0:
-        return Choice(-1, free[0], scores, float("nan"))
+        return Choice(-1, free[0], scores, (a, b), conds, float("nan"))
     kept, dropped, t = prune(lin, rule, free[c], prior[c], prunable, float(scores[c]))
     final = dropped[-1][2] if dropped else float(scores[c])
-    return Choice(c, kept, scores, final, dropped, t)
+    return Choice(c, kept, scores, (a, b), conds, final, dropped, t)

@@ -26,6 +26,7 @@ from ..solvers import PIN, calibrate_design_batch
 from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
+from . import _selection as selection
 from ._checks import as_target, check_units
 from ._options import ELIMINATION_METHODS, Options, make_options
 from ._param_sets import Candidate, parse_params
@@ -183,24 +184,26 @@ def check_enough_poses(n_poses: int, layout: Layout, needed: int) -> None:
         )
 
 
-def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, frames_only: bool = False):
+def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, frames_only: bool = False, lever=None):
     """Prior weight of every parameter of the layout: :data:`PIN` (held at 0) for what the poses
     cannot identify and what the candidate (``None``: frames only) does not estimate; a
-    candidate's DH errors its ridge weight (0 without); frames and the candidate camera model's
-    unknowns 0."""
+    candidate's DH errors and compliances their physically scaled prior weight
+    (:meth:`Candidate.prior_weight`, ``lever (m,)`` from :func:`._selection.lever`; 0 without a
+    prior); frames and the candidate camera model's unknowns 0."""
     base = set(ident.base)
     out = np.zeros(layout.size)
-    cams = layout.cameras
+    cams, comps = layout.cameras, set(layout.compliances)
     for i in range(layout.size):
         if i not in base:
             out[i] = PIN
-        elif i < layout.n_kin:
-            out[i] = PIN if frames_only or cand is None or i not in cand.dh else cand.prior_weight(i)
+        elif i < layout.n_kin or i in comps:
+            if frames_only or cand is None or not (i in cand.dh if i < layout.n_kin else cand.compliance):
+                out[i] = PIN
+            else:
+                out[i] = 0.0 if cand.ridge_mm is None else cand.prior_weight(lever[i])
         elif i in cams:
             k = i - cams[0]
             out[i] = PIN if frames_only or cand is None or k >= camera_size(cand.camera) else 0.0
-        elif i in layout.compliances:
-            out[i] = PIN if frames_only or cand is None or not cand.compliance else 0.0
     return out
 
 
@@ -304,7 +307,7 @@ def calibrate(
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
     ident = core.identify(J0, layout)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress)
-    prior = prior_of(layout, ident, cand)
+    prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
 
     def stages(ref, masks):  # frames only (its residual gives the noise weights), then the set
         unit = core.weights_of(layout, np.array([core.UNIT_WEIGHTS]))
@@ -440,7 +443,7 @@ def calibrate_batch(
     J0 = core.analyse(core.member(ref, 0), layout, q[0])[0]
     if ident is None:
         ident = core.identify(J0, layout)
-    prior = np.repeat(prior_of(layout, ident, cand)[None], R, 0)
+    prior = np.repeat(prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))[None], R, 0)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
 

@@ -200,42 +200,55 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> Non
 
 def show(rep: dict, meas) -> None:
     """Print a calibration report."""
-    rot = rep["points"] == 0
-    title = f"{rep['folds']}-fold cross-validation on {rep['poses']} poses ({meas.source})"
+    title = (
+        f"candidate models on {rep['poses']} poses ({meas.source}): held-out error of {rep['folds']}-fold and "
+        f"{rep['range_end_folds']} range-end folds (linearised)"
+    )
     cv = Table(title=title)
-    for col in ("parameter set", "held-out RMS (mm)", "held-out max (mm)", "held-out rot RMS (deg)", "train RMS (mm)"):
+    for col in ("parameter set", "score (mm)", "new postures (mm)", "beyond the ranges (mm)", "free"):
         cv.add_column(col, justify="right" if col != "parameter set" else "left")
     for row in rep["cv"]:
         mark = " *" if row["name"] == rep["choice"] else ""
         cv.add_row(
             row["name"] + mark,
+            _fmt(row["score_mm"]),
             _fmt(row["heldout_rms_mm"]),
-            _fmt(row["heldout_max_mm"]),
-            _fmt(row["heldout_rot_rms_deg"] if rot else None),
-            _fmt(row["train_rms_mm"]),
+            _fmt(row["extrapolation_rms_mm"]),
+            str(row["free_parameters"]),
         )
     console.print(cv)
     for row in rep["cv"]:
         if row.get("failure"):
             console.print(f"[yellow]failed:[/yellow] {row['name']}: {row['failure']}", highlight=False)
+    sel = rep["selection"]
+    if sel["dropped"]:
+        console.print(
+            f"selection: {rep['choice']}, {len(sel['dropped'])} parameters dropped (score {sel['score_mm']:.3f} -> "
+            f"{sel['pruned_score_mm']:.3f} mm); kept: {', '.join(sel['kept']) or 'none'}",
+            highlight=False,
+        )
     kind = "nested cross-validation" if rep["nested"] else "K-fold cross-validation"
     summary = Table(title=f"summary (held-out = {kind})")
-    for col in ("model", "train RMS (mm)", "held-out RMS (mm)", "held-out max (mm)", "held-out rot RMS (deg)"):
+    cols = ("model", "train RMS (mm)", "held-out: new postures", "beyond the training ranges", "held-out max (mm)")
+    for col in cols + (("held-out rot RMS (deg)",) if rep["points"] == 0 else ()):
         summary.add_column(col, justify="right" if col != "model" else "left")
+    rot = (lambda v: (_fmt(v),)) if rep["points"] == 0 else (lambda v: ())
     summary.add_row(
         "frames only (nominal kinematics)",
         _fmt(rep["frames_only_train_rms_mm"]),
         _fmt(rep["frames_only_heldout_rms_mm"]),
+        _fmt(rep["frames_only_extrapolation_rms_mm"]),
         _fmt(rep["frames_only_heldout_max_mm"]),
-        _fmt(rep["frames_only_heldout_rot_rms_deg"]),
+        *rot(rep["frames_only_heldout_rot_rms_deg"]),
     )
     cam = rep["camera_model"] != "none" and rep["camera_model_option"] != "auto"
     summary.add_row(
         f"calibrated ({rep['choice']})" + (f" + camera model {rep['camera_model']}" if cam else ""),
         _fmt(rep["train_rms_mm"]),
         _fmt(rep["heldout_rms_mm"]),
+        _fmt(rep["extrapolation_rms_mm"]),
         _fmt(rep["heldout_max_mm"]),
-        _fmt(rep["heldout_rot_rms_deg"]),
+        *rot(rep["heldout_rot_rms_deg"]),
     )
     console.print(summary)
     pt = Table(title="estimated parameters (all poses)")
@@ -248,12 +261,12 @@ def show(rep: dict, meas) -> None:
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     held = rep["not_estimated"]
     if held:
-        console.print("held at 0 (not identifiable from these poses):")
+        console.print("held at 0:")
         for name, why in held.items():
             console.print(f"  {name}: {why}", highlight=False)
     console.print(
         f"weights: sigma_pos {rep['sigma_pos_mm']:.3g} mm"
-        + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rot else "")
+        + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rep["points"] == 0 else "")
         + f"; condition number {rep['condition_number']:.3g}; converged {rep['converged']} in "
         f"{rep['steps']} steps ({rep['cv_fits_converged']}/{rep['cv_fits']} cross-validation fits converged)"
     )

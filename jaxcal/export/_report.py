@@ -105,7 +105,8 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
             [
                 "model",
                 "train RMS (mm)",
-                "held-out RMS (mm)",
+                "held-out RMS: new postures (mm)",
+                "beyond the training ranges (mm)",
                 "held-out max (mm)",
                 "held-out median (mm)",
                 "held-out rot RMS (deg)",
@@ -115,6 +116,7 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
                     "frames only (nominal kinematics)",
                     rep["frames_only_train_rms_mm"],
                     rep["frames_only_heldout_rms_mm"],
+                    rep["frames_only_extrapolation_rms_mm"],
                     rep["frames_only_heldout_max_mm"],
                     rep["frames_only_heldout_median_mm"],
                     rep["frames_only_heldout_rot_rms_deg"],
@@ -123,6 +125,7 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
                     f"calibrated ({rep['choice']})",
                     rep["train_rms_mm"],
                     rep["heldout_rms_mm"],
+                    rep["extrapolation_rms_mm"],
                     rep["heldout_max_mm"],
                     rep["heldout_median_mm"],
                     rep["heldout_rot_rms_deg"],
@@ -146,18 +149,22 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
         "<h2>Parameter sets compared</h2>",
         _table(
             "cv",
-            ["parameter set", "held-out RMS (mm)", "held-out max (mm)", "train RMS (mm)", "converged"],
+            ["parameter set", "score (mm)", "new postures (mm)", "beyond the ranges (mm)", "free", "failure"],
             [
                 [
                     c["name"] + (" (chosen)" if c["name"] == rep["choice"] else ""),
+                    c["score_mm"],
                     c["heldout_rms_mm"],
-                    c["heldout_max_mm"],
-                    c["train_rms_mm"],
-                    c["converged"],
+                    c["extrapolation_rms_mm"],
+                    c["free_parameters"],
+                    c["failure"] or "",
                 ]
                 for c in rep["cv"]
             ],
         ),  # fmt: skip
+        "<p>Scores are linearised held-out errors of the candidates; the chosen set was then pruned to "
+        + html.escape(", ".join(rep["selection"]["kept"]) or "no kinematic parameter")
+        + ".</p>",
         "<h2>Parameters</h2>",
         "<p>Kinematic parameters in the robot file's units; a standard error is 1 sigma.</p>",
         _table(

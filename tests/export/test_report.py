@@ -74,7 +74,12 @@ def test_tables(page):
     rep = res.report
     assert {"summary", "fit", "cv", "parameters", "frames", "accuracy", "outliers"} <= set(p.tables)
     summary = p.tables["summary"]
-    assert summary["head"][:3] == ["model", "train RMS (mm)", "held-out RMS (mm)"]
+    assert summary["head"][:4] == [
+        "model",
+        "train RMS (mm)",
+        "held-out RMS: new postures (mm)",
+        "beyond the training ranges (mm)",
+    ]
     assert float(summary["rows"][1][2]) == pytest.approx(rep["heldout_rms_mm"], rel=1e-5)
     assert float(summary["rows"][0][2]) == pytest.approx(rep["frames_only_heldout_rms_mm"], rel=1e-5)
     params = p.tables["parameters"]
