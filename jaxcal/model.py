@@ -346,13 +346,24 @@ def load_model(path, *, base_link: str | None = None, tip_link: str | None = Non
     return Model(robot, points)
 
 
-def save_model(model: Model, path, *, comment: dict | None = None, template=None, base_link=None, tip_link=None):
+def save_model(
+    model: Model,
+    path,
+    *,
+    comment: dict | None = None,
+    template=None,
+    base_link=None,
+    tip_link=None,
+    training_ranges: dict | None = None,
+):
     """Write a model atomically: a URDF (``.urdf``, joint-frame robots; ``template`` the nominal
-    URDF whose other links it keeps) or a TOML robot file, with the measured points. The camera
+    URDF whose other links it keeps) or a TOML robot file, with the measured points and the
+    ``training_ranges`` it was fitted on (:func:`jaxcal.robot.read_training_ranges`). The camera
     model's unknowns are a sensor's, not the robot's, and are not written."""
     from .robot import save_robot
 
     pts = np.asarray(model.points) if model.n_points else None
     save_robot(
-        model.robot, path, comment=comment, points=pts, template=template, base_link=base_link, tip_link=tip_link
-    )
+        model.robot, path, comment=comment, points=pts, template=template, base_link=base_link, tip_link=tip_link,
+        training_ranges=training_ranges,
+    )  # fmt: skip

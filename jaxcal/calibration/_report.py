@@ -44,6 +44,9 @@ class DataCalibration:
     0 where a parameter is held), whose diagonal gives the standard errors of :attr:`deltas`."""
     layout: Layout | None = None
     """The parameters of :attr:`covariance` (the largest camera model tried)."""
+    training_ranges: dict | None = None
+    """Joint name -> ``(lowest, highest)`` (mm, rad) of the poses the model was fitted on, which
+    the written model files record (:func:`jaxcal.robot.read_training_ranges`)."""
 
     @property
     def robot(self) -> Robot:
@@ -93,10 +96,10 @@ def frame_doc(T) -> dict:
     }
 
 
-def training_ranges(robot, q, valid) -> dict:
-    """``{joint name: [lowest, highest]}`` of the poses a model was fitted on, in the robot file's
-    units (a prismatic joint in its length unit)."""
-    lu, au = LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]
+def training_ranges(robot, q, valid, *, file_units: bool = False) -> dict:
+    """``{joint name: [lowest, highest]}`` of the poses a model was fitted on: mm and rad, or in the
+    robot file's units (a prismatic joint in its length unit)."""
+    lu, au = (LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]) if file_units else (1.0, 1.0)
     q = np.asarray(q)[np.asarray(valid, bool)]
     return {
         name: [float(q[:, j].min() / (au if t == "R" else lu)), float(q[:, j].max() / (au if t == "R" else lu))]
@@ -266,7 +269,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits):
         "cv_fits": int(O + len(fr.sig)),
         "base": frame_doc(model.robot.base),
         "tool": frame_doc(model.robot.tool),
-        "training_ranges": training_ranges(robot, q, p.valid),
+        "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
         "plausible": not why,
         "implausible": why or None,
         "notes": list(still_joint_notes(robot, q)),
@@ -304,5 +307,5 @@ def report_of(p, fr, det, lin, final, per_fold, fits):
     }
     return DataCalibration(
         model=core.described(model, robot), nominal=robot, choice=cand, report=rep, per_pose=per_pose,
-        deltas=deltas, covariance=cov, layout=layout,
+        deltas=deltas, covariance=cov, layout=layout, training_ranges=training_ranges(robot, q, p.valid),
     )  # fmt: skip

@@ -159,7 +159,10 @@ def calibrate(
         "gauge": GAUGE,
     }
     if out_robot is not None and nominal.convention != "joint":
-        save_robot(res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment)
+        save_robot(
+            res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
+            training_ranges=res.training_ranges,
+        )  # fmt: skip
         console.print(f"calibrated robot written to {out_robot}")
     # a URDF robot's --out-robot is its model too: the points are links of the written URDF
     for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
@@ -167,7 +170,10 @@ def calibrate(
             continue
         urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
         model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
-        save_model(model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link)
+        save_model(
+            model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link,
+            training_ranges=res.training_ranges,
+        )  # fmt: skip
         console.print(f"calibrated model written to {path}")
     if json_out is not None:
         write_atomic(json_out, res.to_json())

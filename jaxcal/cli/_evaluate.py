@@ -52,7 +52,9 @@ def evaluate(
         if m.n_points > 1 and m.n_points == meas.n_points:  # the model's points are the file's
             m = Model(m.robot, np.asarray(m.points)[[p - 1 for p in chosen]], m.camera_params, camera=m.camera)
         meas = meas.select_points(chosen)
-    rep = run(m, meas, training=train)
+    from ..robot import read_training_ranges
+
+    rep = run(m, meas, training=train, ranges=read_training_ranges(model))
     table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
     for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
         table.add_column(col, justify="right")
@@ -70,6 +72,8 @@ def evaluate(
         for name, g in rep["groups"].items():
             groups.add_row(name, str(g["poses"]), _fmt(g["position_rms_mm"]), _fmt(g["position_max_mm"]))
         console.print(groups)
+    for w in rep["warnings"]:
+        console.print(f"[yellow]warning:[/yellow] {w}", highlight=False)
     if json_out is not None:
         write_atomic(json_out, json.dumps(rep, indent=2))
         console.print(f"report written to {json_out}")

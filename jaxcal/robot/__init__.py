@@ -4,6 +4,7 @@ files (TOML, URDF, UR kinematics YAML)."""
 from ._files import calibrated_chain as calibrated_chain
 from ._files import load_robot as load_robot
 from ._files import read_robot_file as read_robot_file
+from ._files import read_training_ranges as read_training_ranges
 from ._files import save_robot as save_robot
 from ._presets import PRESETS as PRESETS
 from ._presets import preset as preset

@@ -206,6 +206,26 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> 
     return doc
 
 
+def training_ranges_toml(path) -> dict | None:
+    """The ``[calibration] training_ranges`` of a calibrated robot file (joint name -> ``(lowest,
+    highest)``, mm and rad), or ``None``."""
+    with Path(path).open("rb") as f:
+        doc = tomllib.load(f)
+    ranges = doc.get("calibration", {}).get("training_ranges")
+    if not isinstance(ranges, dict):
+        return None
+    robot = robot_from_dict(doc, source=str(path))
+    lu, au = LENGTH[robot.units[0]], ANGLE[robot.units[1]]
+    kind = dict(zip(robot.joint_names, robot.joint_types))
+    out = {}
+    for name, v in ranges.items():
+        if name not in kind or not isinstance(v, list) or len(v) != 2:
+            raise RobotFileError(f"{path}: [calibration] training_ranges.{name} must be [lowest, highest] of a joint")
+        s = au if kind[name] == "R" else lu
+        out[name] = (_num(v[0], f"training_ranges.{name}") * s, _num(v[1], f"training_ranges.{name}") * s)
+    return out
+
+
 def save_toml(robot: Robot, path, *, comment: dict | None = None, points=None) -> None:
     """Write a robot TOML file in the robot's own units, atomically (a reader never sees half a
     file, and an existing file is replaced only once the new one is complete)."""

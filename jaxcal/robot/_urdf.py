@@ -40,6 +40,8 @@ from ._robot import Robot
 
 M_TO_MM = 1000.0
 MEASUREMENT_FRAME = "jaxcal_measurement_frame"
+RANGE = "jaxcal_training_range"
+"""Element of a calibrated file holding the range of a joint's values the model was fitted on."""
 COMPLIANCE = "jaxcal_compliance"
 """Element of a calibrated file holding a joint's compliance (:attr:`jaxcal.Robot.compliance`,
 in rad per metre of gravity moment arm)."""
@@ -311,8 +313,30 @@ def _m(T) -> np.ndarray:
     return T
 
 
+def training_ranges_urdf(path) -> dict | None:
+    """The ``<jaxcal_training_range>`` elements of a calibrated file (joint name -> ``(lowest,
+    highest)``, mm and rad), or ``None``."""
+    from lxml import etree  # yourdfpy's XML library
+
+    out = {}
+    for el in etree.parse(str(path)).getroot().iter(RANGE):
+        try:
+            scale = M_TO_MM if el.get("unit") == "m" else 1.0
+            out[el.get("joint")] = (float(el.get("lower")) * scale, float(el.get("upper")) * scale)
+        except (TypeError, ValueError):
+            raise RobotFileError(f"{path}: <{RANGE} joint={el.get('joint')!r}> needs numbers lower, upper") from None
+    return out or None
+
+
 def urdf_text(
-    robot: Robot, *, points=None, template=None, base_link=None, tip_link=None, comment: dict | None = None
+    robot: Robot,
+    *,
+    points=None,
+    template=None,
+    base_link=None,
+    tip_link=None,
+    comment: dict | None = None,
+    training_ranges: dict | None = None,
 ) -> str:
     """The URDF of a joint-frame ``robot`` (see the module docstring): the chain of the
     ``template`` file it was read from (with the same ``base_link`` and ``tip_link``) with the
@@ -378,6 +402,11 @@ def urdf_text(
     if robot.compliance is not None:  # not URDF's: an element of jaxcal's own, other readers skip it
         for nm, c in zip(robot.joint_names, np.asarray(robot.compliance)):
             xml.getroot().append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM)))
+    kinds = dict(zip(robot.joint_names, robot.joint_types))
+    for nm, (lo, hi) in (training_ranges or {}).items():  # metres and radians, as the file's
+        s = 1.0 if kinds.get(nm) == "R" else 1.0 / M_TO_MM
+        unit = "rad" if kinds.get(nm) == "R" else "m"
+        xml.getroot().append(etree.Element(RANGE, joint=nm, lower=repr(lo * s), upper=repr(hi * s), unit=unit))
     text = etree.tostring(xml, xml_declaration=True, pretty_print=True).decode()
     if comment:
         note = "; ".join(f"{k}: {v}" for k, v in comment.items()).replace("--", "- -")
@@ -396,7 +425,17 @@ def _tool_of(doc, last_joint: str, tip_link: str) -> np.ndarray:
     return T
 
 
-def save_urdf(robot: Robot, path, *, points=None, template=None, base_link=None, tip_link=None, comment=None) -> None:
+def save_urdf(
+    robot: Robot, path, *, points=None, template=None, base_link=None, tip_link=None, comment=None, training_ranges=None
+) -> None:
     """Write :func:`urdf_text` atomically."""
-    text = urdf_text(robot, points=points, template=template, base_link=base_link, tip_link=tip_link, comment=comment)
+    text = urdf_text(
+        robot,
+        points=points,
+        template=template,
+        base_link=base_link,
+        tip_link=tip_link,
+        comment=comment,
+        training_ranges=training_ranges,
+    )
     write_atomic(path, text)
