@@ -4,11 +4,13 @@ Pseudo-sessions cut from one real data set: "tomorrow" is the poses beyond one e
 joint's range (its lowest or highest 20 %) together with a random fifth of the others, as a
 later session repeats some postures, adds new ones and goes beyond the training ranges;
 "today" is the rest. On today's poses every candidate of ``--params auto`` is scored by plain
-K-fold and by jaxcal's rule (K-fold and range-end folds, :mod:`jaxcal.calibration._selection`),
-then fitted on all of today and scored on tomorrow. For each rule the study reports, over many
-cuts, the mean tomorrow error of the model it chooses, the regret (that error minus the best
-candidate's), and the rank correlation of its score with the tomorrow error. All on the problem
-linearised at the frames-only fit, as the selection itself runs.
+K-fold and by jaxcal's score (K-fold and range-end folds, :mod:`jaxcal.calibration._selection`),
+then fitted on all of today and scored on tomorrow. A rule chooses the lowest score, or (jaxcal's
+choice) the simplest candidate within one standard error of it. For each rule the study reports,
+over many cuts, the mean tomorrow error of the model it chooses, the regret (that error minus
+the best candidate's), and the rank correlation of its score with the tomorrow error; then each
+candidate's mean tomorrow error. All on the problem linearised at the frames-only fit, as the
+selection itself runs (no pruning).
 
     python docs/studies/scoring_rule.py > docs/studies/scoring_rule.txt
 """
@@ -49,7 +51,7 @@ def candidates(robot, meas):
     lever = selection.lever(J, n_points)
     cands = parse_params("auto", robot, compliance=True)
     full = np.stack([prior_of(layout, ident, c, lever=lever) for c in cands])
-    return lin, [c.name for c in cands], full < PIN, np.where(full < PIN, full, 0.0)
+    return lin, cands, full < PIN, np.where(full < PIN, full, 0.0)
 
 
 def tomorrow_error(lin, today, tomorrow, free, prior):
@@ -59,12 +61,14 @@ def tomorrow_error(lin, today, tomorrow, free, prior):
 
 
 def study(name, robot, meas, rng):
-    lin, names, free, prior = candidates(robot, meas)
+    lin, cands, free, prior = candidates(robot, meas)
+    names, complexity = [c.name for c in cands], [c.complexity for c in cands]
     q, K = np.asarray(meas.q), len(meas.q)
     found = jaxcal.calibrate(robot, q, meas.measured, ridge_mm=1.0, compliance="yes").outliers
     clean = ~np.isin(np.arange(K), found)  # the poses calibrate_data would keep
     moving = [j for j in range(q.shape[1]) if np.ptp(q[:, j]) > 1e-9]
-    rows = {"K-fold": [], "K-fold + range ends": []}
+    rules = ("K-fold", "K-fold + range ends", "K-fold + range ends, one-SE (jaxcal)")
+    rows, truths = {r: [] for r in rules}, []
     for _ in range(CUTS):
         j, hi = moving[rng.integers(len(moving))], bool(rng.integers(2))
         lim = np.quantile(q[:, j], 0.8 if hi else 0.2)
@@ -72,24 +76,28 @@ def study(name, robot, meas, rng):
         tomorrow = (beyond | (rng.uniform(size=K) < 0.2)) & clean
         today = ~tomorrow & clean
         truth = tomorrow_error(lin, today, tomorrow, free, prior)
-        for rule_name, ends in (("K-fold", False), ("K-fold + range ends", True)):
-            rule = selection.Rule.of(lin, q, today, FOLDS, int(rng.integers(1 << 30)))
-            if not ends:
-                rule = selection.Rule(
-                    rule.held[: rule.n_kfold], rule.n_kfold, rule.valid, rule.A[: rule.n_kfold],
-                    rule.b[: rule.n_kfold], rule.A_all, rule.b_all,
-                )  # fmt: skip
-            s = selection.score(lin, rule, free, prior)
-            c = int(np.nanargmin(s))
-            rows[rule_name].append((truth[c], truth[c] - np.nanmin(truth), spearmanr(s, truth).statistic))
+        truths.append(truth)
+        rule = selection.Rule.of(lin, q, today, FOLDS, int(rng.integers(1 << 30)))
+        a, b = selection.score_parts(lin, rule, free, prior)
+        mixed = np.sqrt(0.5 * a**2 + 0.5 * b**2)
+        best = int(np.nanargmin(mixed))
+        se = selection.score_error(lin, rule, free[best], prior[best])[1]
+        picks = (int(np.nanargmin(a)), best, selection.choose(mixed, complexity, se))
+        for r, s, c in zip(rules, (a, mixed, mixed), picks):
+            rows[r].append((truth[c], truth[c] - np.nanmin(truth), spearmanr(s, truth).statistic))
     print(
         f"\n{name}: {K} poses ({len(found)} outliers left out), {len(names)} candidates, {CUTS} cuts "
         "(tomorrow: ~20 % beyond one range end + 20 % of the rest)"
     )
-    print(f"{'rule':>22s} {'tomorrow RMS of choice (mm)':>28s} {'regret (mm)':>12s} {'rank correlation':>17s}")
-    for rule_name, v in rows.items():
+    print(f"{'rule':>40s} {'tomorrow RMS of choice (mm)':>28s} {'regret (mm)':>12s} {'rank correlation':>17s}")
+    for r, v in rows.items():
         v = np.array(v)
-        print(f"{rule_name:>22s} {v[:, 0].mean():28.3f} {v[:, 1].mean():12.3f} {np.nanmean(v[:, 2]):17.3f}")
+        print(f"{r:>40s} {v[:, 0].mean():28.3f} {v[:, 1].mean():12.3f} {np.nanmean(v[:, 2]):17.3f}")
+    t = np.array(truths)
+    print(f"{'candidate':>40s} {'mean tomorrow RMS (mm)':>28s} {'best in cuts':>12s}")
+    wins = np.bincount(np.nanargmin(t, 1), minlength=len(names))
+    for i, n in enumerate(names):
+        print(f"{n:>40s} {np.nanmean(t[:, i]):28.3f} {wins[i]:12d}")
 
 
 def main():

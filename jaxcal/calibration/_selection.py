@@ -33,6 +33,11 @@ A prior (ridge) of standard deviation ``s`` mm holds each parameter ``x_j`` with
 points from the axis it turns about. So ``s`` says how far (mm) each parameter is expected to move
 the points, whatever its unit: 1 mm and the angle that moves the points 1 mm weigh the same.
 
+## Choosing
+The candidate chosen is the simplest (fewest free parameters, then the strongest prior; rigid
+before compliant) whose score is within one standard error of the lowest: the "one standard
+error" rule of cross-validation, since a lower score by less than its own noise is no evidence.
+
 ## Parameter-level selection
 The chosen candidate's parameters are then pruned one at a time, the least significant first
 (smallest ``|x_j| / se_j`` of the fit on all poses), down to none; of the models on that path
@@ -53,7 +58,8 @@ PRUNE_TOLERANCE = 0.01
 """Pruning keeps the sparsest model whose score is within one standard error of the best, and at
 least within this fraction of it."""
 SIMPLER_TOLERANCE = 0.01
-"""A simpler candidate whose score is within this fraction of the best wins."""
+"""A simpler candidate whose score is within one standard error of the best, and at least within
+this fraction of it, wins."""
 MAX_CONDITION = 1e6
 """A candidate whose column-scaled, weighted Jacobian (prior rows included) is worse conditioned
 than this fails: its parameters are not separable on these poses, and its full fit's normal
@@ -314,14 +320,15 @@ class Choice:
     """``{parameter: |x| / se}`` of the kept prunable parameters in the final fit."""
 
 
-def choose(scores, complexity) -> int:
-    """Lowest score; among those within :data:`SIMPLER_TOLERANCE` of it, the simplest (lowest
-    ``complexity``, a sortable key per candidate). A non-finite score never wins."""
+def choose(scores, complexity, error: float = 0.0) -> int:
+    """The simplest candidate (lowest ``complexity``, a sortable key per candidate) whose score is
+    within ``error`` (the best score's standard error) and at least :data:`SIMPLER_TOLERANCE`
+    of the lowest. A non-finite score never wins; -1 when every score is."""
     s = np.where(np.isfinite(scores), scores, np.inf)
     best = s.min()
     if not np.isfinite(best):
         return -1
-    ok = [i for i in range(len(s)) if s[i] <= (1 + SIMPLER_TOLERANCE) * best]
+    ok = [i for i in range(len(s)) if s[i] <= best + max(error, SIMPLER_TOLERANCE * best)]
     return min(ok, key=lambda i: complexity[i])
 
 
@@ -371,6 +378,8 @@ def select(lin: Linear, rule: Rule, free, prior, complexity, prunable) -> Choice
     conds = np.array([condition(rule.A_all + np.diag(p**2), f) for f, p in zip(free, prior)])
     scores = np.where(conds < MAX_CONDITION, scores, np.nan)
     c = choose(scores, complexity)
+    if c >= 0:  # the one-standard-error rule: the simplest within the best's standard error
+        c = choose(scores, complexity, score_error(lin, rule, free[c], prior[c])[1])
     if c < 0:
         return Choice(-1, free[0], scores, (a, b), conds, float("nan"))
     kept, dropped, t = prune(lin, rule, free[c], prior[c], prunable, float(scores[c]))
