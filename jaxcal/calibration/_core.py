@@ -254,8 +254,17 @@ def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool
     Kp = pose_bucket(K)
     axis = 0 if shared else 1
     masks = np.concatenate([np.asarray(masks, float), np.zeros((np.shape(masks)[0], Kp - K))], 1)
+    robot = carrying(robot, layout)
     models = _starts(robot, pad_poses(q, Kp, axis), pad_poses(target, Kp, axis), masks, layout=layout, shared=shared)
     return jax.tree.map(np.asarray, models)
+
+
+def carrying(robot: Robot, layout: Layout) -> Robot:
+    """``robot`` with zero compliances where the layout estimates them and it has none: every
+    model of a workflow then has one structure, and one compiled solve serves them all."""
+    if layout.n_comp and robot.compliance is None:
+        return eqx.tree_at(lambda r: r.compliance, robot, np.zeros(robot.n_joints), is_leaf=lambda v: v is None)
+    return robot
 
 
 def broadcast_model(model: Model, n: int) -> Model:

@@ -244,7 +244,8 @@ def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
 def nominal_model(robot: Robot, layout: Layout) -> Model:
     """The nominal model of a layout: the robot (its structure alone: compiled functions are
     shared by robots of one structure), its measured points at the tool origin."""
-    return Model(robot.stripped(), np.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+    pts = np.zeros((layout.n_points, 3)) if layout.n_points else None
+    return Model(core.carrying(robot.stripped(), layout), pts, camera=layout.camera)
 
 
 def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: int = 0, **kw) -> Identifiability:
