@@ -36,11 +36,13 @@ class Options:
     - ``params`` (``"auto"``): which DH errors may move. ``"frames"`` (none: base and tool only),
       ``"offsets"`` (joint offsets theta), ``"angles"`` (theta and alpha), ``"all"``, or a comma
       list of kinds (``theta, d, a, alpha``) and names (``theta2, a4``). ``"auto"``: in
-      :func:`calibrate_data` the set (and ridge prior) with the lowest cross-validated held-out
-      error, a simpler one within 1 % winning; a single fit (:func:`calibrate`) uses ``"all"``.
-      Parameters the poses cannot identify are held at 0 whatever the set.
-    - ``ridge_mm`` (None): a ridge prior of this standard deviation on the DH errors of an
-      explicit ``params`` set (mm for lengths, mrad for angles).
+      :func:`calibrate_data` the model chosen by held-out error on new postures and beyond the
+      training ranges, down to single parameters (:mod:`._selection`); a single fit
+      (:func:`calibrate`) uses ``"all"``. Parameters the poses cannot identify are held at 0
+      whatever the set.
+    - ``ridge_mm`` (None): a prior on the parameters of an explicit ``params`` set, physically
+      scaled: each parameter is expected to move the measured points by about this many mm
+      (:meth:`Candidate.prior_weight`; an angle's prior is ``ridge_mm`` over its lever arm).
     - ``estimate_base`` (True), ``estimate_tool`` (True): estimate the measurement frame -> robot
       base transform and the tool (a frame for poses, a point per measured point), starting
       from a closed-form guess. The base keeps what belongs to it: a DH error that the base or

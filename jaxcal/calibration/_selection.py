@@ -4,7 +4,7 @@ predicts postures it was not fitted on, inside and beyond the training ranges.
 ## The linearised problem
 Around a reference model (the frames-only fit of all poses) a calibration is linear to second
 order in its parameters: a pose's weighted residual is ``e_k(x) = r_k - J_k x``. A candidate
-model, free parameters ``F`` and prior weights ``p`` (:func:`prior_weights`), fitted on a training
+model, free parameters ``F`` and prior weights ``p`` (:meth:`Candidate.prior_weight`), fitted on a training
 set ``T`` solves
 
 $$\Big(\sum_{k \in T} J_k^\top J_k + \mathrm{diag}(p^2)\Big)_{FF}\, x_F = \Big(\sum_{k \in T} J_k^\top r_k\Big)_F,$$
@@ -129,16 +129,6 @@ def lever(J, n_points: int) -> Float[np.ndarray, " m"]:
     P = J[:, : 3 * M].reshape(J.shape[0], M, 3, -1)
     P = np.where(np.isfinite(P), P, 0.0)
     return np.sqrt(np.mean(np.sum(P**2, 2), axis=(0, 1)))
-
-
-def prior_weights(lever_mm, free, s_mm: float | None, penalised) -> np.ndarray:
-    """Prior weights ``L_j / s`` of the ``penalised`` free parameters (0 elsewhere, and without a
-    prior, ``s_mm`` None)."""
-    p = np.zeros(len(lever_mm))
-    if s_mm is not None:
-        sel = np.asarray(free, bool) & np.asarray(penalised, bool)
-        p[sel] = np.asarray(lever_mm)[sel] / s_mm
-    return p
 
 
 # -- folds ------------------------------------------------------------------------------------------

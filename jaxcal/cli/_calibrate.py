@@ -26,11 +26,15 @@ def calibrate(
     method: str = typer.Option(_D.method, help="gn | lm | linear"),
     params: str = typer.Option(
         _D.params,
-        help="auto (chosen by cross-validation) | frames | offsets | angles | all | "
+        help="auto (chosen by held-out error, down to single parameters) | frames | offsets | angles | all | "
         "comma list of theta, d, a, alpha or names like theta2",
     ),
     ridge_mm: float = typer.Option(
-        None, "--ridge-mm", "--ridge", help="ridge prior std on the DH errors of an explicit --params (mm, mrad)"
+        None,
+        "--ridge-mm",
+        "--ridge",
+        help="prior std on the parameters of an explicit --params: how far (mm) each "
+        "is expected to move the measured points",
     ),
     estimate_base: bool = typer.Option(_D.estimate_base, "--estimate-base/--no-estimate-base"),
     estimate_tool: bool = typer.Option(_D.estimate_tool, "--estimate-tool/--no-estimate-tool"),
@@ -39,6 +43,11 @@ def calibrate(
         "--camera-model",
         help="none | depth | linear | quadratic | auto: a "
         "measurement model of a camera on the flange reporting its pose to a fixed target",
+    ),
+    compliance: str = typer.Option(
+        _D.compliance,
+        help="auto | yes | no: a compliance per revolute joint (a turn proportional to the gravity moment of "
+        "a weight at the tool) among the candidates (auto: when the moments vary over the data)",
     ),
     loss: str = typer.Option(_D.loss, help="l2 | huber | cauchy (robust to outlier poses)"),
     loss_scale: float = typer.Option(None, help="robust loss scale in units of sigma (default: estimated)"),
@@ -123,6 +132,7 @@ def calibrate(
         estimate_base=estimate_base,
         estimate_tool=estimate_tool,
         camera=camera,
+        compliance=compliance,
         loss=loss,
         loss_scale=loss_scale,
         outlier_sigmas=outlier_sigmas,
