@@ -153,90 +153,93 @@ def _why_not(p, final, names) -> dict:
     return out
 
 
-def report_of(p, fr, det, lin, final, per_fold, fits):
-    """The :class:`jaxcal.calibration.DataCalibration` of a run of :func:`calibrate_data` from its
-    stages (module docstring)."""
-    opts, layout, robot, q, target = p.opts, p.layout, p.robot, p.q, p.target
-    K, O, n_points = len(q), len(p.held), p.n_points
-    rot = n_points == 0
-    gone = ~p.valid
-    cand, prior = final.candidate, final.prior
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Final:
+    """The final fit (all poses, the chosen model) and its statistics."""
+
+    model: Model
+    """With the chosen camera model's unknowns only."""
+    fit: dict
+    """The fit's arrays (:func:`._core.run_members`, one member)."""
+    x: np.ndarray
+    """Parameters relative to the nominal kinematics and the frames' closed-form guess."""
+    deltas: dict
+    cov: np.ndarray
+    normal: np.ndarray
+    active: list
+    cam_names: list
+
+
+def _final(p, fr, final, fits) -> _Final:
+    """The final model (the last member of the nested fits), its standard errors and covariance."""
+    layout, O = p.layout, len(p.held)
+    cand = final.candidate
     fin = {k: np.asarray(v)[[O]] for k, v in fits.items() if k != "model"}
-    full = core.wrapped(core.member(fits["model"], O), robot)
-    x_rel = core.relative_x(core.member(fr.start, -1), layout, full)  # DH to the nominal, frames to the guess
+    full = core.wrapped(core.member(fits["model"], O), p.robot)
+    x = core.relative_x(core.member(fr.start, -1), layout, full)
     model = full
     if cand.camera != layout.camera:  # the chosen camera model is a prefix of the largest
         cam = np.asarray(full.camera_params)[: camera_size(cand.camera)]
         model = Model(full.robot, full.points, cam, camera=cand.camera)
-    J0 = p.run["J0"]
-    w_all = core.weights_of(layout, fr.sig[[-1]])[0]
+    w = core.weights_of(layout, fr.sig[[-1]])[0]
     st = core.fit_statistics(
-        J0, w_all, p.valid.astype(float), fin["norms"][0], loss=opts.loss, loss_scale=opts.loss_scale,
-        rows=layout.rows, seen=observed(target),
+        p.run["J0"], w, p.valid.astype(float), fin["norms"][0], loss=p.opts.loss, loss_scale=p.opts.loss_scale,
+        rows=layout.rows, seen=observed(p.target),
     )  # fmt: skip
-    cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
-    active = list(estimated(prior))
+    cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], final.prior)
+    active = list(estimated(final.prior))
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     names, units = layout.names(), layout.units()
-    deltas = {names[i]: (float(x_rel[i]), float(se[i]), units[i]) for i in active}
+    deltas = {names[i]: (float(x[i]), float(se[i]), units[i]) for i in active}
     cam_names = [names[i] for i in layout.cameras[: camera_size(cand.camera)]]
-    train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], p.valid, n_points=n_points)
-    found = dict(poses=rot, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
-    dof = outliers.position_rows(target)
-    last = outliers.assess(
-        fin, np.ones((1, K), bool), dof, excluded=None if opts.keep_outliers else gone[None], **found
-    )
-    pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
-    many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
-    why = judge(robot, q, target, n_points, layout, opts, train, x_rel, active, many)
-    h = _heldout(fits, fr, p)
-    ho, fo = h["pe"][~gone], h["fo"][~gone]
-    tr_pe, tr_re = fin["pos_err"][0][~gone], np.degrees(fin["rot_err"][0])[~gone]
-    a_pe = np.asarray(fr.fit["pos_err"])[-1]
-    ch = final.choice
-    kfold_lin, ends_lin = ch.parts
-    rep = {
-        "robot": robot.name,
-        "data": getattr(p.data, "source", "arrays"),
-        "units": list(getattr(p.data, "units", ("mm", "rad"))),
-        "ignored_columns": list(getattr(p.data, "ignored", ())),
-        "poses": K,
-        "position_only": n_points > 0,
-        "points": n_points,
-        "method": opts.method,
-        "folds": opts.folds,
-        "range_end_folds": O - p.n_kfold,
-        "seed": opts.seed,
-        "estimate_base": opts.estimate_base,
-        "estimate_tool": opts.estimate_tool,
-        "choice": cand.name,
-        "choice_rule": RULE,
-        "nested": p.nested,
-        "nested_choices": [f"{s.candidate.name} ({int(s.choice.free.sum())} free)" for s in per_fold[: p.n_kfold]],
+    return _Final(model, fin, x, deltas, cov, st["normal"], active, cam_names)
+
+
+def _figures(p, fr, fits, fin: dict, h: dict) -> dict:
+    """Training, held-out (new postures, beyond the ranges) and frames-only figures (mm, deg)."""
+    rot, kept = p.n_points == 0, p.valid
+    ho, fo = h["pe"][kept], h["fo"][kept]
+    tr_pe, tr_re = fin["pos_err"][0][kept], np.degrees(fin["rot_err"][0])[kept]
+    a_pe, a_re = np.asarray(fr.fit["pos_err"])[-1][kept], np.degrees(np.asarray(fr.fit["rot_err"])[-1])[kept]
+    return {
         "train_rms_mm": _rms(tr_pe),
         "train_max_mm": _max(tr_pe),
         "train_rot_rms_deg": _rms(tr_re) if rot else None,
         "heldout_rms_mm": _rms(ho),
         "heldout_max_mm": _max(ho),
         "heldout_median_mm": _median_pose(ho),
-        "heldout_rot_rms_deg": _rms(h["re"][~gone]) if rot else None,
+        "heldout_rot_rms_deg": _rms(h["re"][kept]) if rot else None,
         "extrapolation_rms_mm": _rms(h["ends"]),
         "extrapolation_max_mm": _max(h["ends"]),
         "expected_error_mm": {"new_postures": _rms(ho), "beyond_training_ranges": _rms(h["ends"])},
-        "frames_only_train_rms_mm": _rms(a_pe[~gone]),
-        "frames_only_train_max_mm": _max(a_pe[~gone]),
-        "frames_only_train_rot_rms_deg": _rms(np.degrees(np.asarray(fr.fit["rot_err"])[-1])[~gone]) if rot else None,
+        "frames_only_train_rms_mm": _rms(a_pe),
+        "frames_only_train_max_mm": _max(a_pe),
+        "frames_only_train_rot_rms_deg": _rms(a_re) if rot else None,
         "frames_only_heldout_rms_mm": _rms(fo),
         "frames_only_heldout_max_mm": _max(fo),
         "frames_only_heldout_median_mm": _median_pose(fo),
-        "frames_only_heldout_rot_rms_deg": _rms(h["fre"][~gone]) if rot else None,
+        "frames_only_heldout_rot_rms_deg": _rms(h["fre"][kept]) if rot else None,
         "frames_only_extrapolation_rms_mm": _rms(h["fo_ends"]),
+        "cv_fits_converged": int(np.sum(fits["converged"][: len(p.held)]) + np.sum(fr.fit["converged"])),
+        "cv_fits": int(len(p.held) + len(fr.sig)),
+    }
+
+
+def _choice(p, final, per_fold, names) -> dict:
+    """What was chosen and why: the candidates' scores, the parameters kept and dropped."""
+    ch, cand, layout = final.choice, final.candidate, p.layout
+    kfold, ends = ch.parts
+    return {
+        "choice": cand.name,
+        "choice_rule": RULE,
+        "nested": p.nested,
+        "nested_choices": [f"{s.candidate.name} ({int(s.choice.free.sum())} free)" for s in per_fold[: p.n_kfold]],
         "cv": [
             {
                 "name": c.name,
                 "score_mm": float(ch.scores[i]),
-                "heldout_rms_mm": float(kfold_lin[i]),
-                "extrapolation_rms_mm": float(ends_lin[i]),
+                "heldout_rms_mm": float(kfold[i]),
+                "extrapolation_rms_mm": float(ends[i]),
                 "free_parameters": int(final.free[i].sum()),
                 "failure": None if np.isfinite(ch.scores[i]) else _failure(ch.conditions[i]),
             }
@@ -249,55 +252,100 @@ def report_of(p, fr, det, lin, final, per_fold, fits):
             "kept": [names[i] for i in np.flatnonzero(ch.free) if i < layout.n_kin or i in layout.compliances],
             "dropped": [{"parameter": names[j], "t": float(t), "score_mm": float(s)} for j, t, s in ch.pruned],
         },
-        "camera_model": cand.camera,
-        "camera_model_option": opts.camera,
-        "camera_parameters": {k: {"value": deltas[k][0], "std_error": deltas[k][1]} for k in cam_names} or None,
         "compliance": bool(layout.n_comp) and cand.compliance,
-        "sigma_pos_mm": float(fr.sig[-1, 0]),
-        "sigma_rot_deg": float(np.degrees(fr.sig[-1, 1])) if rot else None,
-        "parameters": {
-            k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items() if k not in cam_names
-        },
-        "estimated_dh": [names[i] for i in active if i < layout.n_kin],
-        "unidentifiable": [n for n in p.ident.fixed_names if names.index(n) < layout.n_kin],
         "not_estimated": _why_not(p, final, names),
+    }
+
+
+def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
+    """The outliers found and how (docs/conventions.md#outliers)."""
+    opts, rot = p.opts, p.n_points == 0
+    return {
+        "outliers": outliers.describe(
+            last,
+            0,
+            fin["pos_err"][0],
+            np.degrees(fin["rot_err"][0]) if rot else None,
+            p.rows,
+            excluded=not opts.keep_outliers,
+        ),  # fmt: skip
+        "outlier_detection": {
+            "excluded": not opts.keep_outliers,
+            "outlier_sigmas": opts.outlier_sigmas,
+            "false_alarm_per_pose": outliers.false_alarm(opts.outlier_sigmas),
+            "threshold_sigmas": float(outliers.thresholds(p.layout.rows, opts.outlier_sigmas)),
+            "noise_pos_mm": float(det.scale[0, 0] * fr.sig[-1, 0]),
+            "noise_rot_deg": float(np.degrees(det.scale[0, 1] * fr.sig[-1, 1])) if rot else None,
+            "max_outlier_fraction": opts.max_outlier_fraction,
+            "heldout_rms_mm_all_poses": _rms(h["pe"]),  # the flagged poses too: what leaving them out hides
+        },
+        "lost_points": [{"row": r, "point": j} for r, j in getattr(p.data, "lost_points", [])],
+        "dropped_rows": [int(r) for r in getattr(p.data, "dropped_rows", ())],
+    }
+
+
+def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
+    """The :class:`DataCalibration` of a run of :func:`jaxcal.calibrate_data` from its stages."""
+    opts, layout, robot, q = p.opts, p.layout, p.robot, p.q
+    f = _final(p, fr, final, fits)
+    fin, names = f.fit, layout.names()
+    train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], p.valid, n_points=p.n_points)
+    found = dict(poses=p.n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+    excluded = None if opts.keep_outliers else ~p.valid[None]
+    last = outliers.assess(
+        fin, np.ones((1, len(q)), bool), outliers.position_rows(p.target), excluded=excluded, **found
+    )
+    pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
+    many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
+    why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many)
+    h = _heldout(fits, fr, p)
+    rep = {
+        "robot": robot.name,
+        "data": getattr(p.data, "source", "arrays"),
+        "units": list(getattr(p.data, "units", ("mm", "rad"))),
+        "ignored_columns": list(getattr(p.data, "ignored", ())),
+        "poses": len(q),
+        "position_only": p.n_points > 0,
+        "points": p.n_points,
+        "method": opts.method,
+        "folds": opts.folds,
+        "range_end_folds": len(p.held) - p.n_kfold,
+        "seed": opts.seed,
+        "estimate_base": opts.estimate_base,
+        "estimate_tool": opts.estimate_tool,
+    }
+    rep |= _choice(p, final, per_fold, names) | _figures(p, fr, fits, fin, h)
+    rep |= {
+        "camera_model": final.candidate.camera,
+        "camera_model_option": opts.camera,
+        "camera_parameters": {k: {"value": f.deltas[k][0], "std_error": f.deltas[k][1]} for k in f.cam_names} or None,
+        "sigma_pos_mm": float(fr.sig[-1, 0]),
+        "sigma_rot_deg": float(np.degrees(fr.sig[-1, 1])) if p.n_points == 0 else None,
+        "parameters": {
+            k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in f.deltas.items() if k not in f.cam_names
+        },
+        "estimated_dh": [names[i] for i in f.active if i < layout.n_kin],
+        "unidentifiable": [n for n in p.ident.fixed_names if names.index(n) < layout.n_kin],
         "combinations": list(p.ident.combinations),
-        "condition_number": core.condition_number(st["normal"], active),
+        "condition_number": core.condition_number(f.normal, f.active),
         "converged": bool(fin["converged"][0]),
         "steps": int(fin["steps"][0]),
-        "cv_fits_converged": int(np.sum(fits["converged"][:O]) + np.sum(fr.fit["converged"])),
-        "cv_fits": int(O + len(fr.sig)),
-        "base": frame_doc(model.robot.base),
-        "tool": frame_doc(model.robot.tool),
+        "base": frame_doc(f.model.robot.base),
+        "tool": frame_doc(f.model.robot.tool),
         "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
         "plausible": not why,
         "implausible": why or None,
         "notes": list(still_joint_notes(robot, q)),
     }
-    rep["outliers"] = outliers.describe(
-        last, 0, fin["pos_err"][0], np.degrees(fin["rot_err"][0]) if rot else None, p.rows,
-        excluded=not opts.keep_outliers,
-    )  # fmt: skip
-    rep["outlier_detection"] = {
-        "excluded": not opts.keep_outliers,
-        "outlier_sigmas": opts.outlier_sigmas,
-        "false_alarm_per_pose": outliers.false_alarm(opts.outlier_sigmas),
-        "threshold_sigmas": float(outliers.thresholds(layout.rows, opts.outlier_sigmas)),
-        "noise_pos_mm": float(det.scale[0, 0] * fr.sig[-1, 0]),
-        "noise_rot_deg": float(np.degrees(det.scale[0, 1] * fr.sig[-1, 1])) if rot else None,
-        "max_outlier_fraction": opts.max_outlier_fraction,
-        "heldout_rms_mm_all_poses": _rms(h["pe"]),  # the flagged poses too: what leaving them out hides
-    }
-    rep["lost_points"] = [{"row": r, "point": j} for r, j in getattr(p.data, "lost_points", [])]
-    rep["dropped_rows"] = [int(r) for r in getattr(p.data, "dropped_rows", ())]
-    if n_points:
-        rep["points_mm"] = np.asarray(model.points).tolist()
-        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.nanmean(ho**2, 0))]
+    rep |= _outlier_section(p, fr, det, last, fin, h)
+    if p.n_points:
+        rep["points_mm"] = np.asarray(f.model.points).tolist()
+        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.nanmean(h["pe"][p.valid] ** 2, 0))]
     per_pose = {
         "rows": p.rows,
         "frames_only_heldout": _squeeze(h["fo"]),
         "heldout": _squeeze(h["pe"]),
-        "frames_only_train": _squeeze(a_pe),
+        "frames_only_train": _squeeze(np.asarray(fr.fit["pos_err"])[-1]),
         "train": _squeeze(fin["pos_err"][0]),
         "outlier": last.flags[0],
         "sigmas": last.sigmas[0],
@@ -306,6 +354,6 @@ def report_of(p, fr, det, lin, final, per_fold, fits):
         "frames_only": core.described(fr.member(-1), robot).robot,
     }
     return DataCalibration(
-        model=core.described(model, robot), nominal=robot, choice=cand, report=rep, per_pose=per_pose,
-        deltas=deltas, covariance=cov, layout=layout, training_ranges=training_ranges(robot, q, p.valid),
+        model=core.described(f.model, robot), nominal=robot, choice=final.candidate, report=rep, per_pose=per_pose,
+        deltas=f.deltas, covariance=f.cov, layout=layout, training_ranges=training_ranges(robot, q, p.valid),
     )  # fmt: skip
