@@ -195,3 +195,14 @@ def describe(det: Detection, member: int, pos_err, rot_err_deg, rows, *, exclude
         e |= {"sigmas": float(u[k]), "threshold_sigmas": float(t[k]), "excluded": excluded}
         out.append(e)
     return out
+
+
+def found(fit: dict, refit, masks, target, opts) -> Detection:
+    """The outliers of the fits ``fit`` on ``masks`` as the options ask (``keep_outliers``: the
+    poses beyond the threshold, kept in the fit; else :func:`detect`, ``refit`` as there), for
+    the measurements ``target``."""
+    kw = dict(poses=np.shape(target)[-2:] == (4, 4), sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+    dof = position_rows(target)
+    if opts.keep_outliers:
+        return assess(fit, masks, dof, **kw)
+    return detect(refit, fit, masks, dof, **kw)

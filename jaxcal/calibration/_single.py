@@ -326,19 +326,15 @@ def calibrate(
         return a, sig, w, b
 
     a, sig, weights, b = stages(ref, masks)
-    dof = outliers.position_rows(target)
-    found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
-    if opts.keep_outliers:
-        det = outliers.assess(b, masks, dof, **found)
-    else:
-        refit = lambda w, x0: core.run_members(  # noqa: E731
-            cfg, a["model"], q, target, w, weights, prior[None], opts.loss_scale, x0=x0, **run, label="outliers"
-        )
-        det = outliers.detect(refit, b, masks, dof, **found)
-        if det.flags.any():  # the whole fit again without them: start, frames, noise weights, set
-            kept = masks * ~det.flags
-            a, sig, weights, b = stages(start(kept), kept)
-            det = outliers.assess(b, masks, dof, excluded=det.flags, **found)
+    refit = lambda w, x0: core.run_members(  # noqa: E731
+        cfg, a["model"], q, target, w, weights, prior[None], opts.loss_scale, x0=x0, **run, label="outliers"
+    )
+    det = outliers.found(b, refit, masks, target, opts)
+    if det.flags.any() and not opts.keep_outliers:  # the whole fit again without them: start, frames, set
+        kept = masks * ~det.flags
+        a, sig, weights, b = stages(start(kept), kept)
+        found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+        det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     if not np.all(np.isfinite(b["x"][0])):
         raise DataError(
             "the solver produced non-finite parameters; the data are probably inconsistent with the "
@@ -468,19 +464,15 @@ def calibrate_batch(
         )
 
     ref_b, weights, b = stages(ref, masks)
-    dof = outliers.position_rows(target)
-    found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
-    if opts.keep_outliers:
-        det = outliers.assess(b, masks, dof, **found)
-    else:
-        refit = lambda w, x0: core.run_members(  # noqa: E731
-            cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
-        )
-        det = outliers.detect(refit, b, masks, dof, **found)
-        if det.flags.any():  # every data set again without its outliers (the others: the same fit)
-            kept = masks * ~det.flags
-            _, _, b = stages(start(kept), kept)
-            det = outliers.assess(b, masks, dof, excluded=det.flags, **found)
+    refit = lambda w, x0: core.run_members(  # noqa: E731
+        cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
+    )
+    det = outliers.found(b, refit, masks, target, opts)
+    if det.flags.any() and not opts.keep_outliers:  # every data set again without its outliers
+        kept = masks * ~det.flags
+        _, _, b = stages(start(kept), kept)
+        found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+        det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
     x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
     x[nonfinite] = 0.0

@@ -229,12 +229,7 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
             p.cfg, ref, p.q, p.target, w, weights, prior, p.opts.loss_scale, x0=x0, **p.run, label="outliers"
         )
 
-    fit = refit(mask)
-    found = dict(poses=p.n_points == 0, sigmas=p.opts.outlier_sigmas, loss_scale=p.opts.loss_scale)
-    dof = outliers.position_rows(p.target)
-    if p.opts.keep_outliers:
-        return outliers.assess(fit, mask.astype(bool), dof, **found)
-    return outliers.detect(refit, fit, mask.astype(bool), dof, **found)
+    return outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
