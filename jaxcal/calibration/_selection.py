@@ -41,8 +41,8 @@ error" rule of cross-validation, since a lower score by less than its own noise 
 ## Parameter-level selection
 The chosen candidate's parameters are then pruned one at a time, the least significant first
 (smallest ``|x_j| / se_j`` of the fit on all poses), down to none; of the models on that path
-the sparsest whose score is within one standard error of the best is kept (the "one standard
-error" rule of cross-validation): what remains are the parameters the data support.
+the sparsest whose score is within :data:`PRUNE_SE` standard errors of the best is kept: what
+remains are the parameters the data support.
 """
 
 from __future__ import annotations
@@ -55,11 +55,15 @@ from jaxtyping import Bool, Float
 END_FRACTION = 0.15
 """Share of the poses at each end of a joint's range that a range-end fold holds out."""
 PRUNE_TOLERANCE = 0.01
-"""Pruning keeps the sparsest model whose score is within one standard error of the best, and at
-least within this fraction of it."""
+"""Pruning keeps the sparsest model whose score is within :data:`PRUNE_SE` standard errors of the
+best, and at least within this fraction of it."""
 SIMPLER_TOLERANCE = 0.01
 """A simpler candidate whose score is within one standard error of the best, and at least within
 this fraction of it, wins."""
+PRUNE_SE = 0.5
+"""Pruning keeps the sparsest model within this many standard errors of the best on its path:
+half of the one-standard-error rule, which pruned more than pseudo-sessions of real data
+support (docs/selection.md)."""
 MAX_CONDITION = 1e6
 """A candidate whose column-scaled, weighted Jacobian (prior rows included) is worse conditioned
 than this fails: its parameters are not separable on these poses, and its full fit's normal
@@ -325,7 +329,7 @@ def choose(scores, complexity, error: float = 0.0) -> int:
 def prune(lin: Linear, rule: Rule, free, prior, prunable, start: float):
     """Drop the prunable parameters one at a time, the least significant first (smallest
     ``|x| / se`` of the fit on all the rule's poses), down to none, scoring each model on the way;
-    keep the sparsest one whose score is within one standard error (and at least
+    keep the sparsest one whose score is within :data:`PRUNE_SE` standard errors (and at least
     :data:`PRUNE_TOLERANCE`) of the best on the path. Returns ``(free, dropped, kept_t)``:
     ``dropped`` as :attr:`Choice.pruned`, ``kept_t`` the kept parameters' ``|x| / se``."""
     free = np.array(free, bool)
@@ -346,7 +350,7 @@ def prune(lin: Linear, rule: Rule, free, prior, prunable, start: float):
     scores = np.array([p[3] for p in path])
     best = int(np.nanargmin(scores))
     _, err = score_error(lin, rule, path[best][0], prior)
-    limit = scores[best] + max(err, PRUNE_TOLERANCE * scores[best])
+    limit = scores[best] + max(PRUNE_SE * err, PRUNE_TOLERANCE * scores[best])
     k = max(i for i in range(len(path)) if scores[i] <= limit)
     return path[k][0], tuple((j, t, s) for _, j, t, s in path[1 : k + 1]), ts[k]
 
