@@ -9,8 +9,10 @@ then fitted on all of today and scored on tomorrow. A rule chooses the lowest sc
 choice) the simplest candidate within one standard error of it. For each rule the study reports,
 over many cuts, the mean tomorrow error of the model it chooses, the regret (that error minus
 the best candidate's), and the rank correlation of its score with the tomorrow error; then each
-candidate's mean tomorrow error. All on the problem linearised at the frames-only fit, as the
-selection itself runs (no pruning).
+candidate's mean tomorrow error, and the tomorrow error of jaxcal's choice after its pruning
+(:data:`jaxcal.calibration._selection.PRUNE_SE`: 0 is no pruning beyond 1 %, 0.5 jaxcal's, 1 the
+full one-standard-error rule). All on the problem linearised at the frames-only fit, as the
+selection itself runs.
 
     python docs/studies/scoring_rule.py > docs/studies/scoring_rule.txt
 """
@@ -26,6 +28,7 @@ from jaxcal.model import errors, jacobian
 from jaxcal.solvers import PIN
 
 CUTS, SEED, FOLDS = 60, 11, 5
+PRUNE_SE = (0.0, 0.5, 1.0)
 
 
 def data_sets():
@@ -68,7 +71,8 @@ def study(name, robot, meas, rng):
     clean = ~np.isin(np.arange(K), found)  # the poses calibrate_data would keep
     moving = [j for j in range(q.shape[1]) if np.ptp(q[:, j]) > 1e-9]
     rules = ("K-fold", "K-fold + range ends", "K-fold + range ends, one-SE (jaxcal)")
-    rows, truths = {r: [] for r in rules}, []
+    rows, truths, pruned = {r: [] for r in rules}, [], {v: [] for v in PRUNE_SE}
+    penalised = prior[[c.name for c in cands].index("all, prior 1 mm")] > 0
     for _ in range(CUTS):
         j, hi = moving[rng.integers(len(moving))], bool(rng.integers(2))
         lim = np.quantile(q[:, j], 0.8 if hi else 0.2)
@@ -85,6 +89,11 @@ def study(name, robot, meas, rng):
         picks = (int(np.nanargmin(a)), best, selection.choose(mixed, complexity, se))
         for r, s, c in zip(rules, (a, mixed, mixed), picks):
             rows[r].append((truth[c], truth[c] - np.nanmin(truth), spearmanr(s, truth).statistic))
+        for v in PRUNE_SE:
+            selection.PRUNE_SE, keep = v, selection.PRUNE_SE
+            ch = selection.select(lin, rule, free, prior, complexity, penalised)
+            selection.PRUNE_SE = keep
+            pruned[v].append(tomorrow_error(lin, today, tomorrow, ch.free[None], prior[ch.index][None])[0])
     print(
         f"\n{name}: {K} poses ({len(found)} outliers left out), {len(names)} candidates, {CUTS} cuts "
         "(tomorrow: ~20 % beyond one range end + 20 % of the rest)"
@@ -98,6 +107,9 @@ def study(name, robot, meas, rng):
     wins = np.bincount(np.nanargmin(t, 1), minlength=len(names))
     for i, n in enumerate(names):
         print(f"{n:>40s} {np.nanmean(t[:, i]):28.3f} {wins[i]:12d}")
+    print(f"{'pruning of the choice (PRUNE_SE)':>40s} {'tomorrow RMS (mm)':>28s}")
+    for v, e in pruned.items():
+        print(f"{v:>40g} {np.mean(e):28.3f}")
 
 
 def main():
