@@ -20,6 +20,9 @@ from .errors import ImplausibleFitError as ImplausibleFitError
 from .errors import JaxcalError as JaxcalError
 from .errors import PrecisionError as PrecisionError
 from .errors import RobotFileError as RobotFileError
+from .export import save_dh_table as save_dh_table
+from .export import save_report as save_report
+from .export import save_ur_kinematics as save_ur_kinematics
 from .kinematics import fk as fk
 from .kinematics import fk_frames as fk_frames
 from .kinematics import to_joint as to_joint

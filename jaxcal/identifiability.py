@@ -8,8 +8,12 @@ is deterministic.
   (mm per mm, mm per rad, rad per rad).
 * The numerical **rank** is the number of singular values of the scaled Jacobian above
   `rtol * s_max`.
-* The **base set** is picked by a deterministic in-order greedy walk: a column is kept when it
-  raises the numerical rank of the kept columns (same relative threshold). When two parameters
+* The **base set** is picked by a deterministic in-order greedy walk: a column is kept when
+  more than a fraction `tau` of it lies outside the span of the kept columns, with `tau` the
+  largest of :data:`SEPARATION` whose walk reaches the rank (else: when it raises the numerical
+  rank of the kept columns). A column that is new only by a rounding of the robot's angles
+  (1.5708 for pi/2) thus never takes the place of one that carries the direction: such a base
+  set would estimate it through a nearly parallel pair, condition ~1e6. When two parameters
   are interchangeable the *earlier* one in the parameter vector is kept (`d2` is kept, `d3`
   fixed). Solvers hold the other, **fixed**, parameters at 0.
 * A fixed parameter still moves the data; its effect is absorbed by base parameters. To first
@@ -128,6 +132,32 @@ def _n_above(A: np.ndarray, thr: float) -> int:
     return int(np.sum(np.linalg.svd(A, compute_uv=False) > thr)) if A.shape[1] else 0
 
 
+SEPARATION = (1e-3, 1e-4, 1e-5, 1e-6)
+"""Fractions of a column's effect that must lie outside the span of the columns kept before it,
+tried in turn (the first that reaches the numerical rank wins). A column that adds a direction
+only through a rounded angle (a right angle written as 1.5708 rad adds 4e-6 of its effect) is
+then not kept in place of a column that carries that direction fully."""
+
+
+def _separated(Js: np.ndarray, order, zero, rank: int, tau: float) -> list[int]:
+    """The in-order greedy base set at separation ``tau``: a column is kept when the part of it
+    outside the span of the kept columns is more than ``tau`` of its norm (scale-free)."""
+    kept: list[int] = []
+    Q = np.zeros((Js.shape[0], 0))
+    for j in order:
+        if len(kept) == rank:
+            break
+        if zero[j]:
+            continue
+        a = Js[:, j]
+        r = a - Q @ (Q.T @ a)
+        r = r - Q @ (Q.T @ r)  # Gram-Schmidt twice: orthogonal to working precision
+        if np.linalg.norm(r) > tau * np.linalg.norm(a):
+            kept.append(j)
+            Q = np.c_[Q, r / np.linalg.norm(r)]
+    return kept
+
+
 def _term(c: float, name: str) -> str:
     sign = "-" if c < 0 else "+"
     mag = f"{abs(c):.4g}"
@@ -183,12 +213,17 @@ def analyze(J, names, *, rtol: float = 1e-8, col_scale=None, priority=None) -> I
     order = list(range(m)) if priority is None else [int(j) for j in priority]
     if sorted(order) != list(range(m)):
         raise DataError(f"priority must be a permutation of the {m} columns")
-    kept: list[int] = []
-    for j in order:
+    for tau in (t for t in SEPARATION if t > rtol):
+        kept = _separated(Js, order, zero, rank, tau)
         if len(kept) == rank:
             break
-        if not zero[j] and _n_above(Js[:, kept + [j]], thr) == len(kept) + 1:
-            kept.append(j)
+    else:
+        kept = []
+        for j in order:
+            if len(kept) == rank:
+                break
+            if not zero[j] and _n_above(Js[:, kept + [j]], thr) == len(kept) + 1:
+                kept.append(j)
     if len(kept) < rank:  # borderline spectrum: top up with pivoted QR of what the kept set misses
         warnings.warn(
             f"greedy base set has {len(kept)} columns for numerical rank {rank}; "

@@ -15,7 +15,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._chain import chain, link_inputs
-from ._joints import joint_fk, joint_frames_after
+from ._joints import joint_chain, joint_fk, joint_frames_after
 from .errors import DataError
 from .lie import compose, make_transform
 from .robot import Robot
@@ -127,12 +127,57 @@ def _fk_frames(robot: Robot, q):
 
 
 def fk(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b 4 4"]:
-    """End pose ``base @ A_1 ... A_n @ tool`` (paper eq. 2 with base and tool). Jit-compiled."""
+    """End pose ``base @ A_1 ... A_n @ tool`` (paper eq. 2 with base and tool), at the deflected
+    joint values of a compliant robot (:func:`deflected`). Jit-compiled."""
     return _fk(robot.stripped(), check_q(robot, q))
+
+
+GRAVITY = (0.0, 0.0, -1.0)
+"""Direction of gravity in the robot's base frame (frame 0): the arm stands upright."""
+
+
+def gravity_moments(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n"]:
+    r"""Moment arm (mm) about each joint's axis of a unit weight at the tool origin, at the joint
+    values ``q``: $\tau_i = u_i \cdot ((p - o_i) \times g)$ with the axis $u_i$ through $o_i$, the
+    tool origin $p$ and :data:`GRAVITY` $g$, all in the robot's base frame. A prismatic joint's
+    entry is 0. What a compliant joint's deflection is proportional to (:attr:`Robot.compliance`).
+    Pure; jit it."""
+    q = jnp.asarray(q)
+    flat = q.reshape(-1, robot.n_joints)
+    r = eqx.tree_at(lambda r: (r.base, r.compliance), robot, (jnp.eye(4), None), is_leaf=lambda x: x is None)
+    if r.convention == "joint":
+        F, _, G = joint_chain(r, flat)  # (n, K, 4, 4)
+        u = jnp.einsum("nkab,nb->kna", F[..., :3, :3], r.axes)
+        o = jnp.swapaxes(F[..., :3, 3], 0, 1)
+        p = (G @ r.tool)[:, :3, 3]
+    else:
+        _, _, ys = chain(r, link_inputs(r, flat), frames=True)  # (n, 12, K): R row-major, then t
+        ys = jnp.transpose(ys, (2, 0, 1))  # (K, n, 12)
+        z, t = ys[..., 2:9:3], ys[..., 9:]  # each frame's z axis and origin
+        if r.convention == "sdh":  # joint i turns about z of frame i-1 (frame 0: the base)
+            K = flat.shape[0]
+            z = jnp.concatenate([jnp.broadcast_to(jnp.array([0.0, 0.0, 1.0]), (K, 1, 3)), z[:, :-1]], 1)
+            t = jnp.concatenate([jnp.zeros((K, 1, 3)), t[:, :-1]], 1)
+        u, o = z, t
+        R_n = ys[:, -1, :9].reshape(-1, 3, 3)
+        p = jnp.einsum("kab,b->ka", R_n, r.tool[:3, 3]) + ys[:, -1, 9:]
+    tau = jnp.einsum("kna,kna->kn", u, jnp.cross(p[:, None, :] - o, jnp.asarray(GRAVITY)))
+    return (tau * r.revolute_mask).reshape(q.shape)
+
+
+def deflected(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n"]:
+    """The joint values a compliant robot reaches at the commands ``q``: ``q + compliance *
+    gravity_moments(robot, q)``; ``q`` itself for a rigid robot (``compliance`` None). The moments
+    are taken as given (no derivative through them): they change with the geometry only at second
+    order in the deflection, and the identification Jacobian treats them so too."""
+    if robot.compliance is None:
+        return q
+    return q + robot.compliance * jax.lax.stop_gradient(gravity_moments(robot, q))
 
 
 @eqx.filter_jit
 def _fk(robot: Robot, q):
+    q = deflected(robot, q)
     if robot.convention == "joint":
         return joint_fk(robot, q.reshape(-1, robot.n_joints)).reshape(q.shape[:-1] + (4, 4))
     R, t, _ = chain(robot, link_inputs(robot, q), frames=False)

@@ -14,6 +14,12 @@ One header row, then one row per pose. Columns are matched **by name** (any orde
 Without the quaternion columns the data are positions. Other columns (timestamps, notes) are
 ignored and listed in :attr:`Measurements.ignored`.
 
+**Lost points.** Without quaternions, a point whose three cells are all empty (or ``nan``) at a
+row was not seen there (an occluded marker): it is NaN in :attr:`Measurements.measured` and a
+calibration gives it no weight; the pose keeps its other points. A row with no point left is
+dropped (:attr:`Measurements.dropped_rows`). Some of a point's cells empty and others not, or a
+cell that is not a number, is an error naming the cell.
+
 **Units follow the files**: lengths and angles are read in the robot file's units
 (``robot.units``, e.g. a URDF's metres) unless ``length_unit`` / ``angle_unit`` say otherwise;
 prismatic joints take the length unit. Everything is converted to mm and rad on reading.
@@ -65,6 +71,11 @@ class Measurements:
       after splitting or cross-validation still point at the file.
     * ``ignored`` — the file's columns that are neither joints nor measurements.
     * ``units`` — the ``(length, angle)`` units the file was read in.
+    * ``dropped_rows`` — data rows left out because none of their points was seen.
+    * ``point_numbers`` — the file's number of each measured point (after :meth:`select_points`);
+      empty: 1..M.
+
+    A point not seen at a pose (a lost marker) is NaN in ``measured`` (:attr:`lost_points`).
     """
 
     q: np.ndarray
@@ -73,6 +84,8 @@ class Measurements:
     rows: np.ndarray | None = None
     ignored: tuple[str, ...] = ()
     units: tuple[str, str] = ("mm", "rad")
+    dropped_rows: tuple[int, ...] = ()
+    point_numbers: tuple[int, ...] = ()
 
     def __post_init__(self):
         q, meas = _frozen(self.q), _frozen(self.measured)
@@ -115,6 +128,15 @@ class Measurements:
         return out
 
     @property
+    def lost_points(self) -> list[tuple[int, int]]:
+        """``(data row, point number in the file)`` of every point not seen (NaN), in file order."""
+        if self.n_points == 0:
+            return []
+        numbers = self.point_numbers or tuple(range(1, self.n_points + 1))
+        lost = np.argwhere(np.isnan(self.measured).any(-1))
+        return [(int(self.rows[k]), numbers[j]) for k, j in lost]
+
+    @property
     def rows_per_pose(self) -> int:
         return 6 if self.n_points == 0 else 3 * self.n_points
 
@@ -125,7 +147,8 @@ class Measurements:
         return dataclasses.replace(self, q=self.q[idx], measured=self.measured[idx], rows=self.rows[idx])
 
     def select_points(self, points) -> "Measurements":
-        """Only the measured points numbered ``points`` (1-based, as the columns ``x1 .. xM``)."""
+        """Only the measured points numbered ``points`` (1-based, as the columns ``x1 .. xM``);
+        a pose none of whose selected points was seen is dropped (:attr:`dropped_rows`)."""
         if self.n_points == 0:
             raise DataError(f"{self.source}: measures poses, not points; points apply to x1,y1,z1 ... data")
         idx = [int(p) for p in np.atleast_1d(points)]
@@ -134,7 +157,19 @@ class Measurements:
             raise DataError(
                 f"{self.source}: {idx} (points) must be distinct point numbers in 1..{self.n_points}", option="points"
             )
-        return dataclasses.replace(self, measured=self.measured[:, [p - 1 for p in idx]])
+        meas = self.measured[:, [p - 1 for p in idx]]
+        seen = ~np.isnan(meas).any(-1).all(-1)
+        if not seen.any():
+            raise DataError(f"{self.source}: point(s) {idx} (points) were not seen in any row", option="points")
+        gone = tuple(int(r) for r in self.rows[~seen])
+        numbers = self.point_numbers or tuple(range(1, self.n_points + 1))
+        out = dataclasses.replace(
+            self,
+            measured=meas,
+            dropped_rows=tuple(sorted(self.dropped_rows + gone)),
+            point_numbers=tuple(numbers[p - 1] for p in idx),
+        )
+        return out.subset(seen) if gone else out
 
 
 def franka_csv_path() -> Path:
@@ -277,10 +312,13 @@ def measurement_columns(header, src: str, *, required: bool = True):
     return points, (list(QUAT_COLUMNS) if quat else None)
 
 
-def parse_rows(records, header, columns, src) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Float matrix of ``columns`` of the data records, with their row and line numbers;
-    :class:`DataError` for ragged rows and bad numbers (other columns are not parsed)."""
+    :class:`DataError` for ragged rows and bad numbers (other columns are not parsed).
+    ``points``: groups of columns (a point's x, y, z) that may be lost together: all three
+    empty or ``nan`` give NaN; some of them is an error naming the cell."""
     idx = [header.index(c) for c in columns]
+    groups = [[columns.index(c) for c in g] for g in points]
     values, rows, lines = [], [], []
     for k, (line, rec) in enumerate(records, start=1):
         where = f"{src}: row {k} (line {line})"
@@ -288,19 +326,35 @@ def parse_rows(records, header, columns, src) -> tuple[np.ndarray, np.ndarray, n
             raise DataError(f"{where}: {len(rec)} fields, but the header has {len(header)} columns")
         out = []
         for name, i in zip(columns, idx):
-            text = rec[i]
+            text = rec[i].strip()
             try:
-                v = float(text)
+                v = float(text) if text else math.nan
             except ValueError:
-                what = "empty value" if not text.strip() else f"not a number: {text.strip()!r}"
-                raise DataError(f"{where}, column {name!r}: {what}") from None
-            if not math.isfinite(v):
-                raise DataError(f"{where}, column {name!r}: value {text.strip()!r} is not finite")
+                raise DataError(f"{where}, column {name!r}: not a number: {text!r}") from None
+            if math.isinf(v):
+                raise DataError(f"{where}, column {name!r}: value {text!r} is not finite")
             out.append(v)
+        lost = set()
+        for g in groups:
+            gap = [j for j in g if math.isnan(out[j])]
+            if gap and len(gap) < len(g):
+                given = ", ".join(repr(columns[j]) for j in g if j not in gap)
+                raise DataError(
+                    f"{where}, column {columns[gap[0]]!r}: {_missing(rec[idx[gap[0]]])}, but {given} of the same "
+                    f"point {'is' if len(g) - len(gap) == 1 else 'are'} not; a point not seen leaves all three empty"
+                )
+            lost.update(gap)
+        for j, v in enumerate(out):
+            if math.isnan(v) and j not in lost:
+                raise DataError(f"{where}, column {columns[j]!r}: {_missing(rec[idx[j]])}")
         values.append(out)
         rows.append(k)
         lines.append(line)
     return np.array(values, dtype=np.float64).reshape(len(records), len(columns)), np.array(rows), np.array(lines)
+
+
+def _missing(text: str) -> str:
+    return "empty value" if not text.strip() else f"value {text.strip()!r} is not finite"
 
 
 def quaternions_to_rotations(quat, rows, lines, src) -> np.ndarray:
@@ -327,7 +381,7 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols) -> None:
     2*pi and the joint limits (degrees among radians)."""
     r = np.linalg.norm(pos, axis=-1)
     if r.ndim > 1:
-        r = r.max(-1)
+        r = np.nanmax(r, -1)  # a lost point (NaN) left out; every row has one point seen
     med = float(np.median(r))
     if len(r) >= 3 and med > 0:
         odd = np.flatnonzero((r * 100 < med) | (r > 100 * med))
@@ -370,7 +424,12 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) 
     used = set(jcols) | set(pcols) | set(quat or [])
     ignored = tuple(c for c in header if c not in used)
     require_rows(records, src)
-    values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src)
+    values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else points)
+    seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(points), 3).any(-1)).any(-1)
+    if not seen.any():
+        raise DataError(f"{src}: no row has a measured point (every point cell is empty)")
+    dropped = tuple(int(r) for r in rows[~seen])
+    values, rows, lines = values[seen], rows[seen], lines[seen]
     scale = np.array([lu if t == "P" else au for t in robot.joint_types])
     q = values[:, :n] * scale
     pos = values[:, n : n + len(pcols)].reshape(len(values), len(points), 3) * lu
@@ -382,7 +441,13 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) 
         meas = pos
     mixed_units(q, pos, robot, rows, src, jcols)
     return Measurements(
-        q=q, measured=meas, source=Path(path).name, rows=rows, ignored=ignored, units=(lu_name, au_name)
+        q=q,
+        measured=meas,
+        source=Path(path).name,
+        rows=rows,
+        ignored=ignored,
+        units=(lu_name, au_name),
+        dropped_rows=dropped,
     )
 
 

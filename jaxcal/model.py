@@ -8,7 +8,9 @@ What is measured per pose is one of
 * the **tool's pose** (``n_points = 0``): 6 residual rows ``[p_m - p, log(R_m R^T)]`` (mm, rad),
   optionally through a camera model (:mod:`jaxcal.camera`);
 * **points** fixed to the tool (``n_points = M >= 1``, e.g. a laser tracker's reflector, or the
-  markers of a motion-capture rigid body): ``3 M`` rows ``p_m,j - p_j`` (mm).
+  markers of a motion-capture rigid body): ``3 M`` rows ``p_m,j - p_j`` (mm). A point not seen
+  at a pose (an occluded marker) is NaN in the measurements: its rows are not observed
+  (:func:`observed`) and weigh nothing in a fit; its errors come out NaN.
 
 The parameters ``x`` are laid out by a :class:`Layout`::
 
@@ -29,15 +31,16 @@ from __future__ import annotations
 import dataclasses
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Bool, Float
 
 from .camera import apply_camera, camera_jacobian
 from .camera import n_params as camera_size
 from .camera import param_names as camera_names
 from .error_model import FRAME_NAMES, dh_column_entries, perturb, pose_error, stack_columns
-from .kinematics import fk
+from .kinematics import deflected, fk, gravity_moments
 from .lie import make_transform, so3_exp, so3_left_jacobian, so3_right_jacobian_inv
 from .robot import Robot
 
@@ -59,13 +62,22 @@ class Layout:
 
     kin_units: tuple[str, ...] = ()
     """Unit of each kinematic error (``mm`` or ``rad``); empty: from the DH names."""
+    n_comp: int = 0
+    """Joint compliances carried (one per joint, :attr:`jaxcal.Robot.compliance`), or 0."""
 
     @classmethod
     def of(
-        cls, robot: Robot, *, base: bool = False, tool: bool = False, n_points: int = 0, camera: str = "none"
+        cls,
+        robot: Robot,
+        *,
+        base: bool = False,
+        tool: bool = False,
+        n_points: int = 0,
+        camera: str = "none",
+        compliance: bool = False,
     ) -> "Layout":
         names, units = tuple(robot.param_names()), tuple(robot.param_units())
-        return cls(names, bool(base), bool(tool), int(n_points), camera, units)
+        return cls(names, bool(base), bool(tool), int(n_points), camera, units, robot.n_joints if compliance else 0)
 
     @property
     def n_kin(self) -> int:
@@ -81,7 +93,7 @@ class Layout:
 
     @property
     def size(self) -> int:
-        return self.n_kin + 6 * self.base + self.n_tool + self.n_camera
+        return self.n_kin + 6 * self.base + self.n_tool + self.n_comp + self.n_camera
 
     @property
     def rows(self) -> int:
@@ -92,6 +104,12 @@ class Layout:
     def frames(self) -> tuple[int, ...]:
         """Indices of the base and tool parameters."""
         return tuple(range(self.n_kin, self.n_kin + 6 * self.base + self.n_tool))
+
+    @property
+    def compliances(self) -> tuple[int, ...]:
+        """Indices of the joint compliances (after the frames, before the camera)."""
+        start = self.n_kin + 6 * self.base + self.n_tool
+        return tuple(range(start, start + self.n_comp))
 
     @property
     def cameras(self) -> tuple[int, ...]:
@@ -107,14 +125,16 @@ class Layout:
                 out += ["tool_x", "tool_y", "tool_z"]
             else:
                 out += [f"point{j + 1}_{c}" for j in range(self.n_points) for c in "xyz"]
+        out += [f"compliance{j + 1}" for j in range(self.n_comp)]
         return out + camera_names(self.camera)
 
     def units(self) -> list[str]:
-        """Unit of each parameter: mm or rad (camera unknowns are dimensionless, ``1``)."""
+        """Unit of each parameter: mm or rad (compliances rad/mm; camera unknowns are
+        dimensionless, ``1``)."""
         kin = list(self.kin_units) or ["rad" if n.startswith(("theta", "alpha")) else "mm" for n in self.kin_names]
         frame = ["mm"] * 3 + ["rad"] * 3
         tool = (frame if self.n_points == 0 else ["mm"] * (3 * self.n_points)) if self.tool else []
-        return kin + (frame if self.base else []) + tool + ["1"] * self.n_camera
+        return kin + (frame if self.base else []) + tool + ["rad/mm"] * self.n_comp + ["1"] * self.n_camera
 
 
 class Model(eqx.Module):
@@ -157,6 +177,10 @@ def apply(model: Model, layout: Layout, x: Float[Array, " m"]) -> Model:
     points = model.points
     if layout.tool and layout.n_points:
         points = points + x[k : k + layout.n_tool].reshape(points.shape)
+    if layout.n_comp:  # a rigid robot starts from zero compliance
+        c0 = jnp.zeros(layout.n_comp) if robot.compliance is None else robot.compliance
+        c = c0 + x[layout.compliances[0] : layout.compliances[0] + layout.n_comp]
+        robot = eqx.tree_at(lambda r: r.compliance, robot, c, is_leaf=lambda v: v is None)
     cam = model.camera_params
     if layout.n_camera:
         cam = cam + x[layout.size - layout.n_camera :]
@@ -178,6 +202,22 @@ def errors(model: Model, q, target) -> Float[Array, "K rows"]:
     if model.n_points == 0:
         return pose_error(target, pred)
     return (target - pred).reshape(target.shape[0], -1)
+
+
+def observed(target) -> Bool[Array, "*K rows"]:
+    """Which residual rows of each pose (any leading axes) were measured: all of a pose's; a
+    point's three unless it is NaN (lost at that pose). NumPy in, NumPy out; traceable."""
+    xp = np if isinstance(target, np.ndarray) else jnp
+    lead = target.shape[:-2]
+    if target.shape[-2:] == (4, 4):
+        return xp.ones(lead + (6,), bool)
+    return xp.isfinite(target).reshape(lead + (-1,))
+
+
+def filled(target):
+    """``target`` with its lost (NaN) coordinates set to 0, for a fit that gives them no weight."""
+    xp = np if isinstance(target, np.ndarray) else jnp
+    return xp.where(xp.isfinite(target), target, 0.0)
 
 
 def _times(A, C):
@@ -206,7 +246,8 @@ def residual_and_jacobian_soa(model: Model, layout: Layout, x: Float[Array, " m"
     K, n = q.shape[0], robot.n_joints
     k = layout.n_kin + 6 * layout.base
     pts = jnp.zeros((1, 3)) if layout.n_points == 0 else cur.points
-    P, W, R, p_e, p_pts = dh_column_entries(robot, q, pts)  # entries; (3, 3, K), (3, K), (M, 3, K)
+    q_eff = deflected(robot, q)  # every column at the joint values the arm reaches
+    P, W, R, p_e, p_pts = dh_column_entries(robot, q_eff, pts)  # entries; (3, 3, K), (3, K), (M, 3, K)
     M = max(layout.n_points, 1)
     # the frames' columns: each a list of rows, a point's 3 position rows then (poses) 3 rotation rows
     frames = []
@@ -229,6 +270,10 @@ def residual_and_jacobian_soa(model: Model, layout: Layout, x: Float[Array, " m"
         frames += [[0.0] * 3 + [Rr[r, c] for r in range(3)] for c in range(3)]
     if layout.tool and layout.n_points:  # dp_j / dm_j = R
         frames += [[R[r, c] if i == j else 0.0 for i in range(M) for r in range(3)] for j in range(M) for c in range(3)]
+    if layout.n_comp:  # a compliance turns its joint by tau: the joint offset's column times tau
+        tau = jax.lax.stop_gradient(gravity_moments(robot, q)).T  # (n, K)
+        rows0 = sum(P[0], []) + (list(W[0]) if layout.n_points == 0 else [])
+        frames += [[jnp.broadcast_to(e, (n, K))[j] * tau[j] for e in rows0] for j in range(n)]
     if layout.n_points:
         kinds = range(robot.n_kinds)
         J = stack_columns([sum(P[kk], []) for kk in kinds], n, K)  # (p n, 3M, K)
@@ -301,13 +346,24 @@ def load_model(path, *, base_link: str | None = None, tip_link: str | None = Non
     return Model(robot, points)
 
 
-def save_model(model: Model, path, *, comment: dict | None = None, template=None, base_link=None, tip_link=None):
+def save_model(
+    model: Model,
+    path,
+    *,
+    comment: dict | None = None,
+    template=None,
+    base_link=None,
+    tip_link=None,
+    training_ranges: dict | None = None,
+):
     """Write a model atomically: a URDF (``.urdf``, joint-frame robots; ``template`` the nominal
-    URDF whose other links it keeps) or a TOML robot file, with the measured points. The camera
+    URDF whose other links it keeps) or a TOML robot file, with the measured points and the
+    ``training_ranges`` it was fitted on (:func:`jaxcal.robot.read_training_ranges`). The camera
     model's unknowns are a sensor's, not the robot's, and are not written."""
     from .robot import save_robot
 
     pts = np.asarray(model.points) if model.n_points else None
     save_robot(
-        model.robot, path, comment=comment, points=pts, template=template, base_link=base_link, tip_link=tip_link
-    )
+        model.robot, path, comment=comment, points=pts, template=template, base_link=base_link, tip_link=tip_link,
+        training_ranges=training_ranges,
+    )  # fmt: skip

@@ -91,20 +91,23 @@ def timing(path, runs_ms: dict, compile_s: dict, *, title: str) -> None:
     plt.close(fig)
 
 
-def calibration_figures(result, out_dir) -> list[Path]:
-    """Write ``pose_errors.png`` (held-out position error per pose, frames only vs calibrated)
-    and ``parameters.png`` (estimated DH errors with 1-sigma error bars) into ``out_dir``.
-    **Returns** the paths written."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    pp, rep = result.per_pose, result.report
+def heldout_errors(result):
+    """Held-out and frames-only held-out position error per pose (mm; the RMS over the points a
+    pose saw)."""
+    pp = result.per_pose
     ho, fo = np.asarray(pp["heldout"]), np.asarray(pp["frames_only_heldout"])
-    if ho.ndim == 2:  # several points per pose: the RMS over the points
-        ho, fo = np.sqrt(np.mean(ho**2, -1)), np.sqrt(np.mean(fo**2, -1))
-    paths = []
+    if ho.ndim == 2:  # several points per pose: the RMS over the points seen
+        ho, fo = np.sqrt(np.nanmean(ho**2, -1)), np.sqrt(np.nanmean(fo**2, -1))
+    return ho, fo
 
+
+def pose_errors_figure(result):
+    """Held-out position error per pose, frames only vs calibrated, the outlier poses marked (a
+    :class:`DataCalibration`)."""
+    rep, pp = result.report, result.per_pose
+    ho, fo = heldout_errors(result)
     fig, ax = plt.subplots(figsize=(10, 4))
-    x = np.arange(len(pp["rows"]))
+    x = np.arange(len(ho))
     ax.bar(
         x - 0.2, fo, width=0.4, color="tab:gray", label=f"frames only (RMS {rep['frames_only_heldout_rms_mm']:.2f} mm)"
     )
@@ -115,15 +118,30 @@ def calibration_figures(result, out_dir) -> list[Path]:
         color="tab:blue",
         label=f"calibrated, {rep['choice']} (RMS {rep['heldout_rms_mm']:.2f} mm)",
     )
+    bad = np.flatnonzero(pp.get("outlier", np.zeros(len(x), bool)))
+    if bad.size:
+        left = rep["outlier_detection"]["excluded"]
+        ax.scatter(
+            x[bad],
+            np.maximum(ho, fo)[bad] * 1.05,
+            marker="v",
+            color="tab:red",
+            zorder=3,
+            label=f"outlier ({'left out of the fit and the RMS' if left else 'kept'}): rows "
+            + ", ".join(str(int(r)) for r in np.asarray(pp["rows"])[bad][:8])
+            + (", ..." if bad.size > 8 else ""),
+        )
     ax.set_xlabel("pose (CSV data row - 1)")
     ax.set_ylabel("held-out position error (mm)")
     ax.set_title(f"{rep['folds']}-fold cross-validation: error on poses not used for fitting")
     ax.legend()
     fig.tight_layout()
-    paths.append(out / "pose_errors.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    return fig
 
+
+def parameters_figure(result):
+    """Estimated DH errors with 1-sigma error bars (a :class:`DataCalibration`)."""
+    rep = result.report
     dh = [(k, v) for k, v in result.deltas.items() if not k.startswith(("base_", "tool_", "point", "camera_"))]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, unit, scale, label in (
@@ -147,7 +165,53 @@ def calibration_figures(result, out_dir) -> list[Path]:
         ax.legend()
     fig.suptitle(f"estimated DH errors ({rep['choice']})")
     fig.tight_layout()
-    paths.append(out / "parameters.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    return fig
+
+
+def accuracy_figure(workspace, data, heldout, noise_mm: float):
+    """The accuracy map: the calibrated model's predicted position standard deviation over the
+    workspace (top and side views, base frame), beside the measured held-out errors at the data's
+    poses (side view). ``workspace`` and ``data`` are ``(positions (K, 3) in the robot's base
+    frame, predicted sigma (K,))`` of sampled reachable poses and of the data's poses;
+    ``heldout (K,)`` the data poses' measured held-out errors, ``noise_mm`` the measurement
+    noise's RMS distance (``sqrt(3) sigma_pos``), which a held-out error adds to the model's."""
+    (pw, sw), (pd, sd) = workspace, data
+    radius = lambda p: np.hypot(p[:, 0], p[:, 1])
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), layout="constrained")
+    views = ((lambda p: p[:, 0], 1, "x (mm)", "y (mm)"), (radius, 2, "distance from the base z axis (mm)", "z (mm)"))
+    for ax, (hor, j, xl, yl) in zip(axes[:2], views):
+        sc = ax.scatter(hor(pw), pw[:, j], c=sw, s=10, cmap="viridis", vmin=float(sw.min()), vmax=float(sw.max()))
+        ax.scatter(hor(pd), pd[:, j], s=12, marker="x", color="r", lw=0.8, label="data poses")
+        ax.set(xlabel=xl, ylabel=yl)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.legend(fontsize=8, loc="upper right")
+    axes[0].set_title(f"predicted std. dev. of the model at {len(sw)} sampled poses (top view)", fontsize=10)
+    axes[1].set_title("the same, side view", fontsize=10)
+    fig.colorbar(sc, ax=axes[1], label="predicted std. dev. (mm)", shrink=0.9)
+    rms = lambda v: float(np.sqrt(np.mean(np.square(v))))
+    ax = axes[2]
+    sc = ax.scatter(radius(pd), pd[:, 2], c=heldout, s=30, cmap="magma_r", vmin=0.0)
+    ax.set(xlabel="distance from the base z axis (mm)", ylabel="z (mm)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(
+        f"measured held-out error at the data poses: RMS {rms(heldout):.3g} mm\n"
+        f"predicted RMS {rms(np.sqrt(sd**2 + noise_mm**2)):.3g} mm (model {rms(sd):.3g}, noise {noise_mm:.3g})",
+        fontsize=10,
+    )
+    fig.colorbar(sc, ax=ax, label="measured held-out error (mm)", shrink=0.9)
+    return fig
+
+
+def calibration_figures(result, out_dir) -> list[Path]:
+    """Write ``pose_errors.png`` (held-out position error per pose, frames only vs calibrated)
+    and ``parameters.png`` (estimated DH errors with 1-sigma error bars) into ``out_dir``.
+    **Returns** the paths written."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, make in (("pose_errors.png", pose_errors_figure), ("parameters.png", parameters_figure)):
+        fig = make(result)
+        paths.append(out / name)
+        fig.savefig(paths[-1], dpi=120)
+        plt.close(fig)
     return paths

@@ -80,11 +80,27 @@ def measure(
     return T.at[..., :3, :3].set(R).at[..., :3, 3].add(dp)
 
 
+def inject_outliers(key, measured: Float[Array, "K 4 4"], n: int, lo_mm: float, hi_mm: float):
+    """``n`` of the ``K`` measured poses (chosen at random) moved by a gross position error: a
+    random direction, a length uniform in ``[lo_mm, hi_mm]`` (a slipped reflector, a swapped
+    marker). **Returns** ``(measured, mask (K,))``, the mask True at the moved poses. Traceable
+    (``n`` static)."""
+    kp, kd, kl = jax.random.split(key, 3)
+    K = measured.shape[0]
+    mask = jnp.zeros(K, bool).at[jax.random.permutation(kp, K)[:n]].set(True)
+    d = jax.random.normal(kd, (K, 3), dtype=jnp.float64)
+    d = d / jnp.linalg.norm(d, axis=-1, keepdims=True) * jax.random.uniform(kl, (K, 1), jnp.float64, lo_mm, hi_mm)
+    return measured.at[:, :3, 3].add(jnp.where(mask[:, None], d, 0.0)), mask
+
+
 @eqx.filter_jit
-def _measure_batch(robot: Robot, x, q, q_val, keys, sigma_pos, sigma_rot, *, base: bool, tool: bool):
+def _measure_batch(robot: Robot, x, q, q_val, keys, sigma_pos, sigma_rot, *, base: bool, tool: bool, outliers=None):
     def run(x_, q_, qv, key):
         meas = measure(robot, x_, q_, key, sigma_pos=sigma_pos, sigma_rot=sigma_rot, base=base, tool=tool)
-        return meas, fk(perturb(robot, x_, base=base, tool=tool), qv)
+        mask = jnp.zeros(q_.shape[0], bool)
+        if outliers is not None:  # a key of its own: the clean draws do not change
+            meas, mask = inject_outliers(jax.random.fold_in(key, 1), meas, *outliers)
+        return meas, fk(perturb(robot, x_, base=base, tool=tool), qv), mask
 
     return jax.vmap(run)(x, q, q_val, keys)
 
@@ -104,6 +120,7 @@ class Simulation:
     base: bool
     tool: bool
     seed: int
+    outlier_mask: np.ndarray | None = None  # (R, K) the poses given a gross error (simulate(outliers=...))
 
 
 def simulate(
@@ -121,6 +138,8 @@ def simulate(
     x_true=None,
     q=None,
     q_val=None,
+    outliers: float = 0.0,
+    outlier_mm=(3.0, 6.0),
 ) -> Simulation:
     """Draw ``n_robots`` true robots around ``robot`` and measure ``n_poses`` poses of each.
 
@@ -128,7 +147,9 @@ def simulate(
     :func:`error_scales`); ``x_true`` fixes the true errors instead, shape ``(m,)`` or
     ``(R, m)``; ``sigma_pos`` (mm) and ``sigma_rot`` (rad) the measurement noise; ``q`` /
     ``q_val`` give the calibration / inspection poses instead of drawing them, shape ``(K, n)``
-    (shared by all robots) or ``(R, K, n)`` (then ``n_poses`` / ``n_val`` are ignored).
+    (shared by all robots) or ``(R, K, n)`` (then ``n_poses`` / ``n_val`` are ignored);
+    ``outliers`` the share of each robot's poses given a gross position error of ``outlier_mm =
+    (A, B)`` mm (:func:`inject_outliers`; ``Simulation.outlier_mask`` says which).
 
     **Raises** :class:`jaxcal.DataError` for bad counts, negative or non-finite noise, wrong
     shapes and non-finite values, naming the argument.
@@ -146,6 +167,11 @@ def simulate(
             or v < 0
         ):
             raise DataError(f"{name} must be a finite number >= 0, got {v!r}")
+    if isinstance(outliers, bool) or not isinstance(outliers, (int, float, np.number)) or not 0 <= outliers <= 1:
+        raise DataError(f"outliers must be a share of the poses in [0, 1], got {outliers!r}")
+    lo_hi = np.asarray(outlier_mm, float) if np.shape(outlier_mm) == (2,) else np.full(2, np.nan)
+    if not 0 <= lo_hi[0] <= lo_hi[1] < np.inf:
+        raise DataError(f"outlier_mm must be (A, B) with 0 <= A <= B (mm), got {outlier_mm!r}")
     m = n_params(robot, base=base, tool=tool)
     k_err, k_q, k_noise, k_val = jax.random.split(jax.random.PRNGKey(seed), 4)
     if x_true is None:
@@ -185,8 +211,18 @@ def simulate(
     if q.shape[-1] != n or q_val.shape[-1] != n:
         raise DataError(f"q and q_val must have {n} joint columns")
     keys = jax.random.split(k_noise, n_robots)
-    meas, true_val = _measure_batch(
-        robot.stripped(), x_true, q, q_val, keys, jnp.float64(sigma_pos), jnp.float64(sigma_rot), base=base, tool=tool
+    n_out = int(round(outliers * q.shape[-2]))
+    meas, true_val, mask = _measure_batch(
+        robot.stripped(),
+        x_true,
+        q,
+        q_val,
+        keys,
+        jnp.float64(sigma_pos),
+        jnp.float64(sigma_rot),
+        base=base,
+        tool=tool,
+        outliers=(n_out, float(lo_hi[0]), float(lo_hi[1])) if n_out else None,
     )
     return Simulation(
         robot=robot,
@@ -200,4 +236,5 @@ def simulate(
         base=base,
         tool=tool,
         seed=seed,
+        outlier_mask=np.asarray(mask),
     )

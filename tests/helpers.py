@@ -1,5 +1,7 @@
 """Test helpers: random robots and transforms, and the command line run in-process."""
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -89,3 +91,64 @@ def measurement_csv(q, poses, *, position_only=False, rng=None, sigma_mm=0.0, si
         vals = list(q[k]) + list(p[k]) + ([] if position_only else list(quat[k]))
         lines.append(",".join(repr(float(v)) for v in vals))
     return "\n".join(lines) + "\n"
+
+
+def ur_yaml_fk(doc, q):
+    """Frames of ``wrist_3_link`` in ``base_link_inertia`` (``(K, 4, 4)``, metres) from a UR
+    kinematics document (PyYAML's dict): each joint's origin ``xyz`` and URDF roll-pitch-yaw
+    (``Rz(yaw) Ry(pitch) Rx(roll)``), then a turn by ``q_i`` about its z. NumPy only, apart
+    from jaxcal."""
+
+    def rot(axis, t):
+        c, s = np.cos(t), np.sin(t)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        R = np.eye(4)
+        R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
+        return R
+
+    kin = doc["kinematics"]
+    out = []
+    for qk in np.atleast_2d(np.asarray(q, float)):
+        T = np.eye(4)
+        for key, qi in zip(("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"), qk):
+            e = kin[key]
+            O = rot(2, e["yaw"]) @ rot(1, e["pitch"]) @ rot(0, e["roll"])
+            O[:3, 3] = e["x"], e["y"], e["z"]
+            T = T @ O @ rot(2, qi)
+        out.append(T)
+    return np.array(out)
+
+
+def pairwise_distances(p):
+    """``(K, K)`` distances between the points ``p (K, 3)``: what two descriptions of one arm in
+    different base frames agree on."""
+    p = np.asarray(p)
+    return np.linalg.norm(p[:, None] - p[None], axis=-1)
+
+
+UR5_TRACKER = dict(n_poses=40, sigma_pos=0.05, folds=3, params="all")
+"""A laser tracker's data of a UR5 (one reflector, positions only): the shapes the UR export,
+report and accuracy tests share, so their calibrations share compiled programs."""
+
+
+@functools.cache
+def ur5_tracker(n_robots: int = 160):
+    """``(nominal, sim, data, result)``: ``n_robots`` simulated UR5s (random DH errors, base and
+    tool) measured by a tracker at the same poses, and the workflow's calibration of the first
+    (``jaxcal.calibrate_data`` with :data:`UR5_TRACKER`'s options, noise as simulated)."""
+    import jaxcal
+    from jaxcal.simulation import simulate
+
+    ur5 = jaxcal.preset("ur5")
+    base = np.eye(4)
+    base[:3, 3] = [800.0, -300.0, 100.0]
+    rng = np.random.default_rng(37)
+    q = rng.uniform(-np.pi, np.pi, (UR5_TRACKER["n_poses"], 6))
+    q_val = rng.uniform(-np.pi, np.pi, (30, 6))
+    s = UR5_TRACKER["sigma_pos"]
+    sim = simulate(
+        ur5.replace(base=base), n_robots=n_robots, q=q, q_val=q_val, seed=37, sigma_pos=s, base=True, tool=True
+    )
+    data = jaxcal.Measurements(q, sim.measured[0, :, None, :3, 3])
+    res = jaxcal.calibrate_data(ur5, data, folds=UR5_TRACKER["folds"], params=UR5_TRACKER["params"], sigma_pos_mm=s)
+    return ur5, sim, data, res

@@ -316,6 +316,36 @@ def test_bad_input_and_borderline_spectrum():
     assert B.rank == len(B.base) == 2 and B.base[0] == 0
 
 
+def test_a_column_new_only_by_rounding_does_not_take_a_place():
+    """b = a + 3.7e-6 c (a right angle written 1.5708 rad turns a shift by that much): rank 2,
+    and the base set is {a, c}, not {a, b} (which would estimate c through b - a, condition
+    ~1e6: the unregularized fit's step is then ~1e6 times the noise)."""
+    rng = np.random.default_rng(0)
+    a, c = rng.normal(size=(2, 40))
+    A = analyze(np.c_[a, a + 3.7e-6 * c, c], ["a", "b", "c"])
+    assert A.rank == 2 and A.base_names == ("a", "c") and A.condition_number < 10
+    assert A.reasons()["b"].startswith("not separable from a, c")
+
+
+def test_xarm7_base_set_is_that_of_exact_right_angles(tmp_path):
+    """The xArm7 URDF writes its +-pi/2 origins as 1.5708: its base set is the one of exact
+    right angles, as well conditioned (the rounding once made it keep y2, y4, y6 in place of
+    z2, z4, z6, condition ~1e6)."""
+    from pathlib import Path
+
+    from jaxcal.calibration import identify
+
+    text = (Path(__file__).resolve().parent / "data" / "urdf" / "xarm7.urdf").read_text()
+    assert "1.5708" in text
+    (tmp_path / "exact.urdf").write_text(text.replace("1.5708", repr(np.pi / 2)))
+    out = []
+    for path in (tmp_path / "exact.urdf", Path(__file__).resolve().parent / "data" / "urdf" / "xarm7.urdf"):
+        robot = jaxcal.load_robot(path, base_link="link_base")
+        out.append(identify(robot, _poses(robot, 60), n_points=1))
+    assert out[1].base_names == out[0].base_names and out[1].rank == out[0].rank
+    assert out[1].condition_number < 2 * out[0].condition_number < 100
+
+
 def test_base_covariance_on_a_stack(rng):
     """Stacked pose sets at once, against inv(Jb^T Jb) set by set; a zero column names its set."""
     from jaxcal.identifiability import base_covariance

@@ -156,6 +156,60 @@ def test_several_points_per_pose(tmp_path, panda):
         read_measurements(_csv(tmp_path, text.replace(",z2", ""), "b.csv"), panda)
 
 
+HEADER_3PT = HEADER7.replace(",x,y,z", "") + "".join(f",x{m},y{m},z{m}" for m in (1, 2, 3))
+
+
+def _three_points(*cells):
+    """Rows of a three-point file: each a 9-tuple of point cells (strings), joints GOOD_ROW."""
+    return HEADER_3PT + "\n" + "".join(GOOD_ROW + "," + ",".join(c) + "\n" for c in cells)
+
+
+def test_lost_points_are_nan_and_a_row_without_any_is_dropped(tmp_path, panda):
+    full = [str(100.0 + 10 * j) for j in range(9)]
+    rows = [
+        full,
+        full[:3] + ["", "", ""] + full[6:],  # point 2 occluded
+        ["nan", "NaN", "nan"] + full[3:],  # point 1: nan is empty too
+        [""] * 9,  # nothing seen: dropped
+        full,
+    ]
+    m = read_measurements(_csv(tmp_path, _three_points(*rows)), panda)
+    assert_array_equal(m.rows, [1, 2, 3, 5]) and m.dropped_rows == (4,)
+    assert m.lost_points == [(2, 2), (3, 1)]
+    assert np.isnan(m.measured[1, 1]).all() and np.isfinite(m.measured[1, [0, 2]]).all()
+    assert_allclose(m.measured[0], np.reshape([float(v) for v in full], (3, 3)))
+    # selecting points drops the rows none of whose selected points was seen
+    one = m.select_points([1])
+    assert_array_equal(one.rows, [1, 2, 5]) and one.dropped_rows == (3, 4) and one.lost_points == []
+    assert m.select_points([2, 3]).lost_points == [(2, 2)]
+    with pytest.raises(DataError, match=r"point\(s\) \[1\] \(points\) were not seen in any row"):
+        read_measurements(_csv(tmp_path, _three_points(["", "", ""] + full[3:]), "b.csv"), panda).select_points([1])
+
+
+LOST_BAD = {
+    "part of a point": (
+        ["1", "", "3"] + ["4"] * 6,
+        r"row 1 \(line 2\), column 'y1': empty value, but 'x1', 'z1' of the same point are not",
+    ),
+    "empty and not a number": (["", "abc", ""] + ["4"] * 6, r"row 1 \(line 2\), column 'y1': not a number: 'abc'"),
+    "infinite": (["inf", "", ""] + ["4"] * 6, r"row 1 \(line 2\), column 'x1': value 'inf' is not finite"),
+    "nothing at all": ([""] * 9, r"no row has a measured point"),
+}
+
+
+@pytest.mark.parametrize("case", list(LOST_BAD))
+def test_lost_points_bad_cells_named(tmp_path, panda, case):
+    cells, pattern = LOST_BAD[case]
+    with pytest.raises(DataError, match=pattern):
+        read_measurements(_csv(tmp_path, _three_points(cells), "e.csv"), panda)
+
+
+def test_a_pose_file_keeps_refusing_empty_cells(tmp_path, panda):
+    text = HEADER7 + ",qw,qx,qy,qz\n" + GOOD_ROW + ",,,,1,0,0,0\n"
+    with pytest.raises(DataError, match=r"row 1 \(line 2\), column 'x': empty value"):
+        read_measurements(_csv(tmp_path, text, "e.csv"), panda)
+
+
 # -- the real Franka data ---------------------------------------------------------------------
 
 

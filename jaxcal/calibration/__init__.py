@@ -2,6 +2,7 @@
 (:func:`calibrate_batch`), and the real-data workflow with cross-validation
 (:func:`calibrate_data`, behind ``jaxcal calibrate``), all on the one engine."""
 
+from ._accuracy import position_std as position_std
 from ._evaluate import evaluate as evaluate
 from ._options import GAUGE as GAUGE
 from ._options import Options as Options

@@ -15,7 +15,8 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     arrays (copies: the caller's arrays are never touched).
 
     Measurements as users have them: positions ``(K, 3)``, points ``(K, M, 3)`` (several points
-    on the tool per pose) or poses ``(K, 4, 4)`` (``position_only=True`` keeps their
+    on the tool per pose; a point lost at a pose is NaN in its three coordinates, and every
+    pose keeps at least one) or poses ``(K, 4, 4)`` (``position_only=True`` keeps their
     translations); with a leading data-set axis when ``batched``.
     """
     if not isinstance(robot, Robot):
@@ -40,11 +41,18 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             f"{K + ('M', 3)} (M points per pose), one per row of q; got {measured.shape}",
             option="measured",
         )
-    for name, arr in (("q", q), ("measured", measured)):
+    lost = np.isnan(measured).all(-1) if kind != "poses" else np.zeros(measured.shape[:-1], bool)
+    for name, arr in (("q", q), ("measured", np.where(lost[..., None], 0.0, measured))):
         bad = ~np.isfinite(arr)
         if bad.any():
             idx = tuple(int(i) for i in np.argwhere(bad)[0])
-            raise DataError(f"{name}: non-finite value at index {idx}", option=name)
+            what = "; a point not measured is NaN in all three coordinates" if kind != "poses" and name != "q" else ""
+            raise DataError(f"{name}: non-finite value at index {idx}{what}", option=name)
+    if lost.all(-1).any():
+        idx = tuple(int(i) for i in np.argwhere(lost.all(-1))[0])
+        raise DataError(
+            f"measured{list(idx)}: no point measured at this pose (all NaN); leave the pose out", option="measured"
+        )
     check_angles(robot, q)
     if kind == "poses":
         bad_row = np.abs(measured[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(-1) > 1e-9
@@ -106,8 +114,11 @@ def check_units(robot: Robot, q, target, n_points: int, *, batched: bool, model_
     if Q.shape[1] < 2:
         return
 
+    seen = np.isfinite(P_mea).all(-1, keepdims=True)  # a lost first point: that pose left out of both
+
     def spread(P):
-        return np.sqrt(np.mean(np.sum((P - P.mean(-2, keepdims=True)) ** 2, -1), -1))
+        P = np.where(seen, P, np.nan)
+        return np.sqrt(np.nanmean(np.sum((P - np.nanmean(P, -2, keepdims=True)) ** 2, -1), -1))
 
     s_mod, s_mea = spread(np.asarray(P_mod)), spread(P_mea)
     lu = robot.units[0]

@@ -22,10 +22,10 @@ import numpy as np
 from ..identifiability import Identifiability, analyze
 from ..kinematics import fk
 from ..lie import so3_log
-from ..model import Layout, Model, apply, errors, jacobian, predict
+from ..model import Layout, Model, apply, errors, jacobian, observed, predict
 from ..robot import Robot
 from ..sharding import distribute, gather, member_mesh, sharded
-from ..solvers import PIN, fit, outlier_threshold, robust_scale, robust_weights
+from ..solvers import PIN, fit, robust_scale, robust_weights
 from ._initial import initial_frames
 
 UNIT_WEIGHTS = (1.0, math.radians(1.0))
@@ -73,17 +73,20 @@ def _member(cfg: Config, model: Model, q, target, pose_w, weights, prior, loss_s
     )
     x = jnp.where(prior >= PIN, 0.0, sol.x)  # held parameters exactly at 0
     cal = apply(model, lay, x)
-    e = errors(cal, q, target)
+    e = errors(cal, q, target)  # NaN at a lost point: its pos_err is NaN, its rows not in norms
     M = max(lay.n_points, 1)
     pos = jnp.linalg.norm(e[:, : 3 * M].reshape(-1, M, 3), axis=-1)
     rot = jnp.linalg.norm(e[:, 3:], axis=-1) if lay.n_points == 0 else jnp.zeros(q.shape[0])
+    we = jnp.where(observed(target), e * weights, 0.0)
     return dict(
         x=x,
         converged=sol.converged,
         steps=sol.steps,
         pos_err=pos,
         rot_err=rot,
-        norms=jnp.linalg.norm(e * weights, axis=-1),
+        norms=jnp.linalg.norm(we, axis=-1),
+        pos_norms=jnp.linalg.norm(we[:, : 3 * M], axis=-1),
+        rot_norms=jnp.linalg.norm(we[:, 3 * M :], axis=-1),
         model=cal,
     )
 
@@ -226,7 +229,7 @@ def run_members(
         if progress is not None:
             progress(min(start + c, B), B, label)
     out = jax.tree.map(lambda *a: np.concatenate(a)[:B], *outs)
-    for k in ("pos_err", "rot_err", "norms"):  # the padding poses out again
+    for k in ("pos_err", "rot_err", "norms", "pos_norms", "rot_norms"):  # the padding poses out again
         out[k] = out[k][:, :K]
     return out
 
@@ -251,8 +254,17 @@ def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool
     Kp = pose_bucket(K)
     axis = 0 if shared else 1
     masks = np.concatenate([np.asarray(masks, float), np.zeros((np.shape(masks)[0], Kp - K))], 1)
+    robot = carrying(robot, layout)
     models = _starts(robot, pad_poses(q, Kp, axis), pad_poses(target, Kp, axis), masks, layout=layout, shared=shared)
     return jax.tree.map(np.asarray, models)
+
+
+def carrying(robot: Robot, layout: Layout) -> Robot:
+    """``robot`` with zero compliances where the layout estimates them and it has none: every
+    model of a workflow then has one structure, and one compiled solve serves them all."""
+    if layout.n_comp and robot.compliance is None:
+        return eqx.tree_at(lambda r: r.compliance, robot, np.zeros(robot.n_joints), is_leaf=lambda v: v is None)
+    return robot
 
 
 def broadcast_model(model: Model, n: int) -> Model:
@@ -296,13 +308,13 @@ def column_norms(J0, weights, pose_w, prior) -> np.ndarray:
 
 
 def sigmas_from(pos_err, rot_err, masks, n_points: int):
-    """RMS per coordinate (mm) and per axis (rad) of each member's errors over its mask, floored
-    at :data:`SIGMA_FLOOR`;
+    """RMS per coordinate (mm) and per axis (rad) of each member's errors over its mask (lost
+    points, NaN, left out), floored at :data:`SIGMA_FLOOR`;
     ``(B, 2)``. Position-only data get a rotation sigma of 1 (unused)."""
     masks = np.asarray(masks, float)
-    M = max(n_points, 1)
     n = masks.sum(-1)
-    sp = np.sqrt(np.sum(masks[:, :, None] * pos_err**2, (1, 2)) / (3 * M * n))
+    seen = masks[:, :, None] * np.isfinite(pos_err)
+    sp = np.sqrt(np.nansum(masks[:, :, None] * pos_err**2, (1, 2)) / (3 * seen.sum((1, 2))))
     sr = np.sqrt(np.sum(masks * rot_err**2, 1) / (3 * n)) if n_points == 0 else np.ones_like(sp)
     return np.stack([np.maximum(sp, SIGMA_FLOOR[0]), np.maximum(sr, SIGMA_FLOOR[1])], -1)
 
@@ -332,10 +344,10 @@ def analyse(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray]:
 
 def identify(J, layout: Layout, *, rtol: float = 1e-8) -> Identifiability:
     """Identifiability of every parameter of ``layout`` from the Jacobian ``J`` (:func:`analyse`),
-    the frames offered first (they keep what they can absorb), then the DH errors, then the
-    camera."""
+    the frames offered first (they keep what they can absorb), then the DH errors and the joint
+    compliances, then the camera."""
     frames, cams = list(layout.frames), list(layout.cameras)
-    kin = list(range(layout.n_kin))
+    kin = list(range(layout.n_kin)) + list(layout.compliances)
     return analyze(np.asarray(J).reshape(-1, layout.size), layout.names(), rtol=rtol, priority=frames + kin + cams)
 
 
@@ -361,7 +373,7 @@ def relative_x(reference, layout: Layout, model: Model) -> np.ndarray:
     points' offsets and the camera unknowns' changes, so that ``apply(reference, layout, x)`` is
     ``model``."""
     if isinstance(reference, Robot):
-        reference = Model(reference, np.zeros((layout.n_points, 3)) if layout.n_points else None)
+        reference = Model(reference, np.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
     r0, r1 = reference.robot, model.robot
     lead = np.broadcast_shapes(np.shape(r1.dh)[:-2], np.shape(r0.dh)[:-2])
     out = [(np.asarray(r1.dh) - np.asarray(r0.dh)).reshape(lead + (-1,))]
@@ -387,6 +399,11 @@ def relative_x(reference, layout: Layout, model: Model) -> np.ndarray:
             )
         else:
             out.append((np.asarray(model.points) - np.asarray(reference.points)).reshape(lead + (-1,)))
+    if layout.n_comp:
+        c0, c1 = (
+            np.zeros(lead + (layout.n_comp,)) if c is None else np.asarray(c) for c in (r0.compliance, r1.compliance)
+        )
+        out.append(c1 - c0)
     cam = np.asarray(model.camera_params) - np.asarray(reference.camera_params)
     out.append(cam.reshape(cam.shape[:-1] + (-1,))[..., : layout.n_camera])
     return np.concatenate([np.broadcast_to(o, lead + o.shape[-1:]) for o in out], -1)
@@ -407,20 +424,22 @@ def condition_number(normal, active) -> float:
     return float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
 
 
-def fit_statistics(J0, weights, pose_w, norms, *, loss: str, loss_scale, rows: int) -> dict:
+def fit_statistics(J0, weights, pose_w, norms, *, loss: str, loss_scale, rows: int, seen=None) -> dict:
     """What the standard errors and outlier report of one fit need, from its per-pose weighted
     residual norms and the Jacobian ``J0 (K, rows, m)`` at its reference (first-order close to
     the one at the solution: the fit moves the parameters by the calibration's small errors):
-    the robust ``scale``, the weighted normal matrix ``normal``, ``rss`` and ``n_rows``."""
+    the robust ``scale``, the weighted normal matrix ``normal``, ``rss`` and ``n_rows``. ``seen``
+    ``(K, rows)``: the observed rows (:func:`jaxcal.model.observed`; default all)."""
     norms, pose_w = np.asarray(norms), np.asarray(pose_w)
+    seen = np.ones(np.shape(J0)[:2], bool) if seen is None else np.asarray(seen)
     scale = float(loss_scale) if loss_scale is not None else float(robust_scale(norms, rows, pose_w))
     w = pose_w * (robust_weights(norms, scale, rows, loss) if loss != "l2" else 1.0)
-    Jw = np.asarray(J0) * np.asarray(weights)[:, None]
+    Jw = np.asarray(J0) * (np.asarray(weights)[None, :] * seen)[:, :, None]
     return {
         "scale": scale,
         "normal": np.einsum("k,kri,krj->ij", w, Jw, Jw),
         "rss": float(np.sum(w * norms**2)),
-        "n_rows": int(np.sum(pose_w > 0)) * rows,
+        "n_rows": int(np.sum(seen[pose_w > 0])),
     }
 
 
@@ -448,29 +467,18 @@ def residual_stats(pos_err, rot_err, mask=None, *, n_points: int) -> dict:
     pos_err = np.asarray(pos_err)
     sel = np.ones(pos_err.shape[0], bool) if mask is None else np.asarray(mask, bool)
     d = pos_err[sel]
-    per_point = np.sqrt(np.mean(d**2, 0)) if d.size else np.full(max(n_points, 1), np.nan)
+    per_point = np.sqrt(np.nanmean(d**2, 0)) if d.size else np.full(max(n_points, 1), np.nan)
+    f = d[np.isfinite(d)]  # lost points (NaN) left out
     out = {
-        "pos_rms_mm": float(np.sqrt(np.mean(d**2))) if d.size else float("nan"),
-        "pos_max_mm": float(d.max()) if d.size else float("nan"),
-        "pos_median_mm": float(np.median(d)) if d.size else float("nan"),
+        "pos_rms_mm": float(np.sqrt(np.mean(f**2))) if f.size else float("nan"),
+        "pos_max_mm": float(f.max()) if f.size else float("nan"),
+        "pos_median_mm": float(np.median(f)) if f.size else float("nan"),
     }
     if n_points > 1:
         out["points_rms_mm"] = [float(v) for v in per_point]
     if n_points == 0:
         out["rot_rms_deg"] = float(np.degrees(np.sqrt(np.mean(np.asarray(rot_err)[sel] ** 2))))
     return out
-
-
-def robust_scale_batch(norms, rows: int, loss_scale=None) -> np.ndarray:
-    """Per data set robust scale of per-pose norms ``(R, K)``, or the given ``loss_scale``."""
-    if loss_scale is not None:
-        return np.full(np.shape(norms)[0], float(loss_scale))
-    return np.asarray(robust_scale(jnp.asarray(norms), rows))
-
-
-def outliers_of(norms, scale, rows: int) -> np.ndarray:
-    """Poses whose standardised residual norm exceeds :func:`jaxcal.solvers.outlier_threshold`."""
-    return np.asarray(norms) > outlier_threshold(rows) * np.asarray(scale)[..., None]
 
 
 def nominal_positions(robot: Robot, q):

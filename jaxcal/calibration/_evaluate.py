@@ -15,11 +15,15 @@ REPEAT_RAD = 1e-2
 joint within :data:`REPEAT_MM`) repeats that posture."""
 REPEAT_MM = 1.0
 GROUPS = ("repeated", "new within training ranges", "out of training ranges")
+OUTSIDE_WARNING = 0.10
+"""Share of postures outside the training ranges beyond which :func:`evaluate` warns."""
 
 
 def _stats(err: np.ndarray) -> dict:
-    """RMS, max and median of error norms (any shape), or ``None`` entries without data."""
+    """RMS, max and median of error norms (any shape; NaN, a lost point, left out), or ``None``
+    entries without data."""
     e = np.ravel(err)
+    e = e[np.isfinite(e)]
     if e.size == 0:
         return {"rms_mm": None, "max_mm": None, "median_mm": None}
     return {"rms_mm": float(np.sqrt(np.mean(e**2))), "max_mm": float(e.max()), "median_mm": float(np.median(e))}
@@ -36,7 +40,20 @@ def posture_groups(robot: Robot, q: np.ndarray, q_train: np.ndarray) -> np.ndarr
     return np.where(near, 0, np.where(inside, 1, 2))
 
 
-def evaluate(model: Model, meas, *, training=None) -> dict:
+def outside(robot: Robot, q, ranges: dict) -> np.ndarray:
+    """Which poses ``q (K, n)`` have a joint outside its training range (``ranges``: joint name ->
+    ``(lowest, highest)``, mm and rad; tolerances :data:`REPEAT_RAD`, :data:`REPEAT_MM`)."""
+    q = np.asarray(q)
+    out = np.zeros(len(q), bool)
+    for j, (name, t) in enumerate(zip(robot.joint_names, robot.joint_types)):
+        if name in ranges:
+            tol = REPEAT_RAD if t == "R" else REPEAT_MM
+            lo, hi = ranges[name]
+            out |= (q[:, j] < lo - tol) | (q[:, j] > hi + tol)
+    return out
+
+
+def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -> dict:
     """Errors of ``model`` on the measurements ``meas`` (:class:`jaxcal.Measurements`), nothing
     fitted: JSON-ready, lengths in mm, angles in degrees.
 
@@ -44,9 +61,15 @@ def evaluate(model: Model, meas, *, training=None) -> dict:
       pose (error norms), and ``points``: per measured point in column order, ``rms_mm``,
       ``max_mm``, ``median_mm``;
     * ``rotation_rms_deg`` (and max, median) when poses are measured;
-    * ``poses``: per pose its data row and error (mm; per point, and deg for poses);
+    * ``poses``: per pose its data row and error (mm; per point, None for a point not seen, and
+      deg for poses); ``lost_points``: ``{row, point}`` of the points not seen, ``dropped_rows``
+      the rows with none;
     * ``groups`` (given the ``training`` measurements): the same summary for repeated postures,
-      new ones within the training ranges and ones out of them.
+      new ones within the training ranges and ones out of them;
+    * ``outside_training_ranges`` (given ``ranges``, joint name -> ``(lowest, highest)`` mm and
+      rad, as a calibrated model file records them, or the ``training`` data's): how many poses
+      have a joint outside them, and ``warnings`` when more than :data:`OUTSIDE_WARNING` do: the
+      model was not fitted there and extrapolates.
 
     A robot file without points measures its tool frame's origin: it evaluates one point.
     """
@@ -71,10 +94,27 @@ def evaluate(model: Model, meas, *, training=None) -> dict:
     if rot is not None:
         out.update({f"rotation_{k.replace('_mm', '_deg')}": v for k, v in _stats(rot).items()})
     out["poses"] = [
-        {"row": int(r), "error_mm": [float(v) for v in pos[i]]}
+        {"row": int(r), "error_mm": [float(v) if np.isfinite(v) else None for v in pos[i]]}
         | ({} if rot is None else {"rotation_deg": float(rot[i])})
         for i, r in enumerate(meas.rows)
     ]
+    out["lost_points"] = [{"row": r, "point": j} for r, j in getattr(meas, "lost_points", [])]
+    out["dropped_rows"] = [int(r) for r in getattr(meas, "dropped_rows", ())]
+    if ranges is None and training is not None:
+        ranges = {
+            n: (float(lo), float(hi))
+            for n, lo, hi in zip(model.robot.joint_names, training.q.min(0), training.q.max(0))
+        }
+    out["warnings"] = []
+    if ranges is not None:
+        away = outside(model.robot, meas.q, ranges)
+        share = float(away.mean()) if len(away) else 0.0
+        out["outside_training_ranges"] = {"poses": int(away.sum()), "fraction": share}
+        if share > OUTSIDE_WARNING:
+            out["warnings"].append(
+                f"{int(away.sum())} of {len(away)} postures ({100 * away.mean():.0f} %) have a joint outside the "
+                f"ranges the model was fitted on: there it extrapolates, and errors grow"
+            )
     if training is not None:
         if training.q.shape[1] != meas.q.shape[1]:
             raise DataError(f"{training.source}: {training.q.shape[1]} joints, the data {meas.q.shape[1]}")

@@ -79,7 +79,8 @@ def initial_frames(
     """Starting ``(B, X, points)`` (module docstring). Pure and vmappable.
 
     **Arguments**: ``q`` ``(K, n)``; ``target`` measured poses ``(K, 4, 4)`` (``n_points = 0``) or
-    points ``(K, M, 3)``; ``weights`` ``(K,)`` select the poses used (default all). Frames not
+    points ``(K, M, 3)`` (NaN where a point was lost: left out); ``weights`` ``(K,)`` select the
+    poses used (default all). Frames not
     estimated are kept: ``B = robot.base``, ``X = I``, points 0.
 
     **Returns** ``B (4, 4)``, ``X (4, 4)`` (the reference tool is ``robot.tool @ X``) and points
@@ -123,7 +124,10 @@ def initial_frames(
 
     M = n_points
     PM = target.reshape(K, M, 3)
-    ww = jnp.repeat(w, M)
+    seen = jnp.all(jnp.isfinite(PM), -1)  # (K, M): a lost point (NaN) weighs nothing
+    PM = jnp.where(seen[..., None], PM, 0.0)
+    wkm = w[:, None] * seen
+    ww = wkm.reshape(K * M)
     pts = jnp.zeros((M, 3))
 
     def model_points(pts):
@@ -142,7 +146,7 @@ def initial_frames(
                 A.append(jnp.broadcast_to(jnp.eye(3), (K, M, 3, 3)))
             A = jnp.concatenate(A, -1)
             rhs = PM - pF[:, None] @ R_B.T - (0.0 if estimate_base else p_B)
-            sw = jnp.sqrt(w)[:, None, None]
+            sw = jnp.sqrt(wkm)[:, :, None]
             sol = _lstsq((A * sw[..., None]).reshape(3 * K * M, -1), (rhs * sw).reshape(-1))
             pts = sol[: 3 * M].reshape(M, 3)
             if estimate_base:

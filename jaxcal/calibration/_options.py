@@ -13,7 +13,7 @@ import numbers
 
 from ..camera import CAMERA_MODELS
 from ..errors import DataError
-from ..solvers import LOSSES, METHODS
+from ..solvers import LOSSES, METHODS, OUTLIER_SIGMAS
 
 ELIMINATION_METHODS = ("elimination", "elimination-literal")
 GAUGE = (
@@ -24,6 +24,7 @@ GAUGE = (
 """How a calibrated model's parameters are fixed where several give the same kinematics: written into
 the robot files the command line saves."""
 CAMERA_CHOICES = CAMERA_MODELS + ("auto",)
+COMPLIANCE_CHOICES = ("auto", "yes", "no")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -35,15 +36,21 @@ class Options:
     - ``params`` (``"auto"``): which DH errors may move. ``"frames"`` (none: base and tool only),
       ``"offsets"`` (joint offsets theta), ``"angles"`` (theta and alpha), ``"all"``, or a comma
       list of kinds (``theta, d, a, alpha``) and names (``theta2, a4``). ``"auto"``: in
-      :func:`calibrate_data` the set (and ridge prior) with the lowest cross-validated held-out
-      error, a simpler one within 1 % winning; a single fit (:func:`calibrate`) uses ``"all"``.
-      Parameters the poses cannot identify are held at 0 whatever the set.
-    - ``ridge_mm`` (None): a ridge prior of this standard deviation on the DH errors of an
-      explicit ``params`` set (mm for lengths, mrad for angles).
+      :func:`calibrate_data` the model chosen by held-out error on new postures and beyond the
+      training ranges, down to single parameters (:mod:`._selection`); a single fit
+      (:func:`calibrate`) uses ``"all"``. Parameters the poses cannot identify are held at 0
+      whatever the set.
+    - ``ridge_mm`` (None): a prior on the parameters of an explicit ``params`` set, physically
+      scaled: each parameter is expected to move the measured points by about this many mm
+      (:meth:`Candidate.prior_weight`; an angle's prior is ``ridge_mm`` over its lever arm).
     - ``estimate_base`` (True), ``estimate_tool`` (True): estimate the measurement frame -> robot
       base transform and the tool (a frame for poses, a point per measured point), starting
       from a closed-form guess. The base keeps what belongs to it: a DH error that the base or
       tool frame can absorb (``theta1``, ``d1``, the last joint's offset, ...) is held at 0.
+    - ``compliance`` (``"auto"``): estimate a compliance per revolute joint, a turn proportional to
+      the gravity moment of a weight at the tool (:attr:`jaxcal.Robot.compliance`): ``"yes"``,
+      ``"no"``, or ``"auto"`` (in :func:`calibrate_data` the model selection decides; a single
+      fit, :func:`calibrate`, is rigid).
     - ``camera`` (``"none"``): a camera measurement model (:mod:`jaxcal.camera`) for pose data
       from a camera on the flange, ``none | depth | linear | quadratic``, or ``auto`` (chosen by
       cross-validation, :func:`calibrate_data` only).
@@ -57,6 +64,15 @@ class Options:
     - ``loss`` (``"l2"``), ``loss_scale`` (None): ``huber`` or ``cauchy`` make the fit robust to
       outlier poses (iteratively reweighted), ``loss_scale`` the noise scale per row in units of
       sigma (None: a robust estimate).
+
+    **Outliers** (:mod:`jaxcal.calibration._outliers`)
+
+    - ``outlier_sigmas`` (5): a pose whose residual is as improbable under the estimated noise as
+      a one-sided 5-sigma normal deviation (2.9e-7 per pose) is an outlier: named in the report
+      and left out of the fit (and of every cross-validation fit and held-out figure).
+    - ``keep_outliers`` (False): find and name them, but fit every pose.
+    - ``max_outlier_fraction`` (0.2): more outliers than this share of the poses make the fit
+      implausible (refused by the command line), with the worst rows named.
 
     **Solver**
 
@@ -97,10 +113,14 @@ class Options:
     estimate_base: bool = True
     estimate_tool: bool = True
     camera: str = "none"
+    compliance: str = "auto"
     sigma_pos_mm: float | None = None
     sigma_rot_rad: float | None = None
     loss: str = "l2"
     loss_scale: float | None = None
+    outlier_sigmas: float = OUTLIER_SIGMAS
+    keep_outliers: bool = False
+    max_outlier_fraction: float = 0.2
     max_steps: int = 50
     rtol: float = 1e-8
     atol: float = 1e-8
@@ -122,6 +142,11 @@ class Options:
         cams = CAMERA_CHOICES if camera_auto else CAMERA_MODELS
         if self.camera not in cams:
             raise DataError(f"camera must be one of {', '.join(cams)}, got {self.camera!r}", option="camera")
+        if self.compliance not in COMPLIANCE_CHOICES:
+            raise DataError(
+                f"compliance must be one of {', '.join(COMPLIANCE_CHOICES)}, got {self.compliance!r}",
+                option="compliance",
+            )
         if self.loss not in LOSSES:
             raise DataError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}", option="loss")
         if self.loss != "l2" and self.method not in ("gn", "lm"):
@@ -146,7 +171,12 @@ class Options:
             v = getattr(self, name)
             if not isinstance(v, numbers.Integral) or isinstance(v, bool) or v < lo:
                 raise DataError(f"{name} must be an integer >= {lo}, got {v!r}", option=name)
-        for name in ("rtol", "atol", "memory_mb", "max_rotation_deg", "max_angle_change_deg"):
+        if not isinstance(self.keep_outliers, bool):
+            raise DataError(f"keep_outliers must be True or False, got {self.keep_outliers!r}", option="keep_outliers")
+        v = self.max_outlier_fraction
+        if not _number(v) or not 0 < v <= 1:
+            raise DataError(f"max_outlier_fraction must be in (0, 1], got {v!r}", option="max_outlier_fraction")
+        for name in ("rtol", "atol", "memory_mb", "max_rotation_deg", "max_angle_change_deg", "outlier_sigmas"):
             v = getattr(self, name)
             if not _number(v) or not math.isfinite(v) or v <= 0:
                 raise DataError(f"{name} must be a finite positive number, got {v!r}", option=name)

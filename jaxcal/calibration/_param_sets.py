@@ -1,5 +1,5 @@
 """Candidate parameter sets (the ``params`` option): which DH errors may move and under which
-ridge prior; :func:`jaxcal.calibrate_data` compares them by cross-validation."""
+prior; :func:`jaxcal.calibrate_data` chooses among them (:mod:`._selection`)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from ..errors import DataError
 from ..robot import DH_NAMES, JOINT_FRAME_NAMES, Robot
 
 PARAM_SETS = ("auto", "frames", "offsets", "angles", "all")
-RIDGE_GRID_MM = (0.1, 0.3, 1.0, 3.0)
+PRIOR_GRID_MM = (0.3, 1.0, 3.0)
+"""The prior standard deviations (mm of point motion, :mod:`._selection`) ``auto`` tries, and none."""
 _ANGLES = {"sdh": ("theta", "alpha"), "mdh": ("theta", "alpha"), "joint": ("offset", "rx", "ry", "rz")}
 
 
@@ -25,23 +26,25 @@ class Candidate:
     dh: tuple[int, ...]
     """DH errors allowed to move (those not identifiable are dropped later)."""
     ridge_mm: float | None = None
-    """Prior standard deviation ``s`` (mm for lengths, mrad for angles); None = no prior."""
+    """Prior standard deviation ``s``: how far (mm) each parameter is expected to move the measured
+    points (:func:`prior_weight`); None = no prior."""
     camera: str = "none"
     """Camera measurement model (:mod:`jaxcal.camera`) whose unknowns are free in this candidate."""
     units: tuple[str, ...] = ()
     """``mm`` or ``rad`` per kinematic parameter (:meth:`jaxcal.Robot.param_units`)."""
+    compliance: bool = False
+    """The joint compliances (:attr:`jaxcal.Robot.compliance`) are estimated with the set."""
 
     @property
     def complexity(self) -> tuple[int, float]:
-        return (len(self.dh) + n_params(self.camera), -(self.ridge_mm or np.inf))
+        """Fewer free parameters, then a stronger prior, is simpler."""
+        return (len(self.dh) + n_params(self.camera) + 1000 * self.compliance, self.ridge_mm or np.inf)
 
-    def prior_weight(self, i: int) -> float:
-        """Ridge weight ``1 / s`` of kinematic error ``i`` (lengths ``s`` mm, angles ``s`` mrad),
-        0 without a ridge; only meaningful for ``i`` in :attr:`dh`."""
-        if self.ridge_mm is None:
-            return 0.0
-        length = self.units[i] == "mm" if self.units else i % 4 in (1, 2)
-        return 1.0 / (self.ridge_mm if length else self.ridge_mm * 1e-3)
+    def prior_weight(self, lever_mm: float) -> float:
+        """Prior weight ``L / s`` of a parameter whose lever (RMS displacement of the measured points
+        per unit of it) is ``lever_mm``: physically scaled, 1 mm and the angle that moves the
+        points 1 mm weigh the same; 0 without a prior."""
+        return 0.0 if self.ridge_mm is None else float(lever_mm) / self.ridge_mm
 
 
 def _kinds(robot: Robot, kinds) -> tuple[int, ...]:
@@ -50,12 +53,15 @@ def _kinds(robot: Robot, kinds) -> tuple[int, ...]:
     return tuple(p * j + names.index(k) for j in range(robot.n_joints) for k in kinds)
 
 
-def parse_params(spec: str, robot: Robot, ridge_mm: float | None = None) -> list[Candidate]:
-    """Candidates for ``params``: ``auto`` (frames, offsets, angles, all with a ridge grid
-    and all), one of ``frames|offsets|angles|all``, or a comma-separated list of kinds
+def parse_params(
+    spec: str, robot: Robot, ridge_mm: float | None = None, *, compliance: bool = False
+) -> list[Candidate]:
+    """Candidates for ``params``: ``auto`` (frames, offsets, and all under each prior of
+    :data:`PRIOR_GRID_MM` and none; each of the last also with the joint compliances when
+    ``compliance``), one of ``frames|offsets|angles|all``, or a comma-separated list of kinds
     (DH: ``theta,d,a,alpha``; joint frames: ``offset,x,y,z,rx,ry,rz``) and/or parameter names
     (``theta2, a4``; ``offset2, rx3``). ``angles`` are the DH angles, or a joint frame's offset
-    and rotation. ``ridge_mm`` adds a prior to an explicit set."""
+    and rotation. ``ridge_mm`` adds a prior to an explicit set, ``compliance`` the compliances."""
     n = robot.n_joints
     names = robot.param_names()
     kinds = JOINT_FRAME_NAMES if robot.convention == "joint" else DH_NAMES
@@ -68,9 +74,16 @@ def parse_params(spec: str, robot: Robot, ridge_mm: float | None = None) -> list
     }
     spec = spec.strip()
     if spec == "auto":
-        cands = [Candidate(k, v, units=units) for k, v in named.items() if k != "all"]
-        cands += [Candidate(f"all, ridge {s:g}", named["all"], s, units=units) for s in RIDGE_GRID_MM]
-        return cands + [Candidate("all", named["all"], units=units)]
+        cands = [Candidate(k, named[k], units=units) for k in ("frames", "offsets")]
+        for comp in (False, True) if compliance else (False,):
+            base = "all + compliance" if comp else "all"
+            cands += [
+                Candidate(
+                    base if s is None else f"{base}, prior {s:g} mm", named["all"], s, units=units, compliance=comp
+                )
+                for s in PRIOR_GRID_MM + (None,)
+            ]
+        return cands
     if spec in named:
         dh = named[spec]
     else:
@@ -88,5 +101,5 @@ def parse_params(spec: str, robot: Robot, ridge_mm: float | None = None) -> list
                     option="params",
                 )
         dh = tuple(sorted(idx))
-    name = spec if ridge_mm is None else f"{spec}, ridge {ridge_mm:g}"
-    return [Candidate(name, dh, ridge_mm, units=units)]
+    name = spec + (" + compliance" if compliance else "") + ("" if ridge_mm is None else f", prior {ridge_mm:g} mm")
+    return [Candidate(name, dh, ridge_mm, units=units, compliance=compliance)]

@@ -181,7 +181,7 @@ def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thr
         memory_mb=memory_mb,
         label="checking likely mistakes",
     )
-    pos = np.sqrt(np.mean(out["pos_err"] ** 2, axis=(1, 2)))
+    pos = np.sqrt(np.nanmean(out["pos_err"] ** 2, axis=(1, 2)))  # a lost point (NaN) left out
     rot = np.degrees(np.sqrt(np.mean(out["rot_err"] ** 2, axis=1))) if n_points == 0 else np.full(R, np.nan)
     pos, rot = np.where(np.isfinite(pos), pos, np.inf), np.where(np.isfinite(rot), rot, np.inf)
     res = [(float(p), None if n_points else float(r)) for p, r in zip(pos, rot)]

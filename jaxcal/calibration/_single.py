@@ -3,8 +3,9 @@
 
 The pipeline: the closed-form guess of the frames; the identifiable (base) set over the poses,
 frames offered first; a frames-only fit (DH held), whose residual gives the noise weights when
-none are given; the fit of the chosen parameter set; residual statistics, outliers, standard
-errors. Both stages run through one compiled solve (:mod:`._core`).
+none are given; the fit of the chosen parameter set; the outliers (:mod:`._outliers`), and when
+there are some, the whole pipeline again without them; residual statistics, standard errors.
+Every stage runs through one compiled solve (:mod:`._core`).
 """
 
 from __future__ import annotations
@@ -18,12 +19,14 @@ from ..camera import n_params as camera_size
 from ..errors import DataError, ImplausibleFitError
 from ..identifiability import Identifiability
 from ..kinematics import check_q
-from ..model import Layout, Model, measured_robot
+from ..model import Layout, Model, measured_robot, observed
 from ..robot import Robot
 from ..sharding import describe, select_devices
 from ..solvers import PIN, calibrate_design_batch
 from . import _core as core
+from . import _outliers as outliers
 from . import _plausibility as plausibility
+from . import _selection as selection
 from ._checks import as_target, check_units
 from ._options import ELIMINATION_METHODS, Options, make_options
 from ._param_sets import Candidate, parse_params
@@ -57,11 +60,17 @@ class CalibrationResult:
     method: str
     loss: str
     outliers: tuple[int, ...]
-    """Poses whose standardised residual norm exceeds the outlier threshold."""
+    """Poses (indices) found to be outliers (:mod:`._outliers`): left out of the fit and of
+    :attr:`before` and :attr:`after`, unless ``keep_outliers``."""
     degraded: bool
-    """Outliers spoil this fit: a plain (L2) fit with outliers, or a robust fit with more than a
-    third of its poses outlying; try ``loss="huber"``."""
+    """Outliers spoil this fit: kept in a plain (L2) fit (``keep_outliers``), or more than
+    ``max_outlier_fraction`` of the poses."""
     robust_scale: float
+    """The noise scale per row (units of sigma) over the poses fitted."""
+    sigmas: np.ndarray
+    """``(K,)`` each pose's residual norm in units of the noise per row (``robust_scale``)."""
+    outlier_threshold: np.ndarray
+    """``(K,)`` each pose's threshold on :attr:`sigmas`."""
     pos_errors_mm: np.ndarray
     """``(K, M)`` position error of every measured point after calibration."""
     options: Options
@@ -117,7 +126,8 @@ class BatchResult:
     method: str
     loss: str = "l2"
     outlier_mask: np.ndarray | None = None
-    """``(R, K)``: gross residual (see :attr:`CalibrationResult.outliers`)."""
+    """``(R, K)``: outliers (see :attr:`CalibrationResult.outliers`), left out of each data
+    set's fit unless ``keep_outliers``."""
     degraded: np.ndarray | None = None
     nonfinite: np.ndarray | None = None
     """``(R,)``: the solver gave non-finite values; ``x`` is 0 there, not converged."""
@@ -133,13 +143,21 @@ class BatchResult:
 
 
 def kinematic_set(opts: Options, robot: Robot) -> Candidate:
-    """The one parameter set of a single fit: ``params`` (``auto`` = ``all``) with ``ridge_mm``."""
+    """The one parameter set of a single fit: ``params`` (``auto`` = ``all``) with ``ridge_mm``, and
+    the camera model's unknowns."""
     spec = "all" if opts.params == "auto" else opts.params
-    return parse_params(spec, robot, opts.ridge_mm)[0]
+    return dataclasses.replace(
+        parse_params(spec, robot, opts.ridge_mm)[0], camera=opts.camera, compliance=opts.compliance == "yes"
+    )
 
 
-def make_layout(robot: Robot, opts: Options, n_points: int, camera: str | None = None) -> Layout:
+def make_layout(
+    robot: Robot, opts: Options, n_points: int, camera: str | None = None, compliance: bool | None = None
+) -> Layout:
+    """The parameters a fit with these options carries; ``camera`` and ``compliance`` override the
+    options' (a workflow's layout holds every candidate's)."""
     camera = opts.camera if camera is None else camera
+    compliance = opts.compliance == "yes" if compliance is None else compliance
     if n_points and camera != "none":
         raise DataError(
             f"the camera model {camera!r} needs full poses (the camera's axes); the data are position-only",
@@ -151,7 +169,9 @@ def make_layout(robot: Robot, opts: Options, n_points: int, camera: str | None =
             f"estimated (estimate_tool)",
             option="estimate_tool",
         )
-    return Layout.of(robot, base=opts.estimate_base, tool=opts.estimate_tool, n_points=n_points, camera=camera)
+    return Layout.of(
+        robot, base=opts.estimate_base, tool=opts.estimate_tool, n_points=n_points, camera=camera, compliance=compliance
+    )
 
 
 def check_enough_poses(n_poses: int, layout: Layout, needed: int) -> None:
@@ -164,19 +184,23 @@ def check_enough_poses(n_poses: int, layout: Layout, needed: int) -> None:
         )
 
 
-def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, frames_only: bool = False):
+def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, frames_only: bool = False, lever=None):
     """Prior weight of every parameter of the layout: :data:`PIN` (held at 0) for what the poses
     cannot identify and what the candidate (``None``: frames only) does not estimate; a
-    candidate's DH errors its ridge weight (0 without); frames and the candidate camera model's
-    unknowns 0."""
+    candidate's DH errors and compliances their physically scaled prior weight
+    (:meth:`Candidate.prior_weight`, ``lever (m,)`` from :func:`._selection.lever`; 0 without a
+    prior); frames and the candidate camera model's unknowns 0."""
     base = set(ident.base)
     out = np.zeros(layout.size)
-    cams = layout.cameras
+    cams, comps = layout.cameras, set(layout.compliances)
     for i in range(layout.size):
         if i not in base:
             out[i] = PIN
-        elif i < layout.n_kin:
-            out[i] = PIN if frames_only or cand is None or i not in cand.dh else cand.prior_weight(i)
+        elif i < layout.n_kin or i in comps:
+            if frames_only or cand is None or not (i in cand.dh if i < layout.n_kin else cand.compliance):
+                out[i] = PIN
+            else:
+                out[i] = 0.0 if cand.ridge_mm is None else cand.prior_weight(lever[i])
         elif i in cams:
             k = i - cams[0]
             out[i] = PIN if frames_only or cand is None or k >= camera_size(cand.camera) else 0.0
@@ -187,12 +211,14 @@ def estimated(prior) -> tuple[int, ...]:
     return tuple(int(i) for i in np.flatnonzero(np.asarray(prior) < PIN))
 
 
-def judge(robot: Robot, q, target, n_points: int, layout: Layout, opts: Options, stats: dict, x, free) -> str:
+def judge(
+    robot: Robot, q, target, n_points: int, layout: Layout, opts: Options, stats: dict, x, free, extra: str = ""
+) -> str:
     """Empty when the fit is plausible as a calibration; else why not and the likely input
-    mistake (:mod:`._plausibility`). Raises :class:`jaxcal.ImplausibleFitError` with
-    ``strict``."""
+    mistake (:mod:`._plausibility`). ``extra``: a further finding (too many outliers,
+    :func:`._outliers.too_many`). Raises :class:`jaxcal.ImplausibleFitError` with ``strict``."""
     limits = plausibility.Thresholds.of(robot, opts)
-    found = plausibility.findings(stats, x, layout, limits, free=free)
+    found = plausibility.findings(stats, x, layout, limits, free=free) + ([extra] if extra else [])
     if not found:
         return ""
     before, ranked = plausibility.diagnose(robot, q, target, n_points, layout, limits, memory_mb=opts.memory_mb)
@@ -218,7 +244,8 @@ def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
 def nominal_model(robot: Robot, layout: Layout) -> Model:
     """The nominal model of a layout: the robot (its structure alone: compiled functions are
     shared by robots of one structure), its measured points at the tool origin."""
-    return Model(robot.stripped(), np.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+    pts = np.zeros((layout.n_points, 3)) if layout.n_points else None
+    return Model(core.carrying(robot.stripped(), layout), pts, camera=layout.camera)
 
 
 def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: int = 0, **kw) -> Identifiability:
@@ -253,7 +280,8 @@ def calibrate(
 
     **Returns** a :class:`CalibrationResult`; ``converged`` is False (never silently) when the
     solver did not meet its tolerances; ``not_identified()`` says which parameters were held at
-    0 and why.
+    0 and why; ``outliers`` the poses left out (:mod:`._outliers`; ``keep_outliers`` fits them).
+    A point lost at a pose is NaN (all three coordinates) and weighs nothing.
 
     **Raises** :class:`jaxcal.DataError` for bad input (shapes, non-finite values, poses that are
     not rigid, lengths apparently not in mm, too few poses, bad options).
@@ -264,57 +292,74 @@ def calibrate(
     K = q.shape[0]
     cand = kinematic_set(opts, robot)
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
+    wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
     masks = np.ones((1, K))
-    ref = (
-        core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
-        if layout.frames
-        else core.broadcast_model(nominal_model(robot, layout), 1)
-    )
+
+    def start(masks):
+        if not layout.frames:
+            return core.broadcast_model(nominal_model(robot, layout), 1)
+        return core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
+
+    ref = start(masks)
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
     check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
     ident = core.identify(J0, layout)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress)
-    unit = core.weights_of(layout, np.array([core.UNIT_WEIGHTS]))
-    a = core.run_members(
-        cfg,
-        ref,
-        q,
-        target,
-        masks,
-        unit,
-        prior_of(layout, ident, None, frames_only=True)[None],
-        **run,
-        label="frames only",
+    prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
+
+    def stages(ref, masks):  # frames only (its residual gives the noise weights), then the set
+        unit = core.weights_of(layout, np.array([core.UNIT_WEIGHTS]))
+        frames_only = prior_of(layout, ident, None, frames_only=True)[None]
+        a = core.run_members(cfg, ref, q, target, masks, unit, frames_only, **run, label="frames only")
+        sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)[0]
+        if opts.sigma_pos_mm is not None:
+            sig[0] = opts.sigma_pos_mm
+        if opts.sigma_rot_rad is not None:
+            sig[1] = opts.sigma_rot_rad
+        w = core.weights_of(layout, sig[None])
+        b = core.run_members(
+            cfg, a["model"], q, target, masks, w, prior[None], opts.loss_scale, **run, label="calibrating"
+        )
+        return a, sig, w, b
+
+    a, sig, weights, b = stages(ref, masks)
+    refit = lambda w, x0: core.run_members(  # noqa: E731
+        cfg, a["model"], q, target, w, weights, prior[None], opts.loss_scale, x0=x0, **run, label="outliers"
     )
-    sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)[0]
-    if opts.sigma_pos_mm is not None:
-        sig[0] = opts.sigma_pos_mm
-    if opts.sigma_rot_rad is not None:
-        sig[1] = opts.sigma_rot_rad
-    prior = prior_of(layout, ident, cand)
-    weights = core.weights_of(layout, sig[None])
-    b = core.run_members(
-        cfg, a["model"], q, target, masks, weights, prior[None], opts.loss_scale, **run, label="calibrating"
-    )
+    det = outliers.found(b, refit, masks, target, opts)
+    if det.flags.any() and not opts.keep_outliers:  # the whole fit again without them: start, frames, set
+        kept = masks * ~det.flags
+        a, sig, weights, b = stages(start(kept), kept)
+        found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+        det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     if not np.all(np.isfinite(b["x"][0])):
         raise DataError(
             "the solver produced non-finite parameters; the data are probably inconsistent with the "
             "robot (check units and joint order)"
         )
+    flags = det.flags[0]
+    fitted = ~flags if not opts.keep_outliers else np.ones(K, bool)
     model = core.described(core.wrapped(core.member(b["model"], 0), robot), robot)
     st = core.fit_statistics(
-        J0, weights[0], masks[0], b["norms"][0], loss=opts.loss, loss_scale=opts.loss_scale, rows=layout.rows
+        J0,
+        weights[0],
+        fitted.astype(float),
+        b["norms"][0],
+        loss=opts.loss,
+        loss_scale=opts.loss_scale,
+        rows=layout.rows,
+        seen=observed(target),
     )
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
-    mask = core.outliers_of(b["norms"][0], st["scale"], layout.rows)
-    degraded = bool(mask.mean() > 1 / 3) if opts.loss != "l2" else bool(mask.any())
     x = core.relative_x(robot, layout, model)
-    after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], n_points=n_points)
-    why = judge(robot, q, target, n_points, layout, opts, after, x, estimated(prior))
+    after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
+    pos_mm = outliers.pose_position_mm(b["pos_err"][0])
+    many = outliers.too_many(flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction)
+    why = judge(robot, q, target, n_points, layout, opts, after, x, estimated(prior), many)
     return CalibrationResult(
         model=model,
         nominal=robot,
@@ -325,15 +370,17 @@ def calibrate(
         free=estimated(prior),
         converged=bool(b["converged"][0]),
         num_steps=int(b["steps"][0]),
-        before=core.residual_stats(a["pos_err"][0], a["rot_err"][0], n_points=n_points),
+        before=core.residual_stats(a["pos_err"][0], a["rot_err"][0], fitted, n_points=n_points),
         after=after,
         sigma_pos_mm=float(sig[0]),
         sigma_rot_rad=None if n_points else float(sig[1]),
         method=opts.method,
         loss=opts.loss,
-        outliers=tuple(int(i) for i in np.flatnonzero(mask)),
-        degraded=degraded,
+        outliers=tuple(int(i) for i in np.flatnonzero(flags)),
+        degraded=bool(flags.any() and opts.keep_outliers and opts.loss == "l2") or bool(many),
         robust_scale=st["scale"],
+        sigmas=det.sigmas[0],
+        outlier_threshold=det.threshold[0],
         pos_errors_mm=b["pos_err"][0],
         options=opts,
         plausible=not why,
@@ -378,52 +425,59 @@ def calibrate_batch(
         return _elimination_batch(robot, q, target, n_points, layout, opts)
     cand = kinematic_set(opts, robot)
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
+    wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
     check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
     masks = np.ones((R, K))
-    ref = (
-        core.start_models(robot.stripped(), layout, q, target, masks, shared=False)
-        if layout.frames
-        else core.broadcast_model(nominal_model(robot, layout), R)
-    )
+
+    def start(masks):
+        if not layout.frames:
+            return core.broadcast_model(nominal_model(robot, layout), R)
+        return core.start_models(robot.stripped(), layout, q, target, masks, shared=False)
+
+    ref = start(masks)
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
     J0 = core.analyse(core.member(ref, 0), layout, q[0])[0]
     if ident is None:
         ident = core.identify(J0, layout)
-    prior1 = prior_of(layout, ident, cand)
+    prior = np.repeat(prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))[None], R, 0)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
-    sig = np.tile([1.0, 1.0], (R, 1))
-    if layout.frames or not given:
-        unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), R, 0)
-        a = core.run_members(
-            cfg,
+
+    def stages(ref, masks):  # frames only (unless nothing needs it), then the set
+        sig = np.tile([1.0, 1.0], (R, 1))
+        if layout.frames or not given:
+            unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), R, 0)
+            frames_only = np.repeat(prior_of(layout, ident, None, frames_only=True)[None], R, 0)
+            a = core.run_members(cfg, ref, q, target, masks, unit, frames_only, **run, label="frames only")
+            ref = a["model"]
+            sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
+        if opts.sigma_pos_mm is not None:
+            sig[:, 0] = opts.sigma_pos_mm
+        if opts.sigma_rot_rad is not None:
+            sig[:, 1] = opts.sigma_rot_rad
+        w = core.weights_of(layout, sig)
+        return (
             ref,
-            q,
-            target,
-            masks,
-            unit,
-            np.repeat(prior_of(layout, ident, None, frames_only=True)[None], R, 0),
-            **run,
-            label="frames only",
+            w,
+            core.run_members(cfg, ref, q, target, masks, w, prior, opts.loss_scale, **run, label="calibrating"),
         )
-        ref = a["model"]
-        sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
-    if opts.sigma_pos_mm is not None:
-        sig[:, 0] = opts.sigma_pos_mm
-    if opts.sigma_rot_rad is not None:
-        sig[:, 1] = opts.sigma_rot_rad
-    prior = np.repeat(prior1[None], R, 0)
-    b = core.run_members(
-        cfg, ref, q, target, masks, core.weights_of(layout, sig), prior, opts.loss_scale, **run, label="calibrating"
+
+    ref_b, weights, b = stages(ref, masks)
+    refit = lambda w, x0: core.run_members(  # noqa: E731
+        cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
     )
+    det = outliers.found(b, refit, masks, target, opts)
+    if det.flags.any() and not opts.keep_outliers:  # every data set again without its outliers
+        kept = masks * ~det.flags
+        _, _, b = stages(start(kept), kept)
+        found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+        det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
     x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
     x[nonfinite] = 0.0
     ok = np.asarray(b["converged"]) & ~nonfinite
-    scale = core.robust_scale_batch(b["norms"], layout.rows, opts.loss_scale)
-    mask = core.outliers_of(b["norms"], scale, layout.rows)
-    degraded = (mask.mean(-1) > 1 / 3) if opts.loss != "l2" else mask.any(-1)
+    share = det.flags.mean(-1)
     return BatchResult(
         x=x,
         converged=ok,
@@ -432,8 +486,8 @@ def calibrate_batch(
         layout=layout,
         method=opts.method,
         loss=opts.loss,
-        outlier_mask=mask,
-        degraded=degraded,
+        outlier_mask=det.flags,
+        degraded=(det.flags.any(-1) & (opts.keep_outliers and opts.loss == "l2")) | (share > opts.max_outlier_fraction),
         nonfinite=nonfinite,
         devices=tuple(describe(devs)),
     )

@@ -1,46 +1,54 @@
-"""The real-data workflow (:func:`calibrate_data`): a calibration with honest held-out
-validation, the one behind ``jaxcal calibrate``.
+"""The real-data workflow (:func:`calibrate_data`): a calibration that chooses its own model and
+says, from poses it never fitted, how well that model predicts new postures and postures beyond
+the training ranges. The one behind ``jaxcal calibrate``.
 
 ## Model
 ``T(x, q) = exp(xi_b) B0 · A_1(dh + dx_1) ... A_n(dh + dx_n) · X0 exp(xi_t)`` (or points ``m_j``
 on the tool) with ``B0, X0`` from the closed-form guess of each training set
-(:mod:`._initial`); a camera model (:mod:`jaxcal.camera`) when asked.
+(:mod:`._initial`); joint compliances (:attr:`jaxcal.Robot.compliance`) and a camera model
+(:mod:`jaxcal.camera`) where the candidates carry them.
 
 ## Stages
-A frames-only fit (nominal DH, unit weights 1 mm : 1 deg) on every training set gives its
-starting frames and its noise weights (the RMS per coordinate and per axis); then every
-candidate parameter set (:func:`parse_params`) is fitted on every training set from there, with
-those weights. All of it is one compiled solve (:mod:`._core`).
-
-## Cross-validation
-Folds are a seeded permutation of the poses cut into ``folds`` nearly equal parts. Each
-candidate is fitted on ``folds - 1`` folds and evaluated on the one held out; the held-out
-position errors of all folds are pooled into an RMS. The chosen candidate has the lowest pooled
-held-out RMS (a simpler candidate within 1 % wins) and is refitted on all poses. Choosing the
-best of several candidates on the same folds is optimistic, so the reported ``heldout_*``
-figures come from **nested** cross-validation: inside each training set the candidate is chosen
-again by an inner cross-validation, then evaluated on the outer held-out fold. Above
-``nested_max_poses`` poses the figures are plain K-fold (the report says which).
+1. **Checks** (:func:`_prepare`): data, units, enough poses, the candidates and the folds.
+2. **Frames** (:func:`_frames`): a frames-only fit (nominal kinematics, unit weights 1 mm : 1
+   deg) on every training set and on all poses; its residual gives the noise weights.
+3. **Outliers** (:func:`_outliers_found`): poses far beyond the noise of a flexible model fitted
+   on all poses (:mod:`._outliers`) are left out of everything that follows.
+4. **Selection** (:mod:`._selection`): on the problem linearised at the frames-only fit, every
+   candidate is scored by held-out error on K-fold and range-end folds, the best (a simpler one
+   within 1 % winning) is chosen, and its parameters pruned while the score holds.
+5. **Held-out figures**: the selection is made again inside every outer training set (K-fold
+   folds: new postures; range-end folds: postures beyond the training ranges), each choice
+   fitted in full on its training set and scored on the poses held out (nested
+   cross-validation, up to ``nested_max_poses`` poses).
+6. **Final fit**: the chosen model on all poses; standard errors, plausibility, the report
+   (:mod:`._report`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 
 import jax
 import numpy as np
 
 from ..camera import CAMERA_MODELS, check_target_in_front
-from ..camera import n_params as camera_size
 from ..errors import DataError
-from ..model import Layout, Model, measured_robot
+from ..kinematics import gravity_moments
+from ..model import Layout, Model, errors
 from ..robot import Robot
+from ..solvers import PIN
 from . import _core as core
+from . import _outliers as outliers
+from . import _selection as selection
 from ._checks import as_target, check_units
 from ._options import Options, make_options
 from ._param_sets import Candidate, parse_params
-from ._single import check_enough_poses, estimated, judge, make_layout, nominal_model, prior_of, still_joint_notes
+from ._report import DataCalibration, report_of
+from ._single import check_enough_poses, make_layout, nominal_model, prior_of
+
+DETECTION_PRIOR_MM = 1.0
+"""The prior of the flexible model that outliers are found with (all parameters)."""
 
 
 def fold_ids(n_poses: int, k: int, seed: int) -> np.ndarray:
@@ -52,99 +60,78 @@ def fold_ids(n_poses: int, k: int, seed: int) -> np.ndarray:
     return out
 
 
-def choose(scores: list[float], candidates) -> int:
-    """Lowest score; a simpler candidate (fewer free parameters, stronger prior) within 1 % wins.
-    A non-finite score (a fit that failed) never wins; if every score is, that is an error."""
-    scores = [s if np.isfinite(s) else np.inf for s in scores]
-    best = min(scores)
-    if not np.isfinite(best):
-        raise DataError(
-            f"every candidate parameter set ({', '.join(c.name for c in candidates)}) failed to fit "
-            f"(non-finite held-out errors); the data or the camera model may be degenerate"
-        )
-    ok = [i for i, s in enumerate(scores) if s <= 1.01 * best]
-    return min(ok, key=lambda i: candidates[i].complexity)
-
-
-def _rms(v) -> float:
-    return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
-
-
-def frame_doc(T) -> dict:
-    """A frame as ``xyz_mm`` and roll-pitch-yaw ``rpy_deg`` (fixed axes x-y-z; at pitch ±90 deg,
-    the robot files' convention of :func:`jaxcal.lie.matrix_to_rpy`, without a warning)."""
-    from ..lie import matrix_to_rpy
-
-    T = np.asarray(T)
-    return {
-        "xyz_mm": [float(v) for v in T[:3, 3]],
-        "rpy_deg": [float(v) for v in np.degrees(np.asarray(matrix_to_rpy(T[:3, :3])))],
-    }
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
-class DataCalibration:
-    """What :func:`calibrate_data` returns (lengths mm, angles rad unless named)."""
+class _Problem:
+    """Stage 1: the checked data, the candidates and the folds."""
 
-    model: Model
-    """The calibrated model, fitted on all poses with the chosen parameter set."""
-    nominal: Robot
-    choice: Candidate
-    report: dict
-    """JSON-ready: everything ``jaxcal calibrate --json`` writes (see :func:`calibrate_data`)."""
-    per_pose: dict
-    """Per pose: ``rows`` (data rows), position errors (mm) ``heldout``, ``train``,
-    ``frames_only_heldout``, ``frames_only_train`` (``(K, M)`` for several points), rotation
-    errors (deg) ``*_rot``; ``frames_only``: the frames-only robot."""
-    deltas: dict
-    """name -> (value, standard error, unit) of every estimated parameter (DH errors relative to
-    the nominal table; frame twists relative to the closed-form guess)."""
+    robot: Robot
+    opts: Options
+    data: object
+    q: np.ndarray
+    target: np.ndarray
+    n_points: int
+    rows: np.ndarray
+    """The data rows of the poses in the file."""
+    layout: Layout
+    candidates: list
+    detector: Candidate
+    """The flexible model outliers are found with."""
+    ident: object
+    cfg: core.Config
+    run: dict
+    held: np.ndarray
+    """``(O, K)`` outer held-out sets: ``n_kfold`` K-fold sets, then the range-end sets."""
+    n_kfold: int
+    valid: np.ndarray
+    """``(K,)`` the poses not found outliers."""
+    nested: bool
 
     @property
-    def robot(self) -> Robot:
-        return measured_robot(self.model)
+    def masks(self) -> np.ndarray:
+        """``(O + 1, K)`` training sets: every outer one, then all poses (outliers left out)."""
+        return np.concatenate([~self.held, np.ones((1, len(self.q)), bool)]) & self.valid[None]
 
     @property
-    def cv_table(self) -> list:
-        return self.report["cv"]
-
-    def to_json(self) -> str:
-        return json.dumps(self.report, indent=2)
+    def auto(self) -> bool:
+        return self.opts.params.strip() == "auto"
 
 
-def _layout_for(robot, opts, n_points, cameras) -> Layout:
-    return make_layout(robot, opts, n_points, camera=cameras[-1])
+def _compliant(robot: Robot, q, opts: Options) -> bool:
+    """Whether the candidates may carry joint compliances: asked for, or (``auto``) a revolute
+    joint's gravity moment varies over the data by more than 1 % of the reach."""
+    if opts.compliance != "auto":
+        return opts.compliance == "yes"
+    tau = np.asarray(gravity_moments(robot.stripped(), q))
+    return bool(np.ptp(tau, axis=0).max() > 0.01 * robot.reach())
 
 
-def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, progress=None, **kw) -> DataCalibration:
-    """Calibrate from measured data with K-fold (and nested) cross-validation.
-
-    **Arguments**: ``data`` a :class:`jaxcal.Measurements` (from :func:`jaxcal.read_measurements`,
-    or built from arrays); options as :class:`jaxcal.Options` or keywords, the defaults shared
-    with :func:`calibrate`. ``progress(done, total, stage)`` is called as fits complete.
-
-    **Returns** a :class:`DataCalibration` whose ``report`` holds ``train_rms_mm``,
-    ``heldout_rms_mm``, ``heldout_max_mm``, ``heldout_median_mm``, ``heldout_rot_rms_deg``
-    (nested cross-validation unless ``nested`` is false), ``frames_only_*`` (the same with
-    nominal DH and fitted frames), ``choice``, ``cv`` (one row per candidate), ``parameters``
-    (values, standard errors, units), ``unidentifiable``, ``combinations``,
-    ``condition_number``, ``converged``, ``steps``, ``sigma_pos_mm``, ``sigma_rot_deg``,
-    ``camera_model``, ``camera_parameters``, ``base``, ``tool`` and, for points, ``points``.
-    """
-    opts = make_options(options, kw, camera_auto=True)
-    q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
-    rows_in_file = np.arange(1, len(q) + 1) if getattr(data, "rows", None) is None else np.asarray(data.rows)
-    cameras = CAMERA_MODELS if opts.camera == "auto" else (opts.camera,)
-    candidates = [
+def _candidates(robot: Robot, opts: Options, cameras, compliance: bool) -> tuple[list, Candidate]:
+    """The candidates (every parameter set with each camera model) and the outliers' detector."""
+    auto = opts.params.strip() == "auto"
+    sets = parse_params(opts.params, robot, opts.ridge_mm, compliance=compliance and (auto or opts.compliance == "yes"))
+    if auto and opts.compliance == "yes":  # asked for: every model that moves the kinematics carries them
+        sets = [c for c in sets if c.compliance or not c.dh]
+    cands = [
         dataclasses.replace(c, camera=m, name=f"{c.name}, camera {m}" if opts.camera == "auto" else c.name)
         for m in cameras
-        for c in parse_params(opts.params, robot, opts.ridge_mm)
+        for c in sets
     ]
-    layout = _layout_for(robot, opts, n_points, cameras)
+    if not auto:
+        return cands, cands[-1]
+    flexible = parse_params("all", robot, DETECTION_PRIOR_MM, compliance=compliance)[0]
+    return cands, dataclasses.replace(flexible, camera=cameras[-1])
+
+
+def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
+    """Stage 1 (module docstring)."""
+    q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
+    rows = np.arange(1, len(q) + 1) if getattr(data, "rows", None) is None else np.asarray(data.rows)
+    cameras = CAMERA_MODELS if opts.camera == "auto" else (opts.camera,)
+    compliance = _compliant(robot, q, opts)
+    candidates, detector = _candidates(robot, opts, cameras, compliance)
+    layout = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=compliance)
     if "quadratic" in cameras:
-        check_target_in_front(
-            target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows_in_file
-        )
+        check_target_in_front(target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows)
     K, F = len(q), opts.folds
     fid = fold_ids(K, F, opts.seed)
     union = set().union(*(c.dh for c in candidates))
@@ -152,6 +139,11 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     needed = core.generic_rank(nominal_model(robot, layout), layout, K, wanted)
     check_enough_poses(K, layout, needed)
     n_train = K - int(np.bincount(fid).max())
+    if compliance and opts.compliance == "auto" and n_train * layout.rows < 2 * (needed + layout.n_comp):
+        # too few poses to tell a compliance from noise: the rigid candidates alone
+        candidates = [c for c in candidates if not c.compliance]
+        detector = dataclasses.replace(detector, compliance=False)
+        layout = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=False)
     if n_train * layout.rows < needed:
         raise DataError(
             f"too few poses for {F}-fold cross-validation: training sets of {n_train} poses x "
@@ -159,223 +151,164 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             f"folds or more poses",
             option="folds",
         )
-    nested = len(candidates) > 1 and K <= opts.nested_max_poses
-    outer = np.stack([fid != o for o in range(F)])
-    inner, inner_of = [], []
-    if nested:
-        for o in range(F):
-            idx = np.flatnonzero(outer[o])
-            sub = fold_ids(len(idx), F, opts.seed + 1 + o)
-            for i in range(F):
-                msk = np.zeros(K, bool)
-                msk[idx[sub != i]] = True
-                inner.append(msk)
-                inner_of.append(o)
-    masks = np.concatenate([outer, np.array(inner, bool).reshape(-1, K), np.ones((1, K), bool)])
-    S = len(masks)
-    ref = core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
-    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
-    ref_all = core.member(ref, S - 1)
-    J0, pos0 = core.analyse(ref_all, layout, q)
+    everything = np.ones(K, bool)
+    held = np.concatenate([np.stack([fid == o for o in range(F)]), selection.range_end_held(q, everything)])
+    ref = core.start_models(robot.stripped(), layout, q, target, everything[None], shared=True)
+    J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
-    ident = core.identify(J0, layout)
-    fw = masks.astype(float)
-    q_, t_ = q, target
-
-    # stage A: frames only, all poses, then every training set from there
-    C, T = len(candidates), S - 1
-    chunk = core.chunk_size(max(T * C, C, S), K, layout, opts.memory_mb)
+    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
+    chunk = core.chunk_size(len(held) + 1, K, layout, opts.memory_mb)
     run = dict(J0=J0, chunk=chunk, memory_mb=opts.memory_mb, progress=progress)
+    nested = (len(candidates) > 1 or opts.params.strip() == "auto") and K <= opts.nested_max_poses
+    return _Problem(
+        robot, opts, data, q, target, n_points, rows, layout, candidates, detector,
+        core.identify(J0, layout), cfg, run, held, F, everything, nested,
+    )  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Frames:
+    """Stage 2: the frames-only fit of every training set (:attr:`_Problem.masks`; the last: all
+    poses)."""
+
+    start: Model
+    """The closed-form starting frames of each training set."""
+    fit: dict
+    """:func:`._core.run_members`'s output; ``model`` the frames-only models."""
+    sig: np.ndarray
+    """``(S, 2)`` noise weights (mm, rad) of each training set."""
+
+    def member(self, i: int) -> Model:
+        return core.member(self.fit["model"], i)
+
+
+def _frames(p: _Problem) -> _Frames:
+    """Stage 2 (module docstring): all poses first, then every training set from there."""
+    masks = p.masks
+    S, layout = len(masks), p.layout
+    start = core.start_models(p.robot.stripped(), layout, p.q, p.target, masks, shared=True)
     unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), S, 0)
-    pa = np.repeat(prior_of(layout, ident, None, frames_only=True)[None], S, 0)
-    a_all = core.run_members(cfg, core.take(ref, [T]), q_, t_, fw[[T]], unit[[T]], pa[[T]], **run, label="frames only")
-    a_folds = core.run_members(
-        cfg,
-        core.take(ref, np.arange(T)),
-        q_,
-        t_,
-        fw[:T],
-        unit[:T],
-        pa[:T],
-        x0=core.relative_x(core.take(ref, np.arange(T)), layout, a_all["model"]),
-        **run,
+    pa = np.repeat(prior_of(layout, p.ident, None, frames_only=True)[None], S, 0)
+    fw = masks.astype(float)
+    last = [S - 1]
+    a_all = core.run_members(
+        p.cfg, core.take(start, last), p.q, p.target, fw[last], unit[last], pa[last], **p.run, label="frames only"
+    )
+    inner = np.arange(S - 1)
+    a_sets = core.run_members(
+        p.cfg,
+        core.take(start, inner),
+        p.q,
+        p.target,
+        fw[inner],
+        unit[inner],
+        pa[inner],
+        x0=core.relative_x(core.take(start, inner), layout, a_all["model"]),
+        **p.run,
         label="frames only, training sets",
     )
-    a = {k: np.concatenate([a_folds[k], a_all[k]]) for k in ("x", "converged", "pos_err", "rot_err")}
-    refB = jax.tree.map(lambda u, v: np.concatenate([u, v]), a_folds["model"], a_all["model"])
-    sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
-    if opts.sigma_pos_mm is not None:
-        sig[:, 0] = opts.sigma_pos_mm
-    if opts.sigma_rot_rad is not None:
-        sig[:, 1] = opts.sigma_rot_rad
+    fit = jax.tree.map(lambda u, v: np.concatenate([u, v]), a_sets, a_all)
+    sig = core.sigmas_from(fit["pos_err"], fit["rot_err"], masks, p.n_points)
+    if p.opts.sigma_pos_mm is not None:
+        sig[:, 0] = p.opts.sigma_pos_mm
+    if p.opts.sigma_rot_rad is not None:
+        sig[:, 1] = p.opts.sigma_rot_rad
+    return _Frames(start, fit, sig)
 
-    # stage B: every candidate on all poses, then on every training set from there (the same
-    # optimum, reached in a few steps)
-    priors = np.stack([prior_of(layout, ident, c) for c in candidates])
-    w_all = core.weights_of(layout, sig[[T]])
-    allp = core.run_members(
-        cfg,
-        core.take(refB, np.full(C, T)),
-        q_,
-        t_,
-        np.repeat(fw[[T]], C, 0),
-        np.repeat(w_all, C, 0),
-        priors,
-        opts.loss_scale,
-        **run,
-        label="candidates, all poses",
-    )
-    pick = np.repeat(np.arange(T), C)
-    models_b = core.take(refB, pick)
-    start = core.relative_x(models_b, layout, core.take(allp["model"], np.tile(np.arange(C), T)))
-    b = core.run_members(
-        cfg,
-        models_b,
-        q_,
-        t_,
-        fw[pick],
-        core.weights_of(layout, sig[pick]),
-        np.tile(priors, (T, 1)),
-        opts.loss_scale,
-        x0=start,
-        **run,
-        label="cross-validation",
-    )
-    pe = b["pos_err"].reshape(T, C, K, -1)
-    re = np.degrees(b["rot_err"].reshape(T, C, K))
-    held = ~outer
-    cv_table, scores = [], []
-    for c, cand in enumerate(candidates):
-        h_pe, t_pe = pe[:F, c][held], pe[:F, c][outer]
-        cv_table.append(
-            {
-                "name": cand.name,
-                "heldout_rms_mm": _rms(h_pe),
-                "heldout_max_mm": float(h_pe.max()),
-                "heldout_rot_rms_deg": None if n_points else _rms(re[:F, c][held]),
-                "train_rms_mm": _rms(t_pe),
-                "converged": bool(b["converged"].reshape(T, C)[:F, c].all()),
-            }
+
+def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
+    """Stage 3 (module docstring): the detector fitted on all poses, then :func:`._outliers.detect`."""
+    lev = selection.lever(core.analyse(fr.member(-1), p.layout, p.q)[0], p.n_points)
+    prior = prior_of(p.layout, p.ident, p.detector, lever=lev)[None]
+    weights = core.weights_of(p.layout, fr.sig[[-1]])
+    ref = core.take(fr.fit["model"], [len(fr.sig) - 1])
+    mask = p.valid[None].astype(float)
+
+    def refit(w, x0=None):
+        return core.run_members(
+            p.cfg, ref, p.q, p.target, w, weights, prior, p.opts.loss_scale, x0=x0, **p.run, label="outliers"
         )
-        scores.append(_rms(h_pe))
-    c_final = choose(scores, candidates)
-    nested_pe, nested_re = np.zeros(pe.shape[2:]), np.zeros(K)
-    nested_choice = []
-    for o in range(F):
-        if nested:
-            rows_o = [F + j for j, oo in enumerate(inner_of) if oo == o]
-            ho = ~masks[rows_o] & outer[o]
-            c_o = choose([_rms(pe[rows_o, c][ho]) for c in range(C)], candidates)
-        else:
-            c_o = c_final
-        nested_choice.append(candidates[c_o].name)
-        nested_pe[held[o]] = pe[o, c_o][held[o]]
-        nested_re[held[o]] = re[o, c_o][held[o]]
-    f_pe = np.zeros_like(nested_pe)
-    f_re = np.zeros(K)
-    for o in range(F):
-        f_pe[held[o]] = a["pos_err"][o][held[o]]
-        f_re[held[o]] = np.degrees(a["rot_err"][o][held[o]])
 
-    # the final model: all poses, the chosen candidate
-    cand = candidates[c_final]
-    prior = priors[c_final]
-    fin = {k: v[[c_final]] for k, v in allp.items() if k != "model"}
-    full = core.wrapped(core.member(allp["model"], c_final), robot)
-    x_rel = core.relative_x(ref_all, layout, full)  # DH to the nominal table, frames to the guess
-    model = full
-    if cand.camera != layout.camera:  # the chosen camera model is a prefix of the largest
-        model = Model(
-            full.robot, full.points, np.asarray(full.camera_params)[: camera_size(cand.camera)], camera=cand.camera
+    return outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Selected:
+    """A selection (:func:`_select`) as the fits need it."""
+
+    choice: selection.Choice
+    candidate: Candidate
+    prior: np.ndarray
+    """``(m,)`` prior weights for the full fit, :data:`PIN` outside the chosen parameters."""
+    free: np.ndarray
+    """``(C, m)`` every candidate's free parameters; ``priors (C, m)`` their prior weights."""
+    priors: np.ndarray
+    lever: np.ndarray
+
+
+def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selected:
+    """Stage 4 on the poses ``train``: score the candidates, choose one and prune it (auto)."""
+    lev = selection.lever(J[train], p.n_points)
+    full = np.stack([prior_of(p.layout, p.ident, c, lever=lev) for c in p.candidates])
+    free = full < PIN
+    priors = np.where(free, full, 0.0)
+    penalised = np.zeros(p.layout.size, bool)
+    penalised[: p.layout.n_kin] = True
+    penalised[list(p.layout.compliances)] = True
+    rule = selection.Rule.of(lin, p.q, train, p.opts.folds, seed)
+    complexity = [c.complexity for c in p.candidates]
+    ch = selection.select(lin, rule, free, priors, complexity, penalised & p.auto)
+    if ch.index < 0:
+        raise DataError(
+            f"every candidate parameter set ({', '.join(c.name for c in p.candidates)}) failed to fit "
+            f"(non-finite held-out errors); the data or the camera model may be degenerate"
         )
-    st = core.fit_statistics(
-        J0, w_all[0], fw[T], fin["norms"][0], loss=opts.loss, loss_scale=opts.loss_scale, rows=layout.rows
-    )
-    cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
-    active = list(estimated(prior))
-    se = np.sqrt(np.clip(np.diag(cov), 0, None))
-    names, units = layout.names(), layout.units()
-    deltas = {names[i]: (float(x_rel[i]), float(se[i]), units[i]) for i in active}
-    cam_names = [names[i] for i in layout.cameras[: camera_size(cand.camera)]]
-    cond = core.condition_number(st["normal"], active)
-    frames_only = core.described(core.member(refB, T), robot).robot
-    tr_pe, tr_re = fin["pos_err"][0], np.degrees(fin["rot_err"][0])
-    rot = n_points == 0
-    train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], n_points=n_points)
-    why = judge(robot, q, target, n_points, layout, opts, train, x_rel, active)
-    rep = {
-        "robot": robot.name,
-        "data": getattr(data, "source", "arrays"),
-        "units": list(getattr(data, "units", ("mm", "rad"))),
-        "ignored_columns": list(getattr(data, "ignored", ())),
-        "poses": K,
-        "position_only": n_points > 0,
-        "points": n_points,
-        "method": opts.method,
-        "folds": F,
-        "seed": opts.seed,
-        "estimate_base": opts.estimate_base,
-        "estimate_tool": opts.estimate_tool,
-        "choice": cand.name,
-        "choice_rule": "lowest K-fold held-out position RMS; a simpler set within 1% wins",
-        "nested": nested,
-        "nested_choices": nested_choice,
-        "train_rms_mm": _rms(tr_pe),
-        "train_max_mm": float(tr_pe.max()),
-        "train_rot_rms_deg": _rms(tr_re) if rot else None,
-        "heldout_rms_mm": _rms(nested_pe),
-        "heldout_max_mm": float(nested_pe.max()),
-        "heldout_median_mm": float(np.median(np.sqrt(np.mean(nested_pe**2, -1)))),
-        "heldout_rot_rms_deg": _rms(nested_re) if rot else None,
-        "frames_only_train_rms_mm": _rms(a["pos_err"][T]),
-        "frames_only_train_max_mm": float(a["pos_err"][T].max()),
-        "frames_only_train_rot_rms_deg": _rms(np.degrees(a["rot_err"][T])) if rot else None,
-        "frames_only_heldout_rms_mm": _rms(f_pe),
-        "frames_only_heldout_max_mm": float(f_pe.max()),
-        "frames_only_heldout_median_mm": float(np.median(np.sqrt(np.mean(f_pe**2, -1)))),
-        "frames_only_heldout_rot_rms_deg": _rms(f_re) if rot else None,
-        "cv": cv_table,
-        "camera_model": cand.camera,
-        "camera_model_option": opts.camera,
-        "camera_parameters": {k: {"value": deltas[k][0], "std_error": deltas[k][1]} for k in cam_names} or None,
-        "sigma_pos_mm": float(sig[T, 0]),
-        "sigma_rot_deg": float(np.degrees(sig[T, 1])) if rot else None,
-        "parameters": {
-            k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in deltas.items() if k not in cam_names
-        },
-        "estimated_dh": [names[i] for i in active if i < layout.n_kin],
-        "unidentifiable": [n for n in ident.fixed_names if names.index(n) < layout.n_kin],
-        "not_estimated": {n: why for n, why in ident.reasons().items()},
-        "combinations": list(ident.combinations),
-        "condition_number": cond,
-        "converged": bool(fin["converged"][0]),
-        "steps": int(fin["steps"][0]),
-        "cv_fits_converged": int(np.sum(a["converged"]) + np.sum(b["converged"]) + np.sum(allp["converged"])),
-        "cv_fits": int(S + T * C + C),
-        "base": frame_doc(model.robot.base),
-        "tool": frame_doc(model.robot.tool),
-        "plausible": not why,
-        "implausible": why or None,
-        "notes": list(still_joint_notes(robot, q)),
-    }
-    if n_points:
-        rep["points_mm"] = np.asarray(model.points).tolist()
-        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.mean(nested_pe**2, 0))]
-    per_pose = {
-        "rows": rows_in_file,
-        "frames_only_heldout": _squeeze(f_pe),
-        "heldout": _squeeze(nested_pe),
-        "frames_only_train": _squeeze(a["pos_err"][T]),
-        "train": _squeeze(tr_pe),
-        "frames_only_heldout_rot": f_re,
-        "heldout_rot": nested_re,
-        "frames_only": frames_only,
-    }
-    return DataCalibration(
-        model=core.described(model, robot), nominal=robot, choice=cand, report=rep, per_pose=per_pose, deltas=deltas
-    )
+    prior = np.where(ch.free, priors[ch.index], PIN)
+    return _Selected(ch, p.candidates[ch.index], prior, free, priors, lev)
 
 
-def _squeeze(a):
-    a = np.asarray(a)
-    return a[..., 0] if a.ndim == 2 and a.shape[-1] == 1 else a
+def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, progress=None, **kw) -> DataCalibration:
+    """Calibrate from measured data: choose the model, estimate it, and measure how well it predicts
+    poses it was not fitted on (module docstring).
+
+    **Arguments**: ``data`` a :class:`jaxcal.Measurements` (from :func:`jaxcal.read_measurements`,
+    or built from arrays); options as :class:`jaxcal.Options` or keywords, the defaults shared
+    with :func:`calibrate`. ``progress(done, total, stage)`` is called as fits complete.
+
+    **Returns** a :class:`DataCalibration` whose ``report`` (:func:`._report.report_of`) holds
+    the held-out figures ``heldout_rms_mm`` (new postures) and ``extrapolation_rms_mm`` (postures
+    beyond the training ranges), the frames-only ones, ``choice``, ``selection`` (the parameters
+    kept and why the others were not), ``cv`` (every candidate's score), ``parameters`` (values,
+    standard errors, units), ``training_ranges``, ``outliers`` and the rest listed in
+    docs/conventions.md. Training and held-out figures are over the poses not found outliers.
+    """
+    opts = make_options(options, kw, camera_auto=True)
+    p = _prepare(robot, data, opts, progress)
+    fr = _frames(p)
+    det = _outliers_found(p, fr)
+    if det.flags.any() and not opts.keep_outliers:  # everything again without them
+        p = dataclasses.replace(p, valid=~det.flags[0])
+        fr = _frames(p)
+    ref = fr.member(-1)
+    J = core.analyse(ref, p.layout, p.q)[0]
+    w = core.weights_of(p.layout, fr.sig[[-1]])[0]
+    lin = selection.linearise(J, np.asarray(errors(ref, p.q, p.target)), w, p.n_points)
+    final = _select(p, lin, J, p.valid, opts.seed)
+    train = p.masks[:-1]
+    per_fold = [_select(p, lin, J, train[o], opts.seed + 1 + o) if p.nested else final for o in range(len(train))]
+
+    # every choice fitted in full: the outer training sets, then all poses
+    members = per_fold + [final]
+    fits = core.run_members(
+        p.cfg,
+        fr.fit["model"],
+        p.q,
+        p.target,
+        p.masks.astype(float),
+        core.weights_of(p.layout, fr.sig),
+        np.stack([s.prior for s in members]),
+        opts.loss_scale,
+        **p.run,
+        label="held-out and final fits",
+    )
+    return report_of(p, fr, det, lin, final, per_fold, fits)

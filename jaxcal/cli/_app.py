@@ -66,8 +66,8 @@ def load_robot_arg(robot: str, base_link: str | None = None, tip_link: str | Non
     return load_robot(robot, base_link=base_link, tip_link=tip_link)
 
 
-BASE_LINK_HELP = "URDF: the chain's first link (default: the root)"
-TIP_LINK_HELP = "URDF: the chain's last link (default: the one leaf)"
+BASE_LINK_HELP = "URDF: the chain's first link (default: a calibrated model's own, else the root)"
+TIP_LINK_HELP = "URDF: the chain's last link (default: a calibrated model's own, else the one leaf)"
 
 
 @contextlib.contextmanager
@@ -96,3 +96,24 @@ def progress(what: str):
 
     with bar:
         yield update
+
+
+def parse_points(text: str) -> list[int]:
+    """``--points 1,3`` as point numbers."""
+    from ..errors import DataError
+
+    try:
+        return [int(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise DataError(f"points must be point numbers like 1 or 1,3, got {text!r}", option="points") from None
+
+
+def lost_notes(meas, most: int = 10) -> None:
+    """Print the points not seen (lost markers) and the rows dropped for having none."""
+    lost = meas.lost_points
+    if lost:
+        listed = ", ".join(f"row {r} point {j}" for r, j in lost[:most]) + (", ..." if len(lost) > most else "")
+        console.print(f"[yellow]note:[/yellow] {len(lost)} point(s) not seen, left out: {listed}", highlight=False)
+    if meas.dropped_rows:
+        rows = ", ".join(map(str, meas.dropped_rows))
+        console.print(f"[yellow]note:[/yellow] row(s) {rows} dropped: none of their points was seen", highlight=False)

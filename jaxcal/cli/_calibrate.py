@@ -8,7 +8,7 @@ import typer
 from rich.table import Table
 
 from ..calibration import Options
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg, progress
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg, lost_notes, parse_points, progress
 
 _D = Options()
 
@@ -26,11 +26,15 @@ def calibrate(
     method: str = typer.Option(_D.method, help="gn | lm | linear"),
     params: str = typer.Option(
         _D.params,
-        help="auto (chosen by cross-validation) | frames | offsets | angles | all | "
+        help="auto (chosen by held-out error, down to single parameters) | frames | offsets | angles | all | "
         "comma list of theta, d, a, alpha or names like theta2",
     ),
     ridge_mm: float = typer.Option(
-        None, "--ridge-mm", "--ridge", help="ridge prior std on the DH errors of an explicit --params (mm, mrad)"
+        None,
+        "--ridge-mm",
+        "--ridge",
+        help="prior std on the parameters of an explicit --params: how far (mm) each "
+        "is expected to move the measured points",
     ),
     estimate_base: bool = typer.Option(_D.estimate_base, "--estimate-base/--no-estimate-base"),
     estimate_tool: bool = typer.Option(_D.estimate_tool, "--estimate-tool/--no-estimate-tool"),
@@ -40,8 +44,23 @@ def calibrate(
         help="none | depth | linear | quadratic | auto: a "
         "measurement model of a camera on the flange reporting its pose to a fixed target",
     ),
+    compliance: str = typer.Option(
+        _D.compliance,
+        help="auto | yes | no: a compliance per revolute joint (a turn proportional to the gravity moment of "
+        "a weight at the tool) among the candidates (auto: when the moments vary over the data)",
+    ),
     loss: str = typer.Option(_D.loss, help="l2 | huber | cauchy (robust to outlier poses)"),
     loss_scale: float = typer.Option(None, help="robust loss scale in units of sigma (default: estimated)"),
+    outlier_sigmas: float = typer.Option(
+        _D.outlier_sigmas,
+        help="a pose whose residual is as improbable as this many sigmas of a normal deviation is an outlier",
+    ),
+    keep_outliers: bool = typer.Option(
+        _D.keep_outliers, "--keep-outliers", help="name the outlier poses but fit them (default: left out)"
+    ),
+    max_outlier_fraction: float = typer.Option(
+        _D.max_outlier_fraction, help="refuse the fit when more than this share of the poses are outliers"
+    ),
     sigma_pos_mm: float = typer.Option(None, help="position noise per coordinate (default: estimated)"),
     sigma_rot_rad: float = typer.Option(None, help="rotation noise per axis (default: estimated)"),
     max_steps: int = typer.Option(_D.max_steps, help="solver step limit"),
@@ -71,6 +90,11 @@ def calibrate(
         "corrections in its joints' origins, the measurement frame and the points as links) or TOML",
     ),
     plots: Path = typer.Option(None, help="write plots into this folder"),
+    out_ur_kinematics: Path = typer.Option(
+        None, help="write the calibrated arm as a UR kinematics file (YAML, ur_robot_driver's kinematics_params_file)"
+    ),
+    out_dh: Path = typer.Option(None, help="write the DH table: nominal, calibrated, delta, std error (CSV)"),
+    report: Path = typer.Option(None, help="write a one-page report (self-contained HTML)"),
     points: str = typer.Option(None, help="use only these measured points, e.g. 1 or 1,3 (default: all)"),
     base_link: str = typer.Option(None, help=BASE_LINK_HELP),
     tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
@@ -79,22 +103,28 @@ def calibrate(
     from .._io import check_writable, write_atomic
     from ..calibration import GAUGE, calibrate_data
     from ..errors import DataError, ImplausibleFitError
+    from ..export import check_dh, check_ur
     from ..measurements import read_measurements
     from ..model import Model, save_model
     from ..robot import save_robot
 
     outputs = {"json_out": json_out, "out_robot": out_robot, "out_model": out_model, "plots": plots}
+    outputs |= {"out_ur_kinematics": out_ur_kinematics, "out_dh": out_dh, "report": report}
     for name, path in outputs.items():
         if path is not None:
             check_writable(path / "x.png" if name == "plots" else path, name)
     nominal = load_robot_arg(robot, base_link, tip_link)
+    if out_ur_kinematics is not None:
+        check_ur(nominal, "out_ur_kinematics")
+    if out_dh is not None:
+        check_dh(nominal, "out_dh")
     for name, path in (("out_robot", out_robot), ("out_model", out_model)):
         if path is not None and (path.suffix.lower() == ".urdf") != (nominal.convention == "joint"):
             kind = "a URDF robot is written as URDF (.urdf)" if nominal.convention == "joint" else "a DH robot as TOML"
             raise DataError(f"{name}: {kind}; nothing was computed", option=name)
     meas = read_measurements(data, nominal, length_unit=length_unit, angle_unit=angle_unit)
     if points is not None:
-        meas = meas.select_points([int(p) for p in points.split(",") if p.strip()])
+        meas = meas.select_points(parse_points(points))
     opts = Options(
         method=method,
         params=params,
@@ -102,8 +132,12 @@ def calibrate(
         estimate_base=estimate_base,
         estimate_tool=estimate_tool,
         camera=camera,
+        compliance=compliance,
         loss=loss,
         loss_scale=loss_scale,
+        outlier_sigmas=outlier_sigmas,
+        keep_outliers=keep_outliers,
+        max_outlier_fraction=max_outlier_fraction,
         sigma_pos_mm=sigma_pos_mm,
         sigma_rot_rad=sigma_rot_rad,
         max_steps=max_steps,
@@ -135,7 +169,10 @@ def calibrate(
         "gauge": GAUGE,
     }
     if out_robot is not None and nominal.convention != "joint":
-        save_robot(res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment)
+        save_robot(
+            res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
+            training_ranges=res.training_ranges,
+        )  # fmt: skip
         console.print(f"calibrated robot written to {out_robot}")
     # a URDF robot's --out-robot is its model too: the points are links of the written URDF
     for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
@@ -143,7 +180,10 @@ def calibrate(
             continue
         urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
         model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
-        save_model(model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link)
+        save_model(
+            model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link,
+            training_ranges=res.training_ranges,
+        )  # fmt: skip
         console.print(f"calibrated model written to {path}")
     if json_out is not None:
         write_atomic(json_out, res.to_json())
@@ -153,43 +193,78 @@ def calibrate(
 
         for p in calibration_figures(res, plots):
             console.print(f"plot written to {p}")
+    _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment)
+
+
+def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:
+    """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
+    from ..export import save_dh_table, save_report, save_ur_kinematics
+
+    if out_ur_kinematics is not None:
+        robot = res.robot.replace(name=f"{res.nominal.name}-calibrated")
+        base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment)
+        console.print(f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):")
+        for what, T in (("base (measurement frame -> base)", base), ("tool (tool0 -> TCP)", tool)):
+            console.print(f"  {what}: xyz {', '.join(f'{v:.4f}' for v in T[:3, 3])} mm", highlight=False)
+    if out_dh is not None:
+        save_dh_table(res, out_dh)
+        console.print(f"DH table written to {out_dh}")
+    if report is not None:
+        save_report(res, meas, report)
+        console.print(f"report written to {report}")
 
 
 def show(rep: dict, meas) -> None:
     """Print a calibration report."""
-    rot = rep["points"] == 0
-    title = f"{rep['folds']}-fold cross-validation on {rep['poses']} poses ({meas.source})"
+    title = (
+        f"candidate models on {rep['poses']} poses ({meas.source}): held-out error of {rep['folds']}-fold and "
+        f"{rep['range_end_folds']} range-end folds (linearised)"
+    )
     cv = Table(title=title)
-    for col in ("parameter set", "held-out RMS (mm)", "held-out max (mm)", "held-out rot RMS (deg)", "train RMS (mm)"):
+    for col in ("parameter set", "score (mm)", "new postures (mm)", "beyond the ranges (mm)", "free"):
         cv.add_column(col, justify="right" if col != "parameter set" else "left")
     for row in rep["cv"]:
         mark = " *" if row["name"] == rep["choice"] else ""
         cv.add_row(
             row["name"] + mark,
+            _fmt(row["score_mm"]),
             _fmt(row["heldout_rms_mm"]),
-            _fmt(row["heldout_max_mm"]),
-            _fmt(row["heldout_rot_rms_deg"] if rot else None),
-            _fmt(row["train_rms_mm"]),
+            _fmt(row["extrapolation_rms_mm"]),
+            str(row["free_parameters"]),
         )
     console.print(cv)
+    for row in rep["cv"]:
+        if row.get("failure"):
+            console.print(f"[yellow]failed:[/yellow] {row['name']}: {row['failure']}", highlight=False)
+    sel = rep["selection"]
+    if sel["dropped"]:
+        console.print(
+            f"selection: {rep['choice']}, {len(sel['dropped'])} parameters dropped (score {sel['score_mm']:.3f} -> "
+            f"{sel['pruned_score_mm']:.3f} mm); kept: {', '.join(sel['kept']) or 'none'}",
+            highlight=False,
+        )
     kind = "nested cross-validation" if rep["nested"] else "K-fold cross-validation"
     summary = Table(title=f"summary (held-out = {kind})")
-    for col in ("model", "train RMS (mm)", "held-out RMS (mm)", "held-out max (mm)", "held-out rot RMS (deg)"):
+    cols = ("model", "train RMS (mm)", "held-out: new postures", "beyond the training ranges", "held-out max (mm)")
+    for col in cols + (("held-out rot RMS (deg)",) if rep["points"] == 0 else ()):
         summary.add_column(col, justify="right" if col != "model" else "left")
+    rot = (lambda v: (_fmt(v),)) if rep["points"] == 0 else (lambda v: ())
     summary.add_row(
         "frames only (nominal kinematics)",
         _fmt(rep["frames_only_train_rms_mm"]),
         _fmt(rep["frames_only_heldout_rms_mm"]),
+        _fmt(rep["frames_only_extrapolation_rms_mm"]),
         _fmt(rep["frames_only_heldout_max_mm"]),
-        _fmt(rep["frames_only_heldout_rot_rms_deg"]),
+        *rot(rep["frames_only_heldout_rot_rms_deg"]),
     )
     cam = rep["camera_model"] != "none" and rep["camera_model_option"] != "auto"
     summary.add_row(
         f"calibrated ({rep['choice']})" + (f" + camera model {rep['camera_model']}" if cam else ""),
         _fmt(rep["train_rms_mm"]),
         _fmt(rep["heldout_rms_mm"]),
+        _fmt(rep["extrapolation_rms_mm"]),
         _fmt(rep["heldout_max_mm"]),
-        _fmt(rep["heldout_rot_rms_deg"]),
+        *rot(rep["heldout_rot_rms_deg"]),
     )
     console.print(summary)
     pt = Table(title="estimated parameters (all poses)")
@@ -202,12 +277,12 @@ def show(rep: dict, meas) -> None:
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     held = rep["not_estimated"]
     if held:
-        console.print("held at 0 (not identifiable from these poses):")
+        console.print("held at 0:")
         for name, why in held.items():
             console.print(f"  {name}: {why}", highlight=False)
     console.print(
         f"weights: sigma_pos {rep['sigma_pos_mm']:.3g} mm"
-        + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rot else "")
+        + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rep["points"] == 0 else "")
         + f"; condition number {rep['condition_number']:.3g}; converged {rep['converged']} in "
         f"{rep['steps']} steps ({rep['cv_fits_converged']}/{rep['cv_fits']} cross-validation fits converged)"
     )
@@ -227,3 +302,30 @@ def show(rep: dict, meas) -> None:
         console.print(f"camera model {rep['camera_model']}: {vals} (a sensor property, not written to the robot file)")
     if rep.get("ignored_columns"):
         console.print(f"ignored columns: {', '.join(rep['ignored_columns'])}")
+    lost_notes(meas)
+    show_outliers(rep)
+
+
+def show_outliers(rep: dict) -> None:
+    """The outlier poses by file row, or that there were none, with the threshold."""
+    d, found = rep["outlier_detection"], rep["outliers"]
+    noise = f"{d['noise_pos_mm']:.3g} mm" + (f", {d['noise_rot_deg']:.3g} deg" if d.get("noise_rot_deg") else "")
+    rule = f"a residual beyond {d['threshold_sigmas']:.3g} sigma of the noise ({noise} per coordinate, robust)"
+    if not found:
+        console.print(f"outliers: none ({rule})")
+        return
+    t = Table(title=f"{len(found)} outlier pose(s)")
+    rot = "rotation_deg" in found[0]
+    for col in ("row", "position error (mm)") + (("rotation error (deg)",) if rot else ()) + ("sigmas",):
+        t.add_column(col, justify="right")
+    for o in found:
+        cells = [str(o["row"]), f"{o['position_mm']:.3f}"] + ([f"{o['rotation_deg']:.3f}"] if rot else [])
+        t.add_row(*cells, f"{o['sigmas']:.1f}")
+    console.print(t)
+    if d["excluded"]:
+        console.print(
+            f"outliers: {rule}; left out of the fit and of the held-out figures (held-out RMS with them "
+            f"scored too: {d['heldout_rms_mm_all_poses']:.3f} mm; --keep-outliers fits them)"
+        )
+    else:
+        console.print(f"outliers: {rule}; kept in the fit (--keep-outliers)")

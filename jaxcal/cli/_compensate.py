@@ -28,12 +28,16 @@ def compensate(
     from .._io import check_writable, write_atomic
     from ..compensation import compensate_targets, read_targets
     from ..measurements import unit_scale
-    from ..robot import ANGLE_UNITS, LENGTH_UNITS
+    from ..robot import ANGLE_UNITS, LENGTH_UNITS, calibrated_chain
 
     if out is not None:
         check_writable(out, "out")
     cal = load_robot_arg(calibrated)
-    nom = load_robot_arg(nominal) if nominal is not None else None
+    nom = None
+    if nominal is not None:  # a nominal URDF: the chain the calibrated URDF records
+        chain = calibrated_chain(calibrated)
+        urdf = Path(nominal).suffix.lower() in (".urdf", ".xml") and calibrated_chain(nominal) is None
+        nom = load_robot_arg(nominal, *(chain if chain and urdf else (None, None)))
     tg = read_targets(targets, cal, length_unit=length_unit, angle_unit=angle_unit)
     _, res = compensate_targets(cal, tg, nominal=nom)
     table = Table(title=f"compensation of {len(res.q)} targets")

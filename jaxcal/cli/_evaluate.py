@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.table import Table
 
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, lost_notes, parse_points
 
 
 def _fmt(v):
@@ -22,6 +23,9 @@ def evaluate(
         None, help="the training CSV: errors by posture group (repeated / new / out of range)"
     ),
     json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
+    points: str = typer.Option(
+        None, help="score only these measured points, e.g. 1 or 1,3 (default: all; a one-point model: 1)"
+    ),
     length_unit: str = typer.Option(None, help="m | mm (default: the model file's)"),
     angle_unit: str = typer.Option(None, help="rad | deg (default: the model file's)"),
     base_link: str = typer.Option(None, help=BASE_LINK_HELP),
@@ -34,7 +38,7 @@ def evaluate(
     from .._io import check_writable, write_atomic
     from ..calibration import evaluate as run
     from ..measurements import read_measurements
-    from ..model import load_model
+    from ..model import Model, load_model
 
     if json_out is not None:
         check_writable(json_out, "json_out")
@@ -43,7 +47,14 @@ def evaluate(
     train = None
     if training is not None:
         train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit)
-    rep = run(m, meas, training=train)
+    if points is not None:
+        chosen = parse_points(points)
+        if m.n_points > 1 and m.n_points == meas.n_points:  # the model's points are the file's
+            m = Model(m.robot, np.asarray(m.points)[[p - 1 for p in chosen]], m.camera_params, camera=m.camera)
+        meas = meas.select_points(chosen)
+    from ..robot import read_training_ranges
+
+    rep = run(m, meas, training=train, ranges=read_training_ranges(model))
     table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
     for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
         table.add_column(col, justify="right")
@@ -51,6 +62,7 @@ def evaluate(
         table.add_row(str(j) if meas.n_points else "tool", _fmt(p["rms_mm"]), _fmt(p["max_mm"]), _fmt(p["median_mm"]))
     table.add_row("all", _fmt(rep["position_rms_mm"]), _fmt(rep["position_max_mm"]), _fmt(rep["position_median_mm"]))
     console.print(table)
+    lost_notes(meas)
     if "rotation_rms_deg" in rep:
         console.print(f"rotation: RMS {rep['rotation_rms_deg']:.4f} deg, max {rep['rotation_max_deg']:.4f} deg")
     if "groups" in rep:
@@ -60,6 +72,8 @@ def evaluate(
         for name, g in rep["groups"].items():
             groups.add_row(name, str(g["poses"]), _fmt(g["position_rms_mm"]), _fmt(g["position_max_mm"]))
         console.print(groups)
+    for w in rep["warnings"]:
+        console.print(f"[yellow]warning:[/yellow] {w}", highlight=False)
     if json_out is not None:
         write_atomic(json_out, json.dumps(rep, indent=2))
         console.print(f"report written to {json_out}")

@@ -18,6 +18,7 @@ def info(
     import numpy as np
 
     from ..lie import matrix_to_rpy
+    from ..robot import calibrated_chain
 
     r = load_robot_arg(robot, base_link, tip_link)
     table = Table(title=f"{r.name} ({r.convention}, file units {r.units[0]}, {r.units[1]})")
@@ -38,3 +39,10 @@ def info(
         for i, (row, t, n) in enumerate(zip(np.asarray(r.dh), r.joint_types, r.joint_names), start=1):
             table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row))
     console.print(table)
+    chain = calibrated_chain(robot)
+    if chain is not None:
+        console.print(
+            f"a calibrated model of the chain {chain[0]} -> {chain[1]}: base = the measurement frame "
+            "(jaxcal_measurement_frame), tool = jaxcal_tool",
+            highlight=False,
+        )

@@ -74,6 +74,9 @@ def montecarlo(
     validation: Path = typer.Option(
         None, "--validation", help="pose file of the inspection poses (where the calibrated arm will work)"
     ),
+    outliers: float = typer.Option(0.0, "--outliers", help="share of each robot's poses given a gross position error"),
+    outlier_mm: str = typer.Option("3,6", "--outlier-mm", help="A,B: the gross errors' length, uniform in [A, B] mm"),
+    keep_outliers: bool = typer.Option(False, "--keep-outliers", help="fit the outlier poses (default: left out)"),
 ):
     """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
     from .._io import check_writable, write_atomic
@@ -111,6 +114,9 @@ def montecarlo(
             view=view_arg(view),
             min_spread=min_spread,
             q_val=q_val,
+            outliers=outliers,
+            outlier_mm=_pair(outlier_mm),
+            keep_outliers=keep_outliers,
         )
     files = {"calibration_poses_file": poses_file, "validation_poses_file": validation}
     out["conditions"] |= {k: str(v) for k, v in files.items() if v is not None}
@@ -137,6 +143,14 @@ def montecarlo(
         ("parameter RMS error vs truth, worst", f"{out['param_rms_error_max']:.3g}"),
         ("validation position RMS (mm)", f"{out['validation_pos_rms_mm']:.4g}"),
     ]
+    if "outliers" in out or out["false_alarms"]:
+        rows.append(
+            (
+                "outlier poses found / missed; clean poses flagged",
+                f"{out['outliers_found']} / {out['outliers_missed']}; {out['false_alarms']}"
+                + (" (kept in the fits)" if keep_outliers else ""),
+            )
+        )
     if "crlb_efficiency_mean" in out:
         rows.append(("CRLB efficiency (CRLB var / empirical var), mean", f"{out['crlb_efficiency_mean']:.3f}"))
         rows.append(("validation position RMS by the CRLB (mm)", f"{out['crlb_validation_pos_rms_mm']:.4g}"))
@@ -147,3 +161,14 @@ def montecarlo(
     if json_out and out["complete"]:  # a summary of part of a study is not written
         write_atomic(json_out, json.dumps(out, indent=2))
         console.print(f"wrote {json_out}")
+
+
+def _pair(text: str) -> tuple[float, float]:
+    """``--outlier-mm A,B``."""
+    from ..errors import DataError
+
+    try:
+        a, b = (float(v) for v in text.split(","))
+    except ValueError:
+        raise DataError(f"outlier_mm must be A,B in mm (e.g. 3,6), got {text!r}", option="outlier_mm") from None
+    return a, b

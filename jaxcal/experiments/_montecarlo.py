@@ -21,7 +21,7 @@ from ..kinematics import check_q, fk
 from ..model import Layout, Model, jacobian
 from ..robot import Robot
 from ..sharding import describe, select_devices
-from ..simulation import error_scales, measure, sample_poses
+from ..simulation import error_scales, inject_outliers, measure, sample_poses
 from ..solvers import design_poses
 from ._study import StudyFolder, fingerprint
 from ._timing import machine_info
@@ -150,7 +150,21 @@ def _true_x(x_true, layout: Layout) -> np.ndarray:
 
 @eqx.filter_jit
 def _draw(
-    robot: Robot, key, idx, scales, q_given, q_each, q_val, sigmas, *, n_poses: int, n_val: int, base, tool, design
+    robot: Robot,
+    key,
+    idx,
+    scales,
+    q_given,
+    q_each,
+    q_val,
+    sigmas,
+    *,
+    n_poses: int,
+    n_val: int,
+    base,
+    tool,
+    design,
+    outliers,
 ):
     """Robots ``idx`` of a study: true errors, poses, noisy measurements, inspection poses and
     their true poses. Robot ``i``'s draw depends on ``(key, i)`` alone, so a study's results do
@@ -168,8 +182,11 @@ def _draw(
         else:
             q = sample_poses(kq, robot, (n_poses,)) if q_given is None else q_given
         meas = measure(robot, x, q, kn, sigma_pos=sigmas[0], sigma_rot=sigmas[1], base=base, tool=tool)
+        bad = jnp.zeros(q.shape[0], bool)
+        if outliers is not None:  # gross errors, on a key of their own (the clean draws unchanged)
+            meas, bad = inject_outliers(jax.random.fold_in(kn, 1), meas, *outliers)
         qv = sample_poses(kv, robot, (n_val,)) if q_val is None else q_val
-        return x, q, meas, qv, fk(perturb(robot, x, base=base, tool=tool), qv)
+        return x, q, meas, qv, fk(perturb(robot, x, base=base, tool=tool), qv), bad
 
     return jax.vmap(one)(idx, q_each)
 
@@ -213,6 +230,9 @@ def run_montecarlo(
     view=None,
     min_spread: float = 0.0,
     q_val=None,
+    outliers: float = 0.0,
+    outlier_mm=(3.0, 6.0),
+    keep_outliers: bool = False,
 ) -> dict:
     """Simulate ``n_robots`` robots, calibrate them all, and summarise against the truth and the
     Cramér–Rao bound.
@@ -237,6 +257,11 @@ def run_montecarlo(
     poses of every robot (where the calibrated arm will work) instead of ``n_val`` random ones.
     The summary's ``conditions`` says which were used, and ``crlb_validation_pos_rms_mm`` is
     the inspection RMS the Cramér–Rao bound predicts (first order, at the nominal robot).
+
+    Outliers: ``outliers`` the share of each robot's poses given a gross position error of
+    ``outlier_mm = (A, B)`` mm (:func:`jaxcal.simulation.inject_outliers`); the calibration finds
+    and leaves them out unless ``keep_outliers``; the summary counts the poses flagged, injected
+    or not (``outliers_found``, ``outliers_missed``, ``false_alarms``).
     """
     from ..solvers import METHODS
 
@@ -289,6 +314,11 @@ def run_montecarlo(
         **({"conditions": conditions} if conditions["constrained"] or q_val is not None else {}),
         "chunk_robots": chunk_robots or default_chunk(n_robots, n_poses, n_val, robot.n_joints, memory_mb, len(devs)),
     }
+    gross = _gross(outliers, outlier_mm, n_poses)  # (count, A, B) or None; in the definition only when used
+    if gross is not None:
+        definition["outliers"] = {"fraction": outliers, "outlier_mm": list(gross[1:])}
+    if keep_outliers:
+        definition["keep_outliers"] = True
     folder = StudyFolder(out, definition) if out is not None else None
     c = folder.chunk_robots if folder is not None else definition["chunk_robots"]
     n_chunks = -(-n_robots // c)
@@ -301,13 +331,14 @@ def run_montecarlo(
         sigma_pos_mm=sigma_pos if noisy else None,
         sigma_rot_rad=sigma_rot if noisy else None,
         memory_mb=memory_mb,
+        keep_outliers=keep_outliers,
     )
     stripped = robot.stripped()
     scales = error_scales(robot, base=estimate_base, tool=estimate_tool)
 
     def draw(i):  # chunk i, the last padded to a whole chunk by repeating its last robot: one compile
         idx = np.minimum(np.arange(i * c, (i + 1) * c), n_robots - 1)
-        kw = dict(n_poses=n_poses, n_val=n_val, base=estimate_base, tool=estimate_tool, design=design)
+        kw = dict(n_poses=n_poses, n_val=n_val, base=estimate_base, tool=estimate_tool, design=design, outliers=gross)
         sigmas = np.array([sigma_pos, sigma_rot])
         q_each = None if sampler is None else sampler.sets(idx)
         return [
@@ -326,7 +357,7 @@ def run_montecarlo(
     for i in np.flatnonzero(~done):
         if max_chunks is not None and computed >= max_chunks:
             break
-        x_true, q_i, meas, q_val_i, true_val = draw(int(i))
+        x_true, q_i, meas, q_val_i, true_val, bad = draw(int(i))
         measured = _measured(meas, position_only)
         t0 = time.perf_counter()
         res = calibrate_batch(robot, q_i, measured, opts, ident=ident, devices=devs)
@@ -337,6 +368,7 @@ def run_montecarlo(
             warm.append((len(q_i), dt))
             first = first[:2] + (None,)
         rec = _record(robot, res, x_true, q_i, q_val_i, true_val, ident, sigma_pos, sigma_rot, noisy, q_val is not None)
+        rec |= _flag_counts(res, bad)
         n_i = min(c, n_robots - i * c)  # without the padding
         rec = {k: v[:n_i] for k, v in rec.items()}
         rec["robots"] = np.array([i * c, i * c + n_i])
@@ -354,6 +386,7 @@ def run_montecarlo(
             warm.append((first[0], time.perf_counter() - t0))
     described = ("robot", "method", "n_robots", "n_poses", "n_val", "noise", "seed")
     described += ("position_only", "estimate_base", "estimate_tool")
+    described += tuple(k for k in ("outliers", "keep_outliers") if k in definition)
     out_d = {k: definition[k] for k in described} | {
         "conditions": conditions,
         "devices": describe(devs),
@@ -444,6 +477,25 @@ def study_sampler(
 SAMPLER_STREAM = 0x5A3
 
 
+def _gross(fraction, outlier_mm, n_poses: int):
+    """``(poses per robot, A, B)`` of the outlier injection, None without; checked."""
+    from ..errors import DataError
+
+    if isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.number)) or not 0 <= fraction <= 1:
+        raise DataError(f"outliers must be a share of the poses in [0, 1], got {fraction!r}", option="outliers")
+    lo_hi = np.asarray(outlier_mm, float) if np.shape(outlier_mm) == (2,) else np.full(2, np.nan)
+    if not 0 <= lo_hi[0] <= lo_hi[1] < np.inf:
+        raise DataError(f"outlier_mm must be A,B with 0 <= A <= B (mm), got {outlier_mm!r}", option="outlier_mm")
+    n = int(round(fraction * n_poses))
+    return (n, float(lo_hi[0]), float(lo_hi[1])) if n else None
+
+
+def _flag_counts(res, bad) -> dict:
+    """Per robot: injected outliers flagged, injected ones missed, clean poses flagged."""
+    flag = np.zeros_like(bad) if res.outlier_mask is None else res.outlier_mask
+    return {"flags": np.stack([(flag & bad).sum(1), (~flag & bad).sum(1), (flag & ~bad).sum(1)], 1)}
+
+
 def _measured(meas, position_only: bool):
     return meas[..., :3, 3] if position_only else meas
 
@@ -482,6 +534,7 @@ class _Sums:
         self.n, self.conv, self.max_steps = 0, 0, 0
         self.err2, self.val2, self.crlb = np.zeros(r), 0.0, np.zeros(r)
         self.crlb_val2 = 0.0
+        self.flags = np.zeros(3, int)  # outliers found, missed, false alarms
 
     @classmethod
     def empty(cls, r: int) -> _Sums:
@@ -497,6 +550,8 @@ class _Sums:
             self.crlb = self.crlb + np.sum(rec["crlb_var"], 0)
         if "crlb_val2" in rec:
             self.crlb_val2 += float(np.sum(rec["crlb_val2"]))
+        if "flags" in rec:
+            self.flags = self.flags + np.sum(rec["flags"], 0)
 
     def summary(self, names, noisy: bool) -> dict:
         n = max(self.n, 1)
@@ -508,6 +563,7 @@ class _Sums:
             "param_rms_error": dict(zip(names, rms.tolist())),
             "param_rms_error_max": float(rms.max()),
             "validation_pos_rms_mm": float(np.sqrt(self.val2 / n)),
+            **dict(zip(("outliers_found", "outliers_missed", "false_alarms"), map(int, self.flags))),
         }
         if noisy:
             eff = (self.crlb / n) / (self.err2 / n)

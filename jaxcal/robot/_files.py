@@ -1,4 +1,5 @@
-"""Robot files by their suffix: TOML (DH tables) or URDF (joint frames)."""
+"""Robot files by their suffix: TOML (DH tables), URDF (joint frames) or a UR kinematics file
+(``.yaml``, :mod:`._ur`)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,19 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RobotFileError
-from ._robot import Robot
-from ._toml import read_toml, save_toml
-from ._urdf import read_urdf, save_urdf
+from ._robot import ANGLE_UNITS, LENGTH_UNITS, Robot
+from ._toml import read_toml, save_toml, training_ranges_toml
+from ._ur import read_ur_kinematics
+from ._urdf import calibrated_chain as _urdf_chain
+from ._urdf import read_urdf, save_urdf, training_ranges_urdf
 
 
 def _is_urdf(path) -> bool:
     return Path(path).suffix.lower() in (".urdf", ".xml")
+
+
+def _is_yaml(path) -> bool:
+    return Path(path).suffix.lower() in (".yaml", ".yml")
 
 
 def read_robot_file(path, *, base_link: str | None = None, tip_link: str | None = None):
@@ -23,12 +30,29 @@ def read_robot_file(path, *, base_link: str | None = None, tip_link: str | None 
         return read_urdf(path, base_link=base_link, tip_link=tip_link)
     if base_link is not None or tip_link is not None:
         raise RobotFileError(f"{path}: base_link and tip_link choose the chain of a URDF file")
+    if _is_yaml(path):
+        return read_ur_kinematics(path), None
     return read_toml(path)
 
 
+def calibrated_chain(path) -> tuple[str, str | None] | None:
+    """``(base link, tip link)`` of the chain a calibrated URDF was written for (its
+    ``jaxcal_measurement_frame`` and ``jaxcal_tool`` links); ``None`` for any other file."""
+    return _urdf_chain(path) if _is_urdf(path) and Path(path).exists() else None
+
+
+def read_training_ranges(path) -> dict | None:
+    """The joint ranges a calibrated model was fitted on, as its file records them (joint name ->
+    ``(lowest, highest)``, mm and rad), or ``None`` (a nominal file, a UR kinematics file)."""
+    if _is_yaml(path):
+        return None
+    return training_ranges_urdf(path) if _is_urdf(path) else training_ranges_toml(path)
+
+
 def load_robot(path, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:
-    """Read a robot file: TOML (a DH table, :mod:`jaxcal.robot._toml`) or URDF (the chain from
-    ``base_link`` to ``tip_link``, :mod:`jaxcal.robot._urdf`)."""
+    """Read a robot file: TOML (a DH table, :mod:`jaxcal.robot._toml`), URDF (the chain from
+    ``base_link`` to ``tip_link``, :mod:`jaxcal.robot._urdf`) or a UR kinematics file (``.yaml``,
+    :mod:`jaxcal.robot._ur`)."""
     return read_robot_file(path, base_link=base_link, tip_link=tip_link)[0]
 
 
@@ -41,10 +65,12 @@ def save_robot(
     template=None,
     base_link: str | None = None,
     tip_link: str | None = None,
+    training_ranges: dict | None = None,
 ) -> None:
     """Write a robot file atomically: URDF for a path ending in ``.urdf`` (a joint-frame robot;
     ``template`` the nominal URDF whose chain it keeps), TOML otherwise (a DH robot). ``points``
-    (mm, tool frame) are written with it."""
+    (mm, tool frame) are written with it, and ``training_ranges`` (joint name -> ``(lowest,
+    highest)``, mm and rad: :func:`read_training_ranges`)."""
     points = None if points is None or not len(np.asarray(points)) else np.asarray(points)
     if _is_urdf(path):
         if robot.convention != "joint":
@@ -52,7 +78,13 @@ def save_robot(
                 f"{path}: a DH robot is written as TOML; jaxcal.to_joint converts it to joint frames for URDF"
             )
         save_urdf(
-            robot, path, points=points, template=template, base_link=base_link, tip_link=tip_link, comment=comment
-        )
+            robot, path, points=points, template=template, base_link=base_link, tip_link=tip_link, comment=comment,
+            training_ranges=training_ranges,
+        )  # fmt: skip
     else:
+        if training_ranges:
+            lu, au = LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]
+            kind = dict(zip(robot.joint_names, robot.joint_types))
+            file = {n: [v / (au if kind[n] == "R" else lu) for v in r] for n, r in training_ranges.items()}
+            comment = dict(comment or {}) | {"training_ranges": file}
         save_toml(robot, path, comment=comment, points=points)

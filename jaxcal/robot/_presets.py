@@ -4,7 +4,10 @@
   joint limits; we use +-170 degrees on every joint (documented assumption).
 * ``puma560``: PUMA 560, standard DH as in Corke's Robotics Toolbox (``mdl_puma560``), limits
   from the same source.
-* ``ur5``: Universal Robots UR5, standard DH from the manufacturer's published table.
+* ``ur5``, ``ur10e``: Universal Robots UR5 and UR10e, standard DH from the manufacturer's
+  published tables, in UR's joint convention (the controller's joint angles, its Base frame as
+  frame 0, the tool flange as frame 6): what :func:`jaxcal.save_ur_kinematics` writes for
+  ``ur_description``. Limits +-pi, a sampling range (the arms turn +-2 pi).
 * ``panda``: Franka Emika Panda, modified DH (Craig) from Franka's documentation, flange
   offset d = 107 mm as the tool transform.
 """
@@ -63,6 +66,20 @@ def ur5() -> Robot:
     return Robot(dh, convention="sdh", q_limits=np.tile([-PI, PI], (6, 1)), name="ur5")
 
 
+def ur10e() -> Robot:
+    dh = np.array(
+        [
+            [0.0, 180.7, 0.0, PI / 2],
+            [0.0, 0.0, -612.7, 0.0],
+            [0.0, 0.0, -571.55, 0.0],
+            [0.0, 174.15, 0.0, PI / 2],
+            [0.0, 119.85, 0.0, -PI / 2],
+            [0.0, 116.55, 0.0, 0.0],
+        ]
+    )
+    return Robot(dh, convention="sdh", q_limits=np.tile([-PI, PI], (6, 1)), name="ur10e")
+
+
 def panda() -> Robot:
     dh = np.array(
         [
@@ -91,7 +108,7 @@ def panda() -> Robot:
     return Robot(dh, convention="mdh", tool=tool, q_limits=lim, name="panda")
 
 
-PRESETS = {"paper-6r": paper_6r, "puma560": puma560, "ur5": ur5, "panda": panda}
+PRESETS = {"paper-6r": paper_6r, "puma560": puma560, "ur5": ur5, "ur10e": ur10e, "panda": panda}
 
 
 def preset(name: str) -> Robot:

@@ -56,6 +56,11 @@ class Robot(eqx.Module):
     before it folded in)."""
     axes: Float[Array, "n 3"] | None = None
     """Joint frames only: each joint's unit axis in its origin frame."""
+    compliance: Float[Array, " n"] | None = None
+    """Joint compliance (rad per mm), or ``None`` for a rigid arm: a revolute joint turns by
+    ``compliance_i * tau_i(q)`` beyond its command, ``tau_i`` the gravity moment arm (mm) about its
+    axis of a unit weight at the tool origin (:func:`jaxcal.kinematics.gravity_moments`); 0 for
+    prismatic joints."""
     convention: str = eqx.field(static=True)
     joint_types: tuple[str, ...] = eqx.field(static=True)
     name: str = eqx.field(static=True, default="robot")
@@ -79,6 +84,7 @@ class Robot(eqx.Module):
         units=("mm", "rad"),
         origins=None,
         axes=None,
+        compliance=None,
     ):
         if convention not in CONVENTIONS:
             raise RobotFileError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
@@ -115,6 +121,7 @@ class Robot(eqx.Module):
             j = int(np.argmin(lim[:, 1] - lim[:, 0]))
             raise RobotFileError(f"joint {j + 1}: lower limit is not below the upper limit")
         self.q_limits = q_limits
+        self.compliance = _check_compliance(compliance, joint_types)
         self.convention = convention
         self.joint_types = joint_types
         self.name = str(name)
@@ -199,6 +206,7 @@ class Robot(eqx.Module):
             units=self.units,
             origins=self.origins,
             axes=self.axes,
+            compliance=self.compliance,
         )
         args.update(kw)
         return Robot(**args)
@@ -208,7 +216,7 @@ class Robot(eqx.Module):
         descriptive fields, without validating again. Compiled functions are specialised on
         the static fields: stripping the description lets robots of one structure share them."""
         new = object.__new__(Robot)
-        for f in ("dh", "base", "tool", "q_limits", "origins", "axes", "convention", "joint_types"):
+        for f in ("dh", "base", "tool", "q_limits", "origins", "axes", "compliance", "convention", "joint_types"):
             object.__setattr__(new, f, getattr(self, f))
         n = len(self.joint_types)
         object.__setattr__(new, "name", name)
@@ -246,6 +254,23 @@ def _joint_frames(convention, origins, axes, n):
     if np.any(norm < 1e-9):
         raise RobotFileError(f"joint {int(np.argmin(norm)) + 1}: the axis is zero")
     return jnp.asarray(O), jnp.asarray(a / norm[:, None])
+
+
+def _check_compliance(c, joint_types):
+    """Validated joint compliance (``None``: a rigid arm)."""
+    if c is None:
+        return None
+    c = as_f64(c, "compliance")
+    n = len(joint_types)
+    if c.shape != (n,):
+        raise RobotFileError(f"compliance must have one value per joint ({n}), got shape {c.shape}")
+    cn = np.asarray(c)
+    for i, t in enumerate(joint_types):
+        if not np.isfinite(cn[i]):
+            raise RobotFileError(f"joint {i + 1}: compliance is not finite")
+        if t == "P" and cn[i] != 0:
+            raise RobotFileError(f"joint {i + 1}: a prismatic joint has no compliance (got {cn[i]:g})")
+    return c
 
 
 def _check_transform(T, name):

@@ -13,6 +13,8 @@ File shape (see README)::
     alpha = -1.5707963267948966
     type = "R"                  # optional: "R" (default) or "P"
     limits = [-3.14, 3.14]      # optional: joint limits (angle unit, or length unit if "P")
+    compliance = 0.0            # optional: turn per length of gravity moment arm (angle unit
+                                # per length unit; jaxcal.Robot.compliance)
     [tool]                      # optional, flange -> tool point/frame
     xyz = [0.0, 0.0, 0.0]
     rpy = [0.0, 0.0, 0.0]       # roll-pitch-yaw, fixed axes x-y-z
@@ -36,7 +38,7 @@ from ._robot import LENGTH_UNITS as LENGTH
 from ._robot import Robot
 
 TOP_KEYS = {"name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points"}
-JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits"}
+JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits", "compliance"}
 FRAME_KEYS = {"xyz", "rpy"}
 
 
@@ -83,7 +85,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
     joints = doc.get("joints")
     if not isinstance(joints, list) or not joints:
         raise RobotFileError(f"{source}: needs at least one [[joints]] table")
-    dh, types, limits, names = [], [], [], []
+    dh, types, limits, names, compliance = [], [], [], [], []
     for i, j in enumerate(joints, start=1):
         if not isinstance(j, dict):
             raise RobotFileError(f"{source}: joint {i} is not a table")
@@ -109,6 +111,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
             ]
         )
         types.append(jt)
+        compliance.append(_num(j["compliance"], f"joint {i} compliance") * au / lu if "compliance" in j else None)
         lim = j.get("limits", None)
         scale = au if jt == "R" else lu
         if lim is None:
@@ -132,6 +135,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
         name=name,
         joint_names=names,
         units=(lu_name, au_name),
+        compliance=None if all(c is None for c in compliance) else [c or 0.0 for c in compliance],
     )
 
 
@@ -185,6 +189,9 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> 
             for i, (r, t) in enumerate(zip(dh, robot.joint_types))
         ],
     }
+    if robot.compliance is not None:
+        for j, c in zip(doc["joints"], np.asarray(robot.compliance)):
+            j["compliance"] = float(c) * lu / au
     for key in ("tool", "base"):
         T = np.asarray(getattr(robot, key))
         if not np.allclose(T, np.eye(4), atol=0, rtol=0):
@@ -197,6 +204,26 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> 
     if comment:
         doc["calibration"] = dict(comment)
     return doc
+
+
+def training_ranges_toml(path) -> dict | None:
+    """The ``[calibration] training_ranges`` of a calibrated robot file (joint name -> ``(lowest,
+    highest)``, mm and rad), or ``None``."""
+    with Path(path).open("rb") as f:
+        doc = tomllib.load(f)
+    ranges = doc.get("calibration", {}).get("training_ranges")
+    if not isinstance(ranges, dict):
+        return None
+    robot = robot_from_dict(doc, source=str(path))
+    lu, au = LENGTH[robot.units[0]], ANGLE[robot.units[1]]
+    kind = dict(zip(robot.joint_names, robot.joint_types))
+    out = {}
+    for name, v in ranges.items():
+        if name not in kind or not isinstance(v, list) or len(v) != 2:
+            raise RobotFileError(f"{path}: [calibration] training_ranges.{name} must be [lowest, highest] of a joint")
+        s = au if kind[name] == "R" else lu
+        out[name] = (_num(v[0], f"training_ranges.{name}") * s, _num(v[1], f"training_ranges.{name}") * s)
+    return out
 
 
 def save_toml(robot: Robot, path, *, comment: dict | None = None, points=None) -> None:

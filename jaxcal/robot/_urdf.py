@@ -9,14 +9,20 @@ millimetres inside.
 Writing keeps the nominal file whole where one is given and changes only the chain's movable
 joints' ``<origin>``: the calibrated link ``O_i E_i M_i(offset_i)`` equals
 ``P origin_j E_i M_i(offset_i)``, with ``P`` the fixed joints before it, so the correction and
-the offset (a turn about, or shift along, the axis) fold into the joint's own origin. It adds
+the offset (a turn about, or shift along, the axis) fold into the joint's own origin. The root
+stays the file's root, and three kinds of link are added, fixed joints only:
 
-* ``jaxcal_measurement_frame``, a new root, fixed to the chain's base link by the base frame;
-* ``jaxcal_tool`` under the tip link where the tool frame changed;
-* ``jaxcal_point1..M`` under the tool for the measured points.
+* ``jaxcal_measurement_frame`` under the chain's base link, at the inverse of the base frame:
+  the frame the data were measured in, wherever the base link sits in the tree;
+* ``jaxcal_tool`` under the chain's tip link (the calibrated tool frame; identity when it did
+  not change);
+* ``jaxcal_point1..M`` under ``jaxcal_tool``: the measured points.
 
-Reading such a file back gives the same forward kinematics (the measurement frame and the
-base folded into the first joint's origin) and the points.
+These links are the file's record of its chain: reading a file that has them takes the chain
+from the measurement frame's parent to ``jaxcal_tool`` with no link options (options given must
+name that chain), and any URDF parser's transform from ``jaxcal_measurement_frame`` to
+``jaxcal_point1`` is what was measured. Files of the earlier layout (the measurement frame as
+the root, above the base link; ``jaxcal_tool`` only where the tool changed) read the same way.
 """
 
 from __future__ import annotations
@@ -34,6 +40,11 @@ from ._robot import Robot
 
 M_TO_MM = 1000.0
 MEASUREMENT_FRAME = "jaxcal_measurement_frame"
+RANGE = "jaxcal_training_range"
+"""Element of a calibrated file holding the range of a joint's values the model was fitted on."""
+COMPLIANCE = "jaxcal_compliance"
+"""Element of a calibrated file holding a joint's compliance (:attr:`jaxcal.Robot.compliance`,
+in rad per metre of gravity moment arm)."""
 TOOL_LINK = "jaxcal_tool"
 POINT_LINK = "jaxcal_point"
 MOVABLE = {"revolute": "R", "continuous": "R", "prismatic": "P"}
@@ -72,10 +83,28 @@ def _mm(T) -> np.ndarray:
     return T
 
 
+def _is_ours(link: str) -> bool:
+    """A link jaxcal adds to a written model (never part of a robot's chain)."""
+    return link in (MEASUREMENT_FRAME, TOOL_LINK) or re.fullmatch(POINT_LINK + r"\d+", link) is not None
+
+
+def _tree(doc, source: str) -> dict:
+    """``{child link: joint}``, refusing what is not a tree: a link with two parents."""
+    by_child = {}
+    for j in doc.joints:
+        if j.child in by_child:
+            raise RobotFileError(
+                f"{source}: link {j.child!r} is the child of two joints ({by_child[j.child].name!r}, {j.name!r}); "
+                "a URDF is a tree"
+            )
+        by_child[j.child] = j
+    return by_child
+
+
 def _chain(doc, source: str, base_link: str | None, tip_link: str | None):
     """The joints from ``base_link`` to ``tip_link`` (defaults: the root, the one leaf below it
-    that is not a point jaxcal wrote)."""
-    by_child = {j.child: j for j in doc.joints}
+    that jaxcal did not add)."""
+    by_child = _tree(doc, source)
     parents = {j.parent for j in doc.joints}
     links = {lk.name for lk in doc.links} | parents | set(by_child)
     for what, name in (("base_link", base_link), ("tip_link", tip_link)):
@@ -94,13 +123,11 @@ def _chain(doc, source: str, base_link: str | None, tip_link: str | None):
         below, todo = set(), [base_link]
         while todo:
             link = todo.pop()
-            kids = [j.child for j in doc.joints if j.parent == link]
+            kids = [j.child for j in doc.joints if j.parent == link and j.child not in below]
             below.update(kids)
             todo += kids
-        inner = {j.parent for j in doc.joints if not j.child.startswith(POINT_LINK)}
-        leaves = sorted(lk for lk in below if lk not in inner and not lk.startswith(POINT_LINK))
-        if TOOL_LINK in below:
-            leaves = [TOOL_LINK]
+        inner = {j.parent for j in doc.joints if not _is_ours(j.child)}
+        leaves = sorted(lk for lk in below if lk not in inner and not _is_ours(lk))
         if len(leaves) != 1:
             raise RobotFileError(
                 f"{source}: {len(leaves)} tip links below {base_link!r} ({', '.join(leaves) or 'none'}); "
@@ -110,7 +137,7 @@ def _chain(doc, source: str, base_link: str | None, tip_link: str | None):
         tip_link = leaves[0]
     path, link = [], tip_link
     while link != base_link:
-        if link not in by_child:
+        if link not in by_child or len(path) > len(doc.joints):  # above the root, or round a loop
             raise RobotFileError(
                 f"{source}: {tip_link!r} (tip_link) is not below {base_link!r} (base_link)", option="tip_link"
             )
@@ -119,52 +146,117 @@ def _chain(doc, source: str, base_link: str | None, tip_link: str | None):
     return path[::-1], base_link, tip_link
 
 
+def _record(doc):
+    """``(base link, tip link, base frame (mm))`` of a model jaxcal wrote, from its added links
+    (module docstring); ``None`` for any other URDF. The tip is ``jaxcal_tool``'s parent, or the
+    points' parent in the earlier layout (``None`` there when it has neither)."""
+    by_child = {j.child: j for j in doc.joints}
+    if MEASUREMENT_FRAME in by_child:  # under the base link
+        j = by_child[MEASUREMENT_FRAME]
+        base_link, base = j.parent, np.linalg.inv(_mm(j.origin))
+    else:  # the earlier layout: the root, above the base link
+        below = [j for j in doc.joints if j.parent == MEASUREMENT_FRAME]
+        if len(below) != 1:
+            return None
+        base_link, base = below[0].child, _mm(below[0].origin)
+    tip = None
+    if TOOL_LINK in by_child:
+        tip = by_child[TOOL_LINK].parent
+    else:
+        tip = next((j.parent for j in doc.joints if re.fullmatch(POINT_LINK + r"\d+", j.child)), None)
+    return base_link, tip, base
+
+
+def _agreed(record, base_link, tip_link, source: str):
+    """The recorded chain, checked against the link options given: they may name it (the tip
+    as the tip link or as ``jaxcal_tool``), nothing else."""
+    rec_base, rec_tip, _ = record
+    if base_link is not None and base_link != rec_base:
+        raise RobotFileError(
+            f"{source} is a calibrated model of the chain from {rec_base!r}; {base_link!r} (base_link) does not "
+            "match it: leave the link options out, or calibrate the nominal file for another chain",
+            option="base_link",
+        )
+    if tip_link is not None and rec_tip is not None and tip_link not in (rec_tip, TOOL_LINK):
+        raise RobotFileError(
+            f"{source} is a calibrated model of the chain from {rec_base!r} to {rec_tip!r}; {tip_link!r} "
+            "(tip_link) does not match it: leave the link options out, or calibrate the nominal file for another "
+            "chain",
+            option="tip_link",
+        )
+    tip = rec_tip if rec_tip is not None else (None if tip_link == TOOL_LINK else tip_link)
+    return rec_base, tip
+
+
+def calibrated_chain(path) -> tuple[str, str | None] | None:
+    """``(base link, tip link)`` of a model jaxcal wrote to ``path`` (the chain it was calibrated
+    on), or ``None`` for any other URDF."""
+    path = Path(path)
+    rec = _record(_parse(path))
+    return None if rec is None else rec[:2]
+
+
+def _movable(j, source: str) -> np.ndarray:
+    """The unit axis of a movable joint ``j``, its type and mimic checked."""
+    if j.type not in MOVABLE:
+        raise RobotFileError(
+            f"{source}: joint {j.name!r} is {j.type}; a serial chain takes revolute, continuous, prismatic and "
+            "fixed joints"
+        )
+    if j.mimic is not None:
+        raise RobotFileError(f"{source}: joint {j.name!r} mimics another joint; not supported in a chain")
+    axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=np.float64)
+    n = np.linalg.norm(axis)
+    if not (np.isfinite(n) and n > 0):
+        raise RobotFileError(f"{source}: joint {j.name!r} has axis {axis.tolist()}; a movable joint needs a direction")
+    return axis / n
+
+
 def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None):
     """``(robot, points)``: the joint-frame robot of the chain from ``base_link`` to
     ``tip_link``, and the measured points (mm, tool frame) a calibrated file carries (``None``
-    when it has none)."""
+    when it has none). A calibrated file's own chain needs no link options (module docstring)."""
     path = Path(path)
     source = str(path)
     doc = _parse(path)
     base = np.eye(4)
-    roots = {lk.name for lk in doc.links} - {j.child for j in doc.joints}
-    if base_link is None and roots == {MEASUREMENT_FRAME}:  # a calibrated file: its base frame
-        (j,) = [j for j in doc.joints if j.parent == MEASUREMENT_FRAME]
-        base, base_link = _mm(j.origin), j.child
+    record = _record(doc)
+    if record is not None:
+        base_link, tip_link = _agreed(record, base_link, tip_link, source)
+        base = record[2]
+        if tip_link is not None and any(j.child == TOOL_LINK and j.parent == tip_link for j in doc.joints):
+            tip_link = TOOL_LINK
     joints, base_link, tip_link = _chain(doc, source, base_link, tip_link)
-    for j in doc.joints:
-        if j.parent == base_link and j.child == MEASUREMENT_FRAME:  # written under a base that is no root
-            base = np.linalg.inv(_mm(j.origin))
     origins, axes, types, names, limits = [], [], [], [], []
     pending = np.eye(4)
     for j in joints:
+        T = _mm(j.origin)
+        if not np.isfinite(T).all():
+            raise RobotFileError(f"{source}: joint {j.name!r} has a non-finite <origin>")
         if j.type == "fixed":
-            pending = pending @ _mm(j.origin)
+            pending = pending @ T
             continue
-        if j.type not in MOVABLE:
-            raise RobotFileError(
-                f"{source}: joint {j.name!r} is {j.type}; a serial chain takes revolute, "
-                "continuous, prismatic and fixed joints"
-            )
-        if j.mimic is not None:
-            raise RobotFileError(f"{source}: joint {j.name!r} mimics another joint; not supported in a chain")
+        axes.append(_movable(j, source))
         kind = MOVABLE[j.type]
-        origins.append(pending @ _mm(j.origin))
+        origins.append(pending @ T)
         pending = np.eye(4)
-        axes.append(np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=np.float64))
         scale = 1.0 if kind == "R" else M_TO_MM
         lim = j.limit
         if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None:
             limits.append([-np.pi, np.pi] if kind == "R" else [-1000.0, 1000.0])
+        elif not lim.lower <= lim.upper:
+            raise RobotFileError(f"{source}: joint {j.name!r} has limits lower {lim.lower} > upper {lim.upper}")
         else:
             limits.append([lim.lower * scale, lim.upper * scale])
         types.append(kind)
         names.append(j.name)
     if not types:
         raise RobotFileError(f"{source}: no movable joint between {base_link!r} and {tip_link!r}")
+    compliance = _compliance(path, names)
     robot = Robot(
         None,
         convention="joint",
+        compliance=compliance,
         origins=np.stack(origins),
         axes=np.stack(axes),
         joint_types=types,
@@ -175,14 +267,29 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         joint_names=names,
         units=("m", "rad"),
     )
-    tool_link = tip_link
     pts = sorted(
         ((int(m.group(1)), j) for j in doc.joints if (m := re.fullmatch(POINT_LINK + r"(\d+)", j.child))),
         key=lambda t: t[0],
     )
-    pts = [j for _, j in pts if j.parent == tool_link]
+    pts = [j for _, j in pts if j.parent == tip_link]
     points = np.stack([_mm(j.origin)[:3, 3] for j in pts]) if pts else None
     return robot, points
+
+
+def _compliance(path: Path, names: list[str]) -> np.ndarray | None:
+    """The chain's joint compliances (rad/mm) from the file's ``<jaxcal_compliance>`` elements,
+    ``None`` without any."""
+    from lxml import etree  # yourdfpy's XML library
+
+    found = {}
+    for el in etree.parse(str(path)).getroot().iter(COMPLIANCE):
+        try:
+            found[el.get("joint")] = float(el.get("rad_per_m")) / M_TO_MM
+        except (TypeError, ValueError):
+            raise RobotFileError(f"{path}: <{COMPLIANCE} joint={el.get('joint')!r}> needs a number rad_per_m") from None
+    if not found:
+        return None
+    return np.array([found.get(nm, 0.0) for nm in names])
 
 
 def _folded(robot: Robot, i: int) -> np.ndarray:
@@ -206,8 +313,30 @@ def _m(T) -> np.ndarray:
     return T
 
 
+def training_ranges_urdf(path) -> dict | None:
+    """The ``<jaxcal_training_range>`` elements of a calibrated file (joint name -> ``(lowest,
+    highest)``, mm and rad), or ``None``."""
+    from lxml import etree  # yourdfpy's XML library
+
+    out = {}
+    for el in etree.parse(str(path)).getroot().iter(RANGE):
+        try:
+            scale = M_TO_MM if el.get("unit") == "m" else 1.0
+            out[el.get("joint")] = (float(el.get("lower")) * scale, float(el.get("upper")) * scale)
+        except (TypeError, ValueError):
+            raise RobotFileError(f"{path}: <{RANGE} joint={el.get('joint')!r}> needs numbers lower, upper") from None
+    return out or None
+
+
 def urdf_text(
-    robot: Robot, *, points=None, template=None, base_link=None, tip_link=None, comment: dict | None = None
+    robot: Robot,
+    *,
+    points=None,
+    template=None,
+    base_link=None,
+    tip_link=None,
+    comment: dict | None = None,
+    training_ranges: dict | None = None,
 ) -> str:
     """The URDF of a joint-frame ``robot`` (see the module docstring): the chain of the
     ``template`` file it was read from (with the same ``base_link`` and ``tip_link``) with the
@@ -217,6 +346,11 @@ def urdf_text(
         raise RobotFileError("only joint-frame robots are written as URDF (jaxcal.kinematics.to_joint converts DH)")
     if template is not None:
         doc = copy.deepcopy(_parse(Path(template)))
+        record = _record(doc)
+        if record is not None:  # a calibrated file calibrated again: its chain, its added links replaced
+            base_link, tip_link = _agreed(record, base_link, tip_link, str(template))
+            doc.links = [lk for lk in doc.links if not _is_ours(lk.name)]
+            doc.joints = [j for j in doc.joints if not (_is_ours(j.child) or _is_ours(j.parent))]
         by_name = {j.name: j for j in doc.joints}
         missing = [nm for nm in robot.joint_names if nm not in by_name]
         if missing:
@@ -249,39 +383,31 @@ def urdf_text(
             )
             parent = child
         base_link, tip_link, nominal_tool = "base_link", parent, np.eye(4)
-    tool = np.asarray(robot.tool)
-    if not np.allclose(tool, nominal_tool, atol=1e-12, rtol=0):
-        doc.links.append(yourdfpy.Link(name=TOOL_LINK))
-        doc.joints.append(
-            yourdfpy.Joint(
-                name=TOOL_LINK + "_joint",
-                type="fixed",
-                parent=tip_link,
-                child=TOOL_LINK,
-                origin=_m(np.linalg.solve(nominal_tool, tool)),
-            )
-        )
-        tip_link = TOOL_LINK
+
+    def fixed(parent, child, T):
+        doc.links.append(yourdfpy.Link(name=child))
+        doc.joints.append(yourdfpy.Joint(name=child + "_joint", type="fixed", parent=parent, child=child, origin=_m(T)))
+
+    # the record (module docstring): measurement frame under the base link, tool under the tip
+    fixed(base_link, MEASUREMENT_FRAME, np.linalg.inv(np.asarray(robot.base)))
+    tool = np.linalg.solve(nominal_tool, np.asarray(robot.tool))
+    fixed(tip_link, TOOL_LINK, np.eye(4) if np.allclose(tool, np.eye(4), atol=1e-12, rtol=0) else tool)
     for k, p in enumerate(np.zeros((0, 3)) if points is None else np.asarray(points), start=1):
         T = np.eye(4)
         T[:3, 3] = p
-        doc.links.append(yourdfpy.Link(name=f"{POINT_LINK}{k}"))
-        doc.joints.append(
-            yourdfpy.Joint(
-                name=f"{POINT_LINK}{k}_joint", type="fixed", parent=tip_link, child=f"{POINT_LINK}{k}", origin=_m(T)
-            )
-        )
-    base = np.asarray(robot.base)
-    if not np.allclose(base, np.eye(4), atol=0, rtol=0):
-        doc.links.append(yourdfpy.Link(name=MEASUREMENT_FRAME))
-        if any(j.child == base_link for j in doc.joints):  # a tree has one root: hang it below instead
-            parent, child, T = base_link, MEASUREMENT_FRAME, np.linalg.inv(base)
-        else:
-            parent, child, T = MEASUREMENT_FRAME, base_link, base
-        doc.joints.append(
-            yourdfpy.Joint(name=MEASUREMENT_FRAME + "_joint", type="fixed", parent=parent, child=child, origin=_m(T))
-        )
-    text = yourdfpy.URDF(robot=doc, build_scene_graph=False, load_meshes=False).write_xml_string().decode()
+        fixed(TOOL_LINK, f"{POINT_LINK}{k}", T)
+    from lxml import etree  # yourdfpy's XML library
+
+    xml = yourdfpy.URDF(robot=doc, build_scene_graph=False, load_meshes=False).write_xml()
+    if robot.compliance is not None:  # not URDF's: an element of jaxcal's own, other readers skip it
+        for nm, c in zip(robot.joint_names, np.asarray(robot.compliance)):
+            xml.getroot().append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM)))
+    kinds = dict(zip(robot.joint_names, robot.joint_types))
+    for nm, (lo, hi) in (training_ranges or {}).items():  # metres and radians, as the file's
+        s = 1.0 if kinds.get(nm) == "R" else 1.0 / M_TO_MM
+        unit = "rad" if kinds.get(nm) == "R" else "m"
+        xml.getroot().append(etree.Element(RANGE, joint=nm, lower=repr(lo * s), upper=repr(hi * s), unit=unit))
+    text = etree.tostring(xml, xml_declaration=True, pretty_print=True).decode()
     if comment:
         note = "; ".join(f"{k}: {v}" for k, v in comment.items()).replace("--", "- -")
         text = re.sub(r"(<\?xml[^>]*\?>\s*)?", lambda m: (m.group(0) or "") + f"<!-- {note} -->\n", text, count=1)
@@ -299,7 +425,17 @@ def _tool_of(doc, last_joint: str, tip_link: str) -> np.ndarray:
     return T
 
 
-def save_urdf(robot: Robot, path, *, points=None, template=None, base_link=None, tip_link=None, comment=None) -> None:
+def save_urdf(
+    robot: Robot, path, *, points=None, template=None, base_link=None, tip_link=None, comment=None, training_ranges=None
+) -> None:
     """Write :func:`urdf_text` atomically."""
-    text = urdf_text(robot, points=points, template=template, base_link=base_link, tip_link=tip_link, comment=comment)
+    text = urdf_text(
+        robot,
+        points=points,
+        template=template,
+        base_link=base_link,
+        tip_link=tip_link,
+        comment=comment,
+        training_ranges=training_ranges,
+    )
     write_atomic(path, text)

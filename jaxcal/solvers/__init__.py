@@ -13,6 +13,7 @@ from ._elimination_design import design_poses as design_poses
 from ._elimination_design import infer_layout as infer_layout
 from ._engine import LOSSES as LOSSES
 from ._engine import METHODS as METHODS
+from ._engine import OUTLIER_SIGMAS as OUTLIER_SIGMAS
 from ._engine import PIN as PIN
 from ._engine import Solution as Solution
 from ._engine import fit as fit

@@ -36,7 +36,15 @@ floored at :data:`SCALE_FLOOR`. With ``c = sqrt(chi2_dof(0.95))``:
 * Huber: ``w = min(1, c / u)``;
 * Cauchy: ``w = 1 / (1 + (u / c)^2)``.
 
-A pose is an **outlier** when ``u_k > OUTLIER_K`` (``sqrt(chi2_dof(0.9999))``).
+A pose is an **outlier** when ``u_k`` exceeds :func:`outlier_threshold`: a standardised norm
+as improbable under Gaussian noise as a one-sided deviation of :data:`OUTLIER_SIGMAS` standard
+deviations of a normal variable (``sqrt`` of the chi-square quantile of the pose's rows at that
+tail probability, 2.9e-7 for 5), so the false-alarm rate per pose is the same for positions,
+poses and several points.
+
+## Lost points
+A NaN coordinate of a measured point (a marker not seen at that pose) is not observed
+(:func:`jaxcal.model.observed`): its rows get weight 0 and its value is never read.
 """
 
 from __future__ import annotations
@@ -49,7 +57,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int
 
-from ..model import Layout, Model, apply, errors, residual_and_jacobian_soa
+from ..model import Layout, Model, apply, errors, filled, observed, residual_and_jacobian_soa
 
 METHODS = ("gn", "lm", "linear")
 LOSSES = ("l2", "huber", "cauchy")
@@ -82,14 +90,35 @@ def _chi2_sqrt(p: float, dof: int) -> float:
     return _CHI2_SQRT[(p, dof)]
 
 
-def tuning(dof: int) -> float:
-    """Robust loss tuning constant ``sqrt(chi2_dof(0.95))`` for ``dof`` rows per pose."""
-    return _chi2_sqrt(0.95, dof)
+def _per_pose(p: float, dof):
+    """``sqrt(chi2_dof(p))`` for an int ``dof``, or per pose for an array of row counts."""
+    if np.ndim(dof) == 0:
+        return _chi2_sqrt(p, int(dof))
+    dof = np.asarray(dof, int)
+    return np.array([_chi2_sqrt(p, int(d)) for d in np.unique(dof)])[np.searchsorted(np.unique(dof), dof)]
 
 
-def outlier_threshold(dof: int) -> float:
-    """Standardised residual norm beyond which a pose is an outlier: ``sqrt(chi2_dof(0.9999))``."""
-    return _chi2_sqrt(0.9999, dof)
+def tuning(dof) -> float:
+    """Robust loss tuning constant ``sqrt(chi2_dof(0.95))`` for ``dof`` rows per pose (an array
+    of row counts: per pose)."""
+    return _per_pose(0.95, dof)
+
+
+OUTLIER_SIGMAS = 5.0
+"""Default outlier level: a pose's residual as improbable as a 5-sigma normal deviation
+(one-sided tail 2.9e-7: about one false alarm in 3.5 million clean poses)."""
+
+
+def outlier_threshold(dof: int, sigmas: float = OUTLIER_SIGMAS) -> float:
+    """Standardised residual norm (units of the noise per row) beyond which a pose of ``dof``
+    rows is an outlier: ``sqrt(chi2_dof.isf(p))`` with ``p`` the one-sided normal tail beyond
+    ``sigmas`` (5: 5.77 for a position, 6.40 for a pose, 7.34 for four points)."""
+    key = ("outlier", float(sigmas), int(dof))
+    if key not in _CHI2_SQRT:
+        from scipy.stats import chi2, norm
+
+        _CHI2_SQRT[key] = float(np.sqrt(chi2.isf(norm.sf(sigmas), dof)))
+    return _CHI2_SQRT[key]
 
 
 def _xp(a):
@@ -97,12 +126,15 @@ def _xp(a):
     return np if isinstance(a, (np.ndarray, np.generic)) else jnp
 
 
-def robust_scale(norms: Float[Array, " K"], dof: int, weights=None) -> Float[Array, ""]:
+def robust_scale(norms: Float[Array, " K"], dof, weights=None) -> Float[Array, ""]:
     """Per-row noise scale from per-pose weighted residual norms (the last axis): ``median |r_k| /
     sqrt(median chi2_dof)`` over the poses with positive ``weights`` (all by default), floored at
-    :data:`SCALE_FLOOR`."""
+    :data:`SCALE_FLOOR`. ``dof``: the rows per pose, or (NumPy) an array of each pose's observed
+    rows (lost points), each norm then divided by its own chi median."""
     xp = _xp(norms)
-    med = _chi2_sqrt(0.5, dof)
+    med = _per_pose(0.5, dof)
+    if np.ndim(med):
+        norms, med = norms / med, 1.0
     if weights is None:
         m = xp.median(norms, axis=-1)
     else:  # median over the selected poses: the others sorted to the end as +inf
@@ -115,7 +147,7 @@ def robust_scale(norms: Float[Array, " K"], dof: int, weights=None) -> Float[Arr
     return xp.maximum(m / med, SCALE_FLOOR)
 
 
-def robust_weights(norms, scale, dof: int, loss: str):
+def robust_weights(norms, scale, dof, loss: str):
     """Per-pose IRLS weights ``rho'(u)/u`` for ``u = norms / scale`` (see the module docstring)."""
     xp = _xp(norms)
     u = norms / scale
@@ -253,7 +285,8 @@ def fit(
     """Fit the free parameters of ``model`` to one data set (module docstring). Pure and vmappable.
 
     **Arguments**: ``free`` indices into the layout's ``x`` (static); ``q (K, n)``; ``target``
-    the measurements (``(K, 4, 4)`` poses or ``(K, M, 3)`` points); ``weights`` ``1/sigma`` per
+    the measurements (``(K, 4, 4)`` poses or ``(K, M, 3)`` points, NaN where a point was lost:
+    its rows weigh nothing); ``weights`` ``1/sigma`` per
     residual row; ``pose_weights`` ``(K,)`` (default 1); ``prior`` ``(len(free),)`` (default 0);
     ``loss_scale`` the robust per-row noise scale (None or NaN: estimated); ``column_norms``
     ``(len(free),)`` the norms of the weighted Jacobian's columns, with prior rows, at the start
@@ -269,6 +302,8 @@ def fit(
     prior = jnp.zeros(len(free)) if prior is None else jnp.asarray(prior, jnp.float64)
 
     every = tuple(free) == tuple(range(m))
+    seen = observed(target).T  # (rows, K): a lost point's rows weigh nothing
+    target = filled(target)
 
     def full(y):
         return y if every else jnp.zeros(m).at[free_idx].set(y)
@@ -277,7 +312,7 @@ def fit(
         # pose axis last (residual_and_jacobian_soa): the weights broadcast along it, and the
         # Jacobian stays parameter-major, (p, rows K), with no transpose
         e, J = residual_and_jacobian_soa(model, layout, full(y), q, target)  # (rows, K), (m, rows, K)
-        wk = weights[:, None] * sqrt_pw[None, :]
+        wk = weights[:, None] * sqrt_pw[None, :] * seen
         Jw = (J if every else J[free_idx]) * wk[None]
         return e * wk, Jw
 
@@ -326,7 +361,7 @@ def fit(
         def outer(i, c):  # round 0 the plain fit, then reweighted: one solve in the compiled loop
             z_, _ok, steps_ = c
             e = errors(apply(model, layout, full(scale * z_)), q, target)
-            norms = jnp.linalg.norm(e * weights, axis=-1)
+            norms = jnp.linalg.norm(e * weights * seen.T, axis=-1)
             s = jnp.where(jnp.isnan(given), robust_scale(norms, rows, pose_w), given)
             rw = jnp.where(i == 0, 1.0, robust_weights(norms, s, rows, loss))
             z2, ok2, s2 = solve(z_, pose_w * rw)

@@ -83,3 +83,18 @@ def test_model_and_data_must_measure_the_same_thing():
     meas = Measurements(np.zeros((3, 6)), np.zeros((3, 2, 3)))
     with pytest.raises(DataError, match="the model predicts poses"):
         evaluate(Model(ur5), meas)
+
+
+def test_postures_outside_the_training_ranges_are_counted_and_warned(rng):
+    """A model's training ranges: postures with a joint beyond them (by more than 0.01 rad) are
+    counted; more than 10 % of them is a warning."""
+    ur5, dh = _truth(rng)
+    q = rng.uniform(-1.0, 1.0, (20, 6))
+    ranges = {n: (-0.8, 0.8) for n in ur5.joint_names}
+    meas = Measurements(q, dh_fk(dh, q))
+    rep = evaluate(Model(ur5), meas, ranges=ranges)
+    want = (np.abs(q) > 0.81).any(1)
+    assert rep["outside_training_ranges"] == {"poses": int(want.sum()), "fraction": float(want.mean())}
+    assert want.mean() > 0.1 and "outside the ranges the model was fitted on" in rep["warnings"][0]
+    inside = evaluate(Model(ur5), Measurements(q * 0.5, dh_fk(dh, q * 0.5)), ranges=ranges)
+    assert inside["outside_training_ranges"]["poses"] == 0 and inside["warnings"] == []

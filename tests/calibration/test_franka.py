@@ -55,10 +55,15 @@ def test_franka_calibrate_cli(tmp_path, monkeypatch, capsys):
     assert rep["heldout_rms_mm"] < 1.6
     assert rep["heldout_rot_rms_deg"] < rep["frames_only_heldout_rot_rms_deg"]
     assert rep["heldout_rms_mm"] >= rep["train_rms_mm"]  # held out is never better than training
-    # independent check of the written model: its residual on all poses is the reported training RMS
+    # the last two rows, one configuration measured twice ~4 mm off (docs/franka.md), are outliers
+    flagged = [o["row"] for o in rep["outliers"]]
+    assert {113, 114} <= set(flagged) and len(flagged) <= 0.2 * 114 and "outlier pose(s)" in out
+    # independent check of the written model: its residual on the poses fitted (all but the
+    # outliers) is the reported training RMS
     cal = load_robot(tmp_path / "cal.toml")
     m = read_measurements(franka_csv_path(), preset("panda"), length_unit="m")
     d = np.linalg.norm(np.asarray(fk(cal, m.q))[:, :3, 3] - m.poses[:, :3, 3], axis=1)
+    d = d[~np.isin(m.rows, flagged)]
     assert abs(np.sqrt(np.mean(d**2)) - rep["train_rms_mm"]) < 1e-6
     # the camera sits ~(94, -11, 43) mm from the flange: tool = flange (d = 107 mm) @ camera
     assert np.allclose(rep["tool"]["xyz_mm"], [94, -11, 107 + 43], atol=15)
@@ -110,6 +115,6 @@ def test_franka_calibrate_with_quadratic_camera_model(tmp_path, monkeypatch, cap
     u, v = t[:, 0] / t[:, 2], t[:, 1] / t[:, 2]
     t_rep = t @ (np.eye(3) + A).T + t[:, 2:] * (np.stack([u * u, v * v, u * v], 1) @ Q.T)
     p_reported = -np.einsum("kij,kj->ki", T[:, :3, :3], t_rep)
-    d = np.linalg.norm(p_reported - m.poses[:, :3, 3], axis=1)
+    d = np.linalg.norm(p_reported - m.poses[:, :3, 3], axis=1)[~np.isin(m.rows, [o["row"] for o in rep["outliers"]])]
     assert abs(np.sqrt(np.mean(d**2)) - rep["train_rms_mm"]) < 1e-6
     assert "camera model quadratic" in out

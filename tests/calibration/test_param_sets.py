@@ -9,7 +9,7 @@ from jaxcal.calibration import parse_params
 def test_parse_params():
     r = preset("panda")
     names = [c.name for c in parse_params("auto", r)]
-    assert names[0] == "frames" and names[-1] == "all" and "offsets" in names
+    assert names[0] == "frames" and names[-1] == "all" and "offsets" in names and "all, prior 1 mm" in names
     (c,) = parse_params("theta,a4", r)
     assert c.dh == tuple(sorted([4 * j for j in range(7)] + [4 * 3 + 2]))
     (c,) = parse_params("offsets", r, ridge_mm=2.0)
@@ -20,10 +20,18 @@ def test_parse_params():
         parse_params("theta9", r)
 
 
-def test_ridge_weights_are_one_over_mm_and_mrad():
-    """A ridge of s means s mm for the lengths d, a and s mrad for the angles theta, alpha."""
+def test_auto_tries_every_prior_with_and_without_compliance():
+    r = preset("panda")
+    names = [c.name for c in parse_params("auto", r, compliance=True)]
+    assert names[:2] == ["frames", "offsets"]
+    assert "all, prior 1 mm" in names and "all + compliance, prior 3 mm" in names and names[-1] == "all + compliance"
+    assert not any("compliance" in n for n in (c.name for c in parse_params("auto", r)))
+
+
+def test_prior_weight_is_the_lever_over_the_prior():
+    """A prior of s mm holds a parameter whose unit moves the points L mm with weight L / s."""
     r = preset("panda")
     (c,) = parse_params("all", r, ridge_mm=2.0)
-    assert [c.prior_weight(4 * 3 + k) for k in range(4)] == pytest.approx([500.0, 0.5, 0.5, 500.0])
+    assert c.prior_weight(1.0) == pytest.approx(0.5) and c.prior_weight(600.0) == pytest.approx(300.0)
     (free,) = parse_params("all", r)
-    assert free.prior_weight(5) == 0.0
+    assert free.prior_weight(600.0) == 0.0

@@ -1,5 +1,6 @@
 """Robust losses and outlier reporting (issue 8): 10 % gross outliers (20-50 mm) injected into
-simulated data; validation against the *true* robot on held-out poses."""
+simulated data; validation against the *true* robot on held-out poses. "Plain" fits keep every
+pose (``keep_outliers``): the default leaves the outliers out (tests/calibration/test_outliers.py)."""
 
 import jax.numpy as jnp
 import numpy as np
@@ -43,8 +44,8 @@ def clean_fit():
 @pytest.mark.parametrize("method", ["gn", "lm"])
 @pytest.mark.parametrize("loss", ["huber", "cauchy"])
 def test_robust_fit_survives_outliers(clean_fit, method, loss):
-    plain = calibrate(ROBOT, Q, BAD, method=method, **KW)
-    robust = calibrate(ROBOT, Q, BAD, method=method, loss=loss, **KW)
+    plain = calibrate(ROBOT, Q, BAD, method=method, keep_outliers=True, **KW)
+    robust = calibrate(ROBOT, Q, BAD, method=method, loss=loss, keep_outliers=True, **KW)
     clean, p, r = val_rms(clean_fit.robot), val_rms(plain.robot), val_rms(robust.robot)
     assert clean < 0.05  # the clean fit itself is good (noise 0.02 mm)
     assert p > 10 * clean  # outliers really do spoil the plain fit
@@ -57,17 +58,17 @@ def test_robust_fit_survives_outliers(clean_fit, method, loss):
 def test_position_only_huber():
     kw = dict(position_only=True, sigma_pos_mm=0.02, estimate_base=False, estimate_tool=False)
     clean = val_rms(calibrate(ROBOT, Q, CLEAN, **kw).robot)
-    robust = calibrate(ROBOT, Q, BAD, loss="huber", **kw)
+    robust = calibrate(ROBOT, Q, BAD, loss="huber", keep_outliers=True, **kw)
     assert val_rms(robust.robot) <= 1.5 * clean and robust.outliers == tuple(IDX)
 
 
 def test_batch_reports_outliers_per_data_set():
     Qb, Mb = np.stack([Q, Q]), np.stack([CLEAN, BAD])
-    plain = calibrate_batch(ROBOT, Qb, Mb, **KW)
-    robust = calibrate_batch(ROBOT, Qb, Mb, loss="huber", **KW)
+    plain = calibrate_batch(ROBOT, Qb, Mb, keep_outliers=True, **KW)
+    robust = calibrate_batch(ROBOT, Qb, Mb, loss="huber", keep_outliers=True, **KW)
     assert plain.outliers(0) == () and plain.outliers(1) == tuple(IDX)
     assert list(plain.degraded) == [False, True] and not robust.degraded.any() and robust.converged.all()
-    single = calibrate(ROBOT, Q, BAD, loss="huber", **KW)
+    single = calibrate(ROBOT, Q, BAD, loss="huber", keep_outliers=True, **KW)
     np.testing.assert_allclose(robust.x[1], single.x, atol=1e-12)
 
 
@@ -78,7 +79,7 @@ def test_robust_loss_is_harmless_without_outliers(clean_fit):
 
 
 def test_given_loss_scale():
-    r = calibrate(ROBOT, Q, BAD, loss="cauchy", loss_scale=1.0, **KW)  # 1 sigma = the true noise
+    r = calibrate(ROBOT, Q, BAD, loss="cauchy", loss_scale=1.0, keep_outliers=True, **KW)  # 1 sigma = the true noise
     assert r.outliers == tuple(IDX) and r.robust_scale == 1.0
 
 

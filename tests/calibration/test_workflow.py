@@ -11,7 +11,6 @@ from numpy.testing import assert_allclose, assert_array_equal
 from jaxcal import DataError, Measurements, fk, preset
 from jaxcal.calibration import calibrate_data, fold_ids
 from jaxcal.calibration._initial import initial_frames
-from jaxcal.calibration._workflow import choose
 from jaxcal.error_model import perturb
 from jaxcal.simulation import simulate
 
@@ -105,6 +104,7 @@ def test_cv_prefers_simple_model_when_dh_is_exact(rng):
     sim = _sim(r, np.zeros(28), B, X, n=40, sp=0.5, sr=2e-3, seed=2)
     res = calibrate_measurements(r, sim.q[0], sim.measured[0], params="auto", folds=4)
     assert res.report["choice"] != "all"
+    assert len(res.report["selection"]["kept"]) <= 3  # what is kept is noise: at most a few
     assert res.report["heldout_rms_mm"] < 1.1 * res.report["frames_only_heldout_rms_mm"]
 
 
@@ -138,16 +138,6 @@ def test_camera_models_recovered_from_simulated_camera(rng):
         calibrate_measurements(r, sim.q[0], meas, camera="fisheye")
 
 
-def test_choice_ignores_failed_fits_and_refuses_when_all_failed():
-    from jaxcal.calibration import Candidate
-
-    c = [Candidate("frames", ()), Candidate("offsets", (0,)), Candidate("all", (0, 1, 2))]
-    assert choose([np.nan, 2.0, 1.0], c) == 2  # nan first: min() would otherwise return nan
-    assert choose([1.005, np.nan, 1.0], c) == 0  # simpler within 1 %
-    with pytest.raises(DataError, match="every candidate parameter set .* failed to fit"):
-        choose([np.nan, np.inf, np.nan], c)
-
-
 def test_quadratic_camera_model_recovered_on_franka_geometry(rng):
     """The Franka data's joint angles and camera geometry (target in front of the camera, 0.13-0.63 m
     away), DH errors, 0.05 mm noise, and a camera whose reports carry a linear map and the
@@ -175,7 +165,8 @@ def test_quadratic_camera_model_recovered_on_franka_geometry(rng):
     lin = {row["name"]: row for row in auto["cv"]}["all, camera linear"]
     # auto: the camera model is chosen by cross-validation (the nested figures include the choice)
     assert auto["camera_model"] == "quadratic" and auto["camera_model_option"] == "auto"
-    assert auto["choice"] == "all, camera quadratic" and set(auto["nested_choices"]) == {"all, camera quadratic"}
+    assert auto["choice"] == "all, camera quadratic"
+    assert {c.split(" (")[0] for c in auto["nested_choices"]} == {"all, camera quadratic"}
     assert [c["name"] for c in auto["cv"]] == [f"all, camera {m}" for m in ("none", "depth", "linear", "quadratic")]
     assert_allclose(auto["heldout_rms_mm"], quad["heldout_rms_mm"], rtol=1e-6)
     assert list(auto["camera_parameters"]) == list(quad["camera_parameters"])

@@ -38,7 +38,8 @@ def test_calibrate_then_evaluate(monkeypatch, capsys, split):
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "cal.urdf", d / "train.csv", "--json", d / "ev.json")
     assert code in (0, None), err
     ev = json.loads((d / "ev.json").read_text())
-    assert ev["position_rms_mm"] == pytest.approx(rep["train_rms_mm"], rel=1e-6)
+    fitted = [p["error_mm"] for p in ev["poses"] if p["row"] not in {o["row"] for o in rep["outliers"]}]
+    assert np.sqrt(np.mean(np.square(fitted))) == pytest.approx(rep["train_rms_mm"], rel=1e-6)  # outliers left out
     # held-out: per point in column order, checked against an independent computation
     code, out, err = run_cli(
         monkeypatch, capsys, "evaluate", d / "cal.urdf", d / "test.csv", "--training", d / "train.csv",
@@ -55,6 +56,21 @@ def test_calibrate_then_evaluate(monkeypatch, capsys, split):
     assert held["groups"]["repeated"]["poses"] == 3  # the three training rows appended
     assert sum(g["poses"] for g in held["groups"].values()) == 15
     assert "out of training ranges" in out
+    # the saved model records the joint ranges it was fitted on (outliers left out), and evaluate
+    # counts, and warns about, the postures outside them
+    from jaxcal.robot import read_training_ranges
+
+    tr = read_measurements(d / "train.csv", model.robot)
+    fitted_q = tr.q[~np.isin(tr.rows, [o["row"] for o in rep["outliers"]])]
+    ranges = read_training_ranges(d / "cal.urdf")
+    assert list(ranges) == list(model.robot.joint_names)
+    assert np.allclose([ranges[n] for n in ranges], np.c_[fitted_q.min(0), fitted_q.max(0)], rtol=1e-12, atol=1e-12)
+    tol = np.array([1.0 if t == "P" else 1e-2 for t in model.robot.joint_types])
+    away = ((meas.q < fitted_q.min(0) - tol) | (meas.q > fitted_q.max(0) + tol)).any(1)
+    assert held["outside_training_ranges"]["poses"] == int(away.sum()) > 0.1 * len(away)
+    assert "have a joint outside the ranges the model was fitted on" in " ".join(out.split())
+    code, out, err = run_cli(monkeypatch, capsys, "info", d / "cal.urdf")
+    assert code in (0, None) and "calibrated model of the chain base_footprint -> wrist_ft_tool_link" in out, err
 
 
 def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):

@@ -77,6 +77,32 @@ def test_cli_montecarlo_writes_json(tmp_path):
     assert d["n_robots"] == 8 and d["robots_per_second"] > 0
 
 
+def test_cli_montecarlo_with_gross_outliers(tmp_path):
+    """--outliers 0.1 --outlier-mm 3,6: two of each robot's 20 poses moved by 3-6 mm; found and
+    left out, the models are as good as on clean data; kept in (--keep-outliers), far worse."""
+    from typer.testing import CliRunner
+
+    from jaxcal.cli import app
+
+    def study(*extra):
+        out = tmp_path / f"mc{len(extra)}.json"
+        args = ["montecarlo", "paper-6r", "--robots", "8", "--poses", "20", "--repeats", "0", "--json", str(out)]
+        r = CliRunner().invoke(app, args + list(extra))
+        assert r.exit_code == 0, r.output
+        return json.loads(out.read_text()), r.output
+
+    clean, _ = study()
+    found, text = study("--outliers", "0.1", "--outlier-mm", "3,6")
+    kept, _ = study("--outliers", "0.1", "--outlier-mm", "3,6", "--keep-outliers")
+    assert clean["false_alarms"] == 0 and "outliers" not in clean
+    assert (found["outliers_found"], found["outliers_missed"], found["false_alarms"]) == (16, 0, 0)
+    assert found["outliers"] == {"fraction": 0.1, "outlier_mm": [3.0, 6.0]} and "16 / 0; 0" in text
+    assert found["validation_pos_rms_mm"] < 1.5 * clean["validation_pos_rms_mm"]
+    assert kept["validation_pos_rms_mm"] > 5 * clean["validation_pos_rms_mm"] and kept["keep_outliers"]
+    r = CliRunner().invoke(app, ["montecarlo", "paper-6r", "--robots", "2", "--outlier-mm", "6"])
+    assert isinstance(r.exception, jaxcal.DataError) and r.exception.option == "outlier_mm"
+
+
 def test_montecarlo_elimination_uses_its_pair_design():
     """--method elimination draws the pair design (n_poses sets the pairs per step) and
     recovers noise-free truths with zero error on the held parameter."""
@@ -163,3 +189,22 @@ def test_montecarlo_in_a_view_cone_on_given_inspection_poses(tmp_path):
         d = fk_np(robot.dh + xr.reshape(6, 4), qv) - fk_np(robot.dh + tr.reshape(6, 4), qv)
         np.testing.assert_allclose(vr, np.sqrt(np.mean(np.sum(d**2, -1))), rtol=1e-9)
     assert np.sqrt(np.mean(val**2)) == pytest.approx(out["validation_pos_rms_mm"], rel=1e-12)
+
+
+def test_outliers_injected_in_a_view_cone_on_given_inspection_poses():
+    """Gross outliers and the design's conditions together: two of each robot's 20 cone poses
+    moved by 3-6 mm are found and left out (no clean pose flagged), the conditions are reported,
+    and the models are as good at the given inspection poses as on the same clean data."""
+    from jaxcal import design
+
+    robot = jaxcal.preset("paper-6r")
+    qv = design.random_poses(robot, 15, view=VIEW, seed=9)
+    kw = dict(n_robots=8, n_poses=20, seed=2, repeats=0, view=VIEW, q_val=qv)
+    clean = run_montecarlo(robot, **kw)
+    out = run_montecarlo(robot, **kw, outliers=0.1, outlier_mm=(3.0, 6.0))
+    assert (out["outliers_found"], out["outliers_missed"], out["false_alarms"]) == (16, 0, 0)
+    assert out["outliers"] == {"fraction": 0.1, "outlier_mm": [3.0, 6.0]}
+    assert out["conditions"] == clean["conditions"] and out["conditions"]["calibration_poses"] == "random, constrained"
+    assert out["n_val"] == 15 and out["converged_fraction"] == 1.0
+    # 18 clean poses of the same 20 instead of 20: a little less information, nothing of the gross errors
+    assert out["validation_pos_rms_mm"] < 1.5 * clean["validation_pos_rms_mm"]

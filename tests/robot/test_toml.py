@@ -117,3 +117,20 @@ def test_constructor_does_not_mutate_inputs():
     r2 = r.with_dh_delta(jnp.ones((2, 4)))
     assert np.array_equal(dh, before) and np.array_equal(np.asarray(r.dh), before)
     assert np.array_equal(np.asarray(r2.dh), np.ones((2, 4)))
+
+
+def test_training_ranges_round_trip_in_the_files_units(tmp_path):
+    """The joint ranges a model was fitted on, written in a TOML file in metres and degrees, read
+    back in mm and rad; a nominal file has none."""
+    from jaxcal.robot import read_training_ranges
+
+    r = preset("ur5").replace(units=("m", "deg"))
+    ranges = {n: (-0.5 - i, 0.25 * i) for i, n in enumerate(r.joint_names)}
+    save_robot(r, tmp_path / "r.toml", training_ranges=ranges)
+    assert "training_ranges" in (tmp_path / "r.toml").read_text()
+    back = read_training_ranges(tmp_path / "r.toml")
+    assert back.keys() == ranges.keys()
+    for n in ranges:
+        assert back[n] == pytest.approx(ranges[n], rel=1e-14)
+    save_robot(r, tmp_path / "plain.toml")
+    assert read_training_ranges(tmp_path / "plain.toml") is None

@@ -2,6 +2,8 @@
 scene graph, an independent implementation), written models reloaded to 1e-9 mm, and bad files
 named."""
 
+import re
+
 import numpy as np
 import pytest
 import yourdfpy
@@ -73,15 +75,79 @@ def test_written_model_reloads_to_the_same_kinematics(tmp_path, template):
     np.testing.assert_allclose(np.asarray(fk(back.robot, q)), np.asarray(fk(cal, q)), atol=1e-9)
     np.testing.assert_allclose(np.asarray(back.points), points, atol=1e-12)
     assert back.robot.joint_names == cal.joint_names
-    # the file is a URDF any parser reads: yourdfpy's kinematics to the first point agree
+    # the file is a URDF any parser reads: yourdfpy's kinematics from the measurement frame to
+    # the first point agree
     q_file = q.copy()
     q_file[:, 0] /= 1000.0
-    T = _yourdfpy_fk(path, cal.joint_names, q_file, "jaxcal_point1")
+    T = _yourdfpy_fk(path, cal.joint_names, q_file, "jaxcal_point1", base="jaxcal_measurement_frame")
     expect = np.asarray(fk(cal, q))
     p1 = expect[:, :3, 3] + np.einsum("kij,j->ki", expect[:, :3, :3], points[0])
     np.testing.assert_allclose(T[:, :3, 3], p1, atol=1e-9)
     if template:  # the nominal file's other links are kept
         assert "torso_fixed_link" in path.read_text()
+
+
+def test_the_written_file_records_its_chain(tmp_path):
+    """A sub-chain whose base link is not the root (torso_lift_link): the measurement frame hangs
+    under it and the root stays; the file reads back with no link options, in the measurement
+    frame, and options must name the recorded chain."""
+    rng = np.random.default_rng(11)
+    cal, points = _calibrated(rng)
+    sub = load_robot(URDF, base_link="torso_lift_link")
+    cal = sub.replace(dh=np.asarray(cal.dh)[1:], base=cal.base, tool=cal.tool)
+    path = tmp_path / "cal.urdf"
+    save_model(Model(cal, points), path, template=URDF, base_link="torso_lift_link")
+    back = load_model(path)
+    q = _random_q(cal, rng, 10)
+    np.testing.assert_allclose(np.asarray(fk(back.robot, q)), np.asarray(fk(cal, q)), atol=1e-9)
+    assert back.robot.joint_names == cal.joint_names and back.n_points == 4
+    T = _yourdfpy_fk(path, cal.joint_names, q, "jaxcal_point2", base="jaxcal_measurement_frame")
+    expect = np.asarray(fk(cal, q))
+    np.testing.assert_allclose(T[:, :3, 3], expect[:, :3, 3] + expect[:, :3, :3] @ points[1], atol=1e-9)
+    u = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
+    parent = {j.child: j.parent for j in u.robot.joints}
+    assert {lk.name for lk in u.robot.links} - set(parent) == {"base_footprint"}  # the root stays
+    assert parent["jaxcal_measurement_frame"] == "torso_lift_link"
+    assert parent["jaxcal_tool"] == "wrist_ft_tool_link" and parent["jaxcal_point1"] == "jaxcal_tool"
+    same = load_model(path, base_link="torso_lift_link", tip_link="wrist_ft_tool_link")
+    np.testing.assert_allclose(np.asarray(same.robot.tool), np.asarray(back.robot.tool), atol=0)
+    with pytest.raises(RobotFileError, match=r"chain from 'torso_lift_link'; 'base_footprint' \(base_link\)"):
+        load_model(path, base_link="base_footprint")
+    with pytest.raises(RobotFileError, match=r"to 'wrist_ft_tool_link'; 'arm_7_link' \(tip_link\) does not match"):
+        load_model(path, tip_link="arm_7_link")
+
+
+def test_a_calibrated_file_calibrated_again_and_the_earlier_layout(tmp_path):
+    """A calibrated file as the nominal of a new calibration: its chain and added links are
+    replaced, not doubled. A file of the earlier layout (the measurement frame as the root,
+    above the base link) reads the same, against yourdfpy."""
+    rng = np.random.default_rng(5)
+    cal, points = _calibrated(rng)
+    first = tmp_path / "first.urdf"
+    save_model(Model(cal, points), first, template=URDF)
+    again = load_model(first).robot
+    again = again.replace(dh=rng.normal(size=(8, 7)) * 1e-3, base=np.asarray(again.base) @ np.diag([1, -1, -1, 1.0]))
+    second = tmp_path / "second.urdf"
+    save_model(Model(again, points[:2]), second, template=first)
+    back = load_model(second)
+    q = _random_q(cal, rng, 10)
+    np.testing.assert_allclose(np.asarray(fk(back.robot, q)), np.asarray(fk(again, q)), atol=1e-9)
+    assert back.n_points == 2 and second.read_text().count('link name="jaxcal_') == 4
+
+    # the earlier layout, by hand: the measurement frame the root, base_footprint below it
+    u = yourdfpy.URDF.load(str(first), build_scene_graph=False, load_meshes=False)
+    (j,) = [j for j in u.robot.joints if j.child == "jaxcal_measurement_frame"]
+    j.parent, j.child = "jaxcal_measurement_frame", "base_footprint"
+    T = np.linalg.inv(np.asarray(j.origin))
+    j.origin = T
+    old = tmp_path / "old.urdf"
+    old.write_bytes(yourdfpy.URDF(robot=u.robot, build_scene_graph=False, load_meshes=False).write_xml_string())
+    back = load_model(old)
+    q_file = q.copy()
+    q_file[:, 0] /= 1000.0
+    expect = _yourdfpy_fk(old, cal.joint_names, q_file, "jaxcal_point3", base="jaxcal_measurement_frame")
+    got = np.asarray(fk(back.robot, q))
+    np.testing.assert_allclose(got[:, :3, 3] + got[:, :3, :3] @ np.asarray(back.points)[2], expect[:, :3, 3], atol=1e-9)
 
 
 def test_dh_robot_in_joint_frames_has_the_same_kinematics():
@@ -122,6 +188,23 @@ BAD = {
         "no movable joint between 'a' and 'b'",
     ),
     "not xml": ("<robot name=", "not a readable URDF"),
+    "two parents": (
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="j1" type="fixed"><parent link="a"/><child link="c"/></joint>'
+        '<joint name="j2" type="fixed"><parent link="b"/><child link="c"/></joint></robot>',
+        "link 'c' is the child of two joints ('j1', 'j2'); a URDF is a tree",
+    ),
+    "no axis direction": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="continuous"><parent link="a"/><child link="b"/><axis xyz="0 0 0"/></joint></robot>',
+        "joint 'j' has axis [0.0, 0.0, 0.0]; a movable joint needs a direction",
+    ),
+    "limits reversed": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
+        '<limit lower="1" upper="-1" effort="1" velocity="1"/></joint></robot>',
+        "joint 'j' has limits lower 1.0 > upper -1.0",
+    ),
 }
 
 
@@ -130,7 +213,7 @@ def test_bad_urdf_is_named(tmp_path, case):
     text, msg = BAD[case]
     p = tmp_path / "r.urdf"
     p.write_text(text)
-    with pytest.raises(RobotFileError, match=msg.replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(RobotFileError, match=re.escape(msg)):
         load_robot(p)
 
 

@@ -1,0 +1,208 @@
+r"""Gross outliers: found, named and kept out of the model.
+
+A pose is an **outlier** when its residual is far beyond the noise of the others. After a fit,
+each pose's residual is standardised by robust noise scales, one for the position rows and one
+for the rotation rows (:func:`jaxcal.solvers.robust_scale`: the median of the poses' norms over
+the chi median of their rows, unaffected by up to half the poses being outliers):
+``u_k^2 = |e_pos,k|^2 / s_pos^2 + |e_rot,k|^2 / s_rot^2``, the pose's residual in standard
+deviations of the noise per coordinate. A pose is
+flagged when ``u_k`` exceeds :func:`jaxcal.solvers.outlier_threshold` of its observed rows:
+as improbable under Gaussian noise as a one-sided ``outlier_sigmas``-sigma normal deviation (5:
+2.9e-7 per pose, threshold 5.77 for a position, 6.40 for a pose, 7.34 for four points).
+
+**Detection** (:func:`detect`), per fit (every data set, training set and candidate is a member
+of one compiled solve; a pose's weight is data, so nothing is compiled again):
+
+1. the fit as given; no pose beyond the threshold: done, the fit is unchanged;
+2. else a few Cauchy-reweighted refits (pose weights ``1 / (1 + (u/c)^2)``, warm-started), so
+   that the outliers no longer pull the model and hide among the clean poses' residuals;
+3. the poses beyond the threshold are excluded (weight 0) and the plain fit repeated, until the
+   excluded set is stable (the scales stay medians over every pose: they need no trimming, and
+   trimming them would flag ever more poses of data whose residuals have heavy tails).
+
+The caller then refits its whole pipeline without the excluded poses. More than
+``max_outlier_fraction`` of the poses flagged is not a few bad measurements but a data set that
+does not fit the model: :func:`too_many` says so, and the fit is refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+from jaxtyping import Bool, Float
+
+from ..model import observed
+from ..solvers import outlier_threshold, robust_scale, robust_weights
+
+ROBUST_ROUNDS = 3
+"""Cauchy-reweighted refits before the first exclusion."""
+MAX_ROUNDS = 5
+"""Most exclusion rounds (each a refit) before the excluded set is taken as it is."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Detection:
+    """Outliers of a batch of fits (leading axis: members)."""
+
+    flags: Bool[np.ndarray, "B K"]
+    """Poses found to be outliers: excluded from :attr:`fit` (unless detection was off)."""
+    sigmas: Float[np.ndarray, "B K"]
+    """Every pose's standardised residual ``u_k`` under :attr:`fit` (units of :attr:`scale`)."""
+    scale: Float[np.ndarray, "B 2"]
+    """The robust noise scale per position and per rotation row (units of the fit's sigmas)."""
+    threshold: Float[np.ndarray, "B K"]
+    """Each pose's threshold on :attr:`sigmas`."""
+    fit: dict
+    """The fits (:func:`jaxcal.calibration._core.run_members`'s output) without the outliers."""
+    rounds: int = 0
+    """Refits done (0: nothing was flagged)."""
+
+
+def standardised(fit: dict, dof_pos, weights, *, poses: bool, loss_scale=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(u (B, K), scale (B, 2))``: each pose's residual in units of the noise per row,
+    ``u^2 = |W e_pos|^2 / s_pos^2 + |W e_rot|^2 / s_rot^2``, the scales robust estimates over the
+    poses with positive ``weights`` (:func:`jaxcal.solvers.robust_scale`), one for the position
+    rows (``dof_pos`` of them per pose) and one for the rotation rows (``poses``), or the given
+    ``loss_scale``. Each its own: a fit's weights come from the frames-only residual, not the
+    noise, and a norm over rows of unequal variance would have heavier tails than chi."""
+    pn, rn = (np.atleast_2d(np.asarray(fit[k], float)) for k in ("pos_norms", "rot_norms"))
+    weights = np.asarray(weights, float)
+    if loss_scale is not None:
+        scale = np.full((len(pn), 2), float(loss_scale))
+    else:
+        sr = np.asarray(robust_scale(rn, 3, weights)) if poses else np.ones(len(pn))
+        scale = np.stack([np.asarray(robust_scale(pn, dof_pos, weights)), sr], -1).reshape(-1, 2)
+    u2 = (pn / scale[:, :1]) ** 2 + ((rn / scale[:, 1:]) ** 2 if poses else 0.0)
+    return np.sqrt(u2), scale
+
+
+def position_rows(target) -> np.ndarray:
+    """Each pose's observed position rows (any leading axes): 3 per point seen, 3 for a pose."""
+    seen = observed(np.asarray(target))
+    return seen[..., :3].sum(-1) if np.shape(target)[-2:] == (4, 4) else seen.sum(-1)
+
+
+def false_alarm(sigmas: float) -> float:
+    """Probability that a clean pose is flagged at the level ``sigmas``: the one-sided normal tail."""
+    from scipy.stats import norm
+
+    return float(norm.sf(sigmas))
+
+
+def thresholds(dof, sigmas: float) -> np.ndarray:
+    """:func:`jaxcal.solvers.outlier_threshold` of each pose's row count ``dof``."""
+    dof = np.asarray(dof, int)
+    values = {int(d): outlier_threshold(int(d), sigmas) for d in np.unique(dof)}
+    return np.vectorize(values.__getitem__, otypes=[float])(dof)
+
+
+def detect(
+    refit: Callable[[np.ndarray, np.ndarray], dict],
+    fit: dict,
+    masks,
+    dof_pos,
+    *,
+    poses: bool,
+    sigmas: float,
+    loss_scale=None,
+    robust_rounds: int = ROBUST_ROUNDS,
+    max_rounds: int = MAX_ROUNDS,
+) -> Detection:
+    """Find the outliers of every member of ``fit`` (module docstring).
+
+    **Arguments**: ``refit(pose_weights (B, K), x0 (B, m))`` fits every member again with these
+    pose weights from ``x0`` and returns what ``fit`` is (:func:`._core.run_members`'s output:
+    ``pos_norms``, ``rot_norms``, ``x``, ...); ``fit`` the members' fits on ``masks (B, K)``
+    (their poses); ``dof_pos`` ``(K,)`` or ``(B, K)`` each pose's observed position rows;
+    ``poses`` whether rotations are measured; ``sigmas`` the outlier level
+    (:func:`jaxcal.solvers.outlier_threshold`); ``loss_scale`` a given noise scale per row.
+
+    **Returns** a :class:`Detection`; members with nothing flagged keep their fit unchanged.
+    """
+    masks = np.asarray(masks, bool)
+    dof_pos = np.broadcast_to(np.asarray(dof_pos, int), masks.shape)
+    dof = dof_pos + 3 * poses
+    thr = thresholds(dof, sigmas)
+    kw = dict(poses=poses, loss_scale=loss_scale)
+    u, scale = standardised(fit, dof_pos, masks, **kw)
+    flags = masks & (u > thr)
+    todo = flags.any(-1, keepdims=True)
+    if not todo.any():
+        return Detection(flags, u, scale, thr, fit)
+    for _ in range(robust_rounds):  # members with nothing flagged refit as they were (warm: no step)
+        c = np.asarray(robust_weights(u, 1.0, dof, "cauchy"))
+        fit = refit(np.where(todo, masks * c, masks), fit["x"])
+        u, scale = standardised(fit, dof_pos, masks, **kw)
+    used = masks & (u > thr) & todo
+    for r in range(max_rounds):  # the scale over every pose: the median needs no trimming
+        fit = refit((masks & ~used).astype(float), fit["x"])
+        u, scale = standardised(fit, dof_pos, masks, **kw)
+        new = masks & (u > thr) & todo
+        if np.array_equal(new, used) or r == max_rounds - 1:  # the fit excludes `used`: that set
+            break
+        used = new
+    return Detection(used, u, scale, thr, fit, robust_rounds + r + 1)
+
+
+def assess(fit: dict, masks, dof_pos, *, poses: bool, sigmas: float, loss_scale=None, excluded=None) -> Detection:
+    """The :class:`Detection` of fits as they are: the ``excluded`` poses are the flags; without
+    ``excluded`` (detection off) the poses beyond the threshold are, though the fit kept them."""
+    masks = np.asarray(masks, bool)
+    dof_pos = np.broadcast_to(np.asarray(dof_pos, int), masks.shape)
+    u, scale = standardised(fit, dof_pos, masks, poses=poses, loss_scale=loss_scale)
+    thr = thresholds(dof_pos + 3 * poses, sigmas)
+    flags = masks & (u > thr) if excluded is None else np.asarray(excluded, bool)
+    return Detection(flags, u, scale, thr, fit)
+
+
+def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5) -> str:
+    """Empty when at most ``limit`` (a fraction) of the poses are outliers; else what a refusal
+    says: how many, the limit, and the ``worst`` rows (file row, position error mm, sigmas)."""
+    flags = np.asarray(flags, bool)
+    n, K = int(flags.sum()), flags.size
+    if n <= limit * K:
+        return ""
+    idx = np.flatnonzero(flags)
+    idx = idx[np.argsort(-np.asarray(sigmas)[idx])][:worst]
+    listed = ", ".join(f"{int(rows[k])} ({position_mm[k]:.3g} mm, {sigmas[k]:.3g} sigma)" for k in idx)
+    return (
+        f"{n} of {K} poses ({100 * n / K:.0f} %) are outliers, more than max_outlier_fraction "
+        f"{100 * limit:.0f} %: not a few bad measurements but data the model does not fit; worst rows: {listed}"
+    )
+
+
+def pose_position_mm(pos_err) -> np.ndarray:
+    """Each pose's position error (mm): the point's, or the RMS over the points seen."""
+    pos_err = np.asarray(pos_err, float)
+    if pos_err.ndim == 1:
+        return pos_err
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.nanmean(pos_err**2, -1))
+
+
+def describe(det: Detection, member: int, pos_err, rot_err_deg, rows, *, excluded: bool) -> list[dict]:
+    """JSON entries of the flagged poses of one member, worst first: ``row`` (the file's),
+    ``position_mm``, ``rotation_deg`` (poses), ``sigmas``, ``threshold_sigmas``, ``excluded``."""
+    f, u, t = det.flags[member], det.sigmas[member], det.threshold[member]
+    pos = pose_position_mm(pos_err)
+    out = []
+    for k in np.flatnonzero(f)[np.argsort(-u[f])]:
+        e = {"row": int(rows[k]), "position_mm": float(pos[k])}
+        if rot_err_deg is not None:
+            e["rotation_deg"] = float(rot_err_deg[k])
+        e |= {"sigmas": float(u[k]), "threshold_sigmas": float(t[k]), "excluded": excluded}
+        out.append(e)
+    return out
+
+
+def found(fit: dict, refit, masks, target, opts) -> Detection:
+    """The outliers of the fits ``fit`` on ``masks`` as the options ask (``keep_outliers``: the
+    poses beyond the threshold, kept in the fit; else :func:`detect`, ``refit`` as there), for
+    the measurements ``target``."""
+    kw = dict(poses=np.shape(target)[-2:] == (4, 4), sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+    dof = position_rows(target)
+    if opts.keep_outliers:
+        return assess(fit, masks, dof, **kw)
+    return detect(refit, fit, masks, dof, **kw)

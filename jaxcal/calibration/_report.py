@@ -1,0 +1,359 @@
+"""The result of :func:`jaxcal.calibrate_data`: the final model, its standard errors, the held-out
+figures of the nested fits, and the JSON report (its fields: docs/conventions.md)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+
+from ..camera import n_params as camera_size
+from ..model import Layout, Model, measured_robot, observed
+from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
+from . import _core as core
+from . import _outliers as outliers
+from ._param_sets import Candidate
+from ._single import estimated, judge, still_joint_notes
+
+RULE = (
+    "lowest score, the RMS of the K-fold and range-end held-out errors (linearised); a simpler set "
+    "within 1 % wins; then its parameters pruned, least significant first, while the score stays within 1 %"
+)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DataCalibration:
+    """What :func:`calibrate_data` returns (lengths mm, angles rad unless named)."""
+
+    model: Model
+    """The calibrated model, fitted on all poses with the chosen parameters."""
+    nominal: Robot
+    choice: Candidate
+    report: dict
+    """JSON-ready: everything ``jaxcal calibrate --json`` writes (see :func:`calibrate_data`)."""
+    per_pose: dict
+    """Per pose: ``rows`` (data rows), position errors (mm) ``heldout``, ``train``,
+    ``frames_only_heldout``, ``frames_only_train`` (``(K, M)`` for several points), rotation
+    errors (deg) ``*_rot``; ``outlier``, ``sigmas``; ``frames_only``: the frames-only robot."""
+    deltas: dict
+    """name -> (value, standard error, unit) of every estimated parameter (DH errors relative to
+    the nominal table; frame twists relative to the closed-form guess)."""
+    covariance: np.ndarray | None = None
+    """``(m, m)`` covariance of the final fit's parameters, named by ``layout.names()`` (mm, rad;
+    0 where a parameter is held), whose diagonal gives the standard errors of :attr:`deltas`."""
+    layout: Layout | None = None
+    """The parameters of :attr:`covariance` (the largest camera model tried)."""
+    training_ranges: dict | None = None
+    """Joint name -> ``(lowest, highest)`` (mm, rad) of the poses the model was fitted on, which
+    the written model files record (:func:`jaxcal.robot.read_training_ranges`)."""
+
+    @property
+    def robot(self) -> Robot:
+        return measured_robot(self.model)
+
+    @property
+    def cv_table(self) -> list:
+        return self.report["cv"]
+
+    def to_json(self) -> str:
+        return json.dumps(self.report, indent=2)
+
+
+def _rms(v) -> float:
+    """RMS of the finite values (a lost point is NaN)."""
+    v = np.asarray(v)
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
+
+
+def _max(v) -> float:
+    v = np.asarray(v)
+    v = v[np.isfinite(v)]
+    return float(v.max()) if v.size else float("nan")
+
+
+def _median_pose(pe) -> float:
+    """Median over poses of each pose's RMS over its points (``pe (K, M)``, NaN: lost)."""
+    pe = np.asarray(pe)
+    return float(np.median(np.sqrt(np.nanmean(pe**2, -1)))) if len(pe) else float("nan")
+
+
+def _squeeze(a):
+    a = np.asarray(a)
+    return a[..., 0] if a.ndim == 2 and a.shape[-1] == 1 else a
+
+
+def frame_doc(T) -> dict:
+    """A frame as ``xyz_mm`` and roll-pitch-yaw ``rpy_deg`` (fixed axes x-y-z; at pitch ±90 deg,
+    the robot files' convention of :func:`jaxcal.lie.matrix_to_rpy`, without a warning)."""
+    from ..lie import matrix_to_rpy
+
+    T = np.asarray(T)
+    return {
+        "xyz_mm": [float(v) for v in T[:3, 3]],
+        "rpy_deg": [float(v) for v in np.degrees(np.asarray(matrix_to_rpy(T[:3, :3])))],
+    }
+
+
+def training_ranges(robot, q, valid, *, file_units: bool = False) -> dict:
+    """``{joint name: [lowest, highest]}`` of the poses a model was fitted on: mm and rad, or in the
+    robot file's units (a prismatic joint in its length unit)."""
+    lu, au = (LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]) if file_units else (1.0, 1.0)
+    q = np.asarray(q)[np.asarray(valid, bool)]
+    return {
+        name: [float(q[:, j].min() / (au if t == "R" else lu)), float(q[:, j].max() / (au if t == "R" else lu))]
+        for j, (name, t) in enumerate(zip(robot.joint_names, robot.joint_types))
+    }
+
+
+def _heldout(fits, fr, p):
+    """Held-out position errors (mm) of the nested fits and of the frames-only fits: ``(K, M)`` on
+    the K-fold sets (each pose held out once), and the range-end sets' errors pooled."""
+    O, F = len(p.held), p.n_kfold
+    pe, fo = np.asarray(fits["pos_err"]), np.asarray(fr.fit["pos_err"])
+    re, fre = np.degrees(np.asarray(fits["rot_err"])), np.degrees(np.asarray(fr.fit["rot_err"]))
+    out = {k: np.full(pe.shape[1:], np.nan) for k in ("pe", "fo")} | {
+        k: np.full(len(p.q), np.nan) for k in ("re", "fre")
+    }
+    for o in range(F):
+        h = p.held[o]
+        out["pe"][h], out["fo"][h], out["re"][h], out["fre"][h] = pe[o][h], fo[o][h], re[o][h], fre[o][h]
+    ends = [p.held[o] & p.valid for o in range(F, O)]
+    out["ends"] = np.concatenate([pe[F + i][h] for i, h in enumerate(ends)]) if ends else np.zeros((0,) + pe.shape[2:])
+    out["fo_ends"] = np.concatenate([fo[F + i][h] for i, h in enumerate(ends)]) if ends else out["ends"]
+    return out
+
+
+def _failure(condition: float) -> str:
+    """Why a candidate failed: its parameters are not separable on these poses."""
+    from ._selection import MAX_CONDITION
+
+    return (
+        f"its parameters are not separable on these poses: condition number {condition:.3g} of its "
+        f"column-scaled equations, above {MAX_CONDITION:.0e} (a fit would be singular)"
+    )
+
+
+def _why_not(p, final, names) -> dict:
+    """Why each parameter of the layout is not estimated (identifiability, the chosen set, or
+    pruned by the selection)."""
+    out = dict(p.ident.reasons())
+    cand, ch = final.candidate, final.choice
+    pruned = {j: (t, s) for j, t, s in ch.pruned}
+    for i in np.flatnonzero((final.free[ch.index]) & ~ch.free):
+        t, s = pruned.get(int(i), (np.nan, np.nan))
+        out[names[i]] = (
+            f"dropped by the selection: its estimate was {t:.2g} standard errors from 0, and without it the "
+            f"score was {s:.4g} mm (the set's {ch.scores[ch.index]:.4g} mm)"
+        )
+    for i in np.flatnonzero(~final.free[ch.index] & (final.prior >= core.PIN)):
+        if names[i] not in out and (i < p.layout.n_kin or i in p.layout.compliances):
+            out[names[i]] = f"not in the chosen set ({cand.name})"
+    return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Final:
+    """The final fit (all poses, the chosen model) and its statistics."""
+
+    model: Model
+    """With the chosen camera model's unknowns only."""
+    fit: dict
+    """The fit's arrays (:func:`._core.run_members`, one member)."""
+    x: np.ndarray
+    """Parameters relative to the nominal kinematics and the frames' closed-form guess."""
+    deltas: dict
+    cov: np.ndarray
+    normal: np.ndarray
+    active: list
+    cam_names: list
+
+
+def _final(p, fr, final, fits) -> _Final:
+    """The final model (the last member of the nested fits), its standard errors and covariance."""
+    layout, O = p.layout, len(p.held)
+    cand = final.candidate
+    fin = {k: np.asarray(v)[[O]] for k, v in fits.items() if k != "model"}
+    full = core.wrapped(core.member(fits["model"], O), p.robot)
+    x = core.relative_x(core.member(fr.start, -1), layout, full)
+    model = full
+    if cand.camera != layout.camera:  # the chosen camera model is a prefix of the largest
+        cam = np.asarray(full.camera_params)[: camera_size(cand.camera)]
+        model = Model(full.robot, full.points, cam, camera=cand.camera)
+    w = core.weights_of(layout, fr.sig[[-1]])[0]
+    st = core.fit_statistics(
+        p.run["J0"], w, p.valid.astype(float), fin["norms"][0], loss=p.opts.loss, loss_scale=p.opts.loss_scale,
+        rows=layout.rows, seen=observed(p.target),
+    )  # fmt: skip
+    cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], final.prior)
+    active = list(estimated(final.prior))
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    names, units = layout.names(), layout.units()
+    deltas = {names[i]: (float(x[i]), float(se[i]), units[i]) for i in active}
+    cam_names = [names[i] for i in layout.cameras[: camera_size(cand.camera)]]
+    return _Final(model, fin, x, deltas, cov, st["normal"], active, cam_names)
+
+
+def _figures(p, fr, fits, fin: dict, h: dict) -> dict:
+    """Training, held-out (new postures, beyond the ranges) and frames-only figures (mm, deg)."""
+    rot, kept = p.n_points == 0, p.valid
+    ho, fo = h["pe"][kept], h["fo"][kept]
+    tr_pe, tr_re = fin["pos_err"][0][kept], np.degrees(fin["rot_err"][0])[kept]
+    a_pe, a_re = np.asarray(fr.fit["pos_err"])[-1][kept], np.degrees(np.asarray(fr.fit["rot_err"])[-1])[kept]
+    return {
+        "train_rms_mm": _rms(tr_pe),
+        "train_max_mm": _max(tr_pe),
+        "train_rot_rms_deg": _rms(tr_re) if rot else None,
+        "heldout_rms_mm": _rms(ho),
+        "heldout_max_mm": _max(ho),
+        "heldout_median_mm": _median_pose(ho),
+        "heldout_rot_rms_deg": _rms(h["re"][kept]) if rot else None,
+        "extrapolation_rms_mm": _rms(h["ends"]),
+        "extrapolation_max_mm": _max(h["ends"]),
+        "expected_error_mm": {"new_postures": _rms(ho), "beyond_training_ranges": _rms(h["ends"])},
+        "frames_only_train_rms_mm": _rms(a_pe),
+        "frames_only_train_max_mm": _max(a_pe),
+        "frames_only_train_rot_rms_deg": _rms(a_re) if rot else None,
+        "frames_only_heldout_rms_mm": _rms(fo),
+        "frames_only_heldout_max_mm": _max(fo),
+        "frames_only_heldout_median_mm": _median_pose(fo),
+        "frames_only_heldout_rot_rms_deg": _rms(h["fre"][kept]) if rot else None,
+        "frames_only_extrapolation_rms_mm": _rms(h["fo_ends"]),
+        "cv_fits_converged": int(np.sum(fits["converged"][: len(p.held)]) + np.sum(fr.fit["converged"])),
+        "cv_fits": int(len(p.held) + len(fr.sig)),
+    }
+
+
+def _choice(p, final, per_fold, names) -> dict:
+    """What was chosen and why: the candidates' scores, the parameters kept and dropped."""
+    ch, cand, layout = final.choice, final.candidate, p.layout
+    kfold, ends = ch.parts
+    return {
+        "choice": cand.name,
+        "choice_rule": RULE,
+        "nested": p.nested,
+        "nested_choices": [f"{s.candidate.name} ({int(s.choice.free.sum())} free)" for s in per_fold[: p.n_kfold]],
+        "cv": [
+            {
+                "name": c.name,
+                "score_mm": float(ch.scores[i]),
+                "heldout_rms_mm": float(kfold[i]),
+                "extrapolation_rms_mm": float(ends[i]),
+                "free_parameters": int(final.free[i].sum()),
+                "failure": None if np.isfinite(ch.scores[i]) else _failure(ch.conditions[i]),
+            }
+            for i, c in enumerate(p.candidates)
+        ],
+        "selection": {
+            "candidate": cand.name,
+            "score_mm": float(ch.scores[ch.index]),
+            "pruned_score_mm": float(ch.score),
+            "kept": [names[i] for i in np.flatnonzero(ch.free) if i < layout.n_kin or i in layout.compliances],
+            "dropped": [{"parameter": names[j], "t": float(t), "score_mm": float(s)} for j, t, s in ch.pruned],
+        },
+        "compliance": bool(layout.n_comp) and cand.compliance,
+        "not_estimated": _why_not(p, final, names),
+    }
+
+
+def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
+    """The outliers found and how (docs/conventions.md#outliers)."""
+    opts, rot = p.opts, p.n_points == 0
+    return {
+        "outliers": outliers.describe(
+            last,
+            0,
+            fin["pos_err"][0],
+            np.degrees(fin["rot_err"][0]) if rot else None,
+            p.rows,
+            excluded=not opts.keep_outliers,
+        ),  # fmt: skip
+        "outlier_detection": {
+            "excluded": not opts.keep_outliers,
+            "outlier_sigmas": opts.outlier_sigmas,
+            "false_alarm_per_pose": outliers.false_alarm(opts.outlier_sigmas),
+            "threshold_sigmas": float(outliers.thresholds(p.layout.rows, opts.outlier_sigmas)),
+            "noise_pos_mm": float(det.scale[0, 0] * fr.sig[-1, 0]),
+            "noise_rot_deg": float(np.degrees(det.scale[0, 1] * fr.sig[-1, 1])) if rot else None,
+            "max_outlier_fraction": opts.max_outlier_fraction,
+            "heldout_rms_mm_all_poses": _rms(h["pe"]),  # the flagged poses too: what leaving them out hides
+        },
+        "lost_points": [{"row": r, "point": j} for r, j in getattr(p.data, "lost_points", [])],
+        "dropped_rows": [int(r) for r in getattr(p.data, "dropped_rows", ())],
+    }
+
+
+def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
+    """The :class:`DataCalibration` of a run of :func:`jaxcal.calibrate_data` from its stages."""
+    opts, layout, robot, q = p.opts, p.layout, p.robot, p.q
+    f = _final(p, fr, final, fits)
+    fin, names = f.fit, layout.names()
+    train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], p.valid, n_points=p.n_points)
+    found = dict(poses=p.n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+    excluded = None if opts.keep_outliers else ~p.valid[None]
+    last = outliers.assess(
+        fin, np.ones((1, len(q)), bool), outliers.position_rows(p.target), excluded=excluded, **found
+    )
+    pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
+    many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
+    why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many)
+    h = _heldout(fits, fr, p)
+    rep = {
+        "robot": robot.name,
+        "data": getattr(p.data, "source", "arrays"),
+        "units": list(getattr(p.data, "units", ("mm", "rad"))),
+        "ignored_columns": list(getattr(p.data, "ignored", ())),
+        "poses": len(q),
+        "position_only": p.n_points > 0,
+        "points": p.n_points,
+        "method": opts.method,
+        "folds": opts.folds,
+        "range_end_folds": len(p.held) - p.n_kfold,
+        "seed": opts.seed,
+        "estimate_base": opts.estimate_base,
+        "estimate_tool": opts.estimate_tool,
+    }
+    rep |= _choice(p, final, per_fold, names) | _figures(p, fr, fits, fin, h)
+    rep |= {
+        "camera_model": final.candidate.camera,
+        "camera_model_option": opts.camera,
+        "camera_parameters": {k: {"value": f.deltas[k][0], "std_error": f.deltas[k][1]} for k in f.cam_names} or None,
+        "sigma_pos_mm": float(fr.sig[-1, 0]),
+        "sigma_rot_deg": float(np.degrees(fr.sig[-1, 1])) if p.n_points == 0 else None,
+        "parameters": {
+            k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in f.deltas.items() if k not in f.cam_names
+        },
+        "estimated_dh": [names[i] for i in f.active if i < layout.n_kin],
+        "unidentifiable": [n for n in p.ident.fixed_names if names.index(n) < layout.n_kin],
+        "combinations": list(p.ident.combinations),
+        "condition_number": core.condition_number(f.normal, f.active),
+        "converged": bool(fin["converged"][0]),
+        "steps": int(fin["steps"][0]),
+        "base": frame_doc(f.model.robot.base),
+        "tool": frame_doc(f.model.robot.tool),
+        "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
+        "plausible": not why,
+        "implausible": why or None,
+        "notes": list(still_joint_notes(robot, q)),
+    }
+    rep |= _outlier_section(p, fr, det, last, fin, h)
+    if p.n_points:
+        rep["points_mm"] = np.asarray(f.model.points).tolist()
+        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.nanmean(h["pe"][p.valid] ** 2, 0))]
+    per_pose = {
+        "rows": p.rows,
+        "frames_only_heldout": _squeeze(h["fo"]),
+        "heldout": _squeeze(h["pe"]),
+        "frames_only_train": _squeeze(np.asarray(fr.fit["pos_err"])[-1]),
+        "train": _squeeze(fin["pos_err"][0]),
+        "outlier": last.flags[0],
+        "sigmas": last.sigmas[0],
+        "frames_only_heldout_rot": h["fre"],
+        "heldout_rot": h["re"],
+        "frames_only": core.described(fr.member(-1), robot).robot,
+    }
+    return DataCalibration(
+        model=core.described(f.model, robot), nominal=robot, choice=final.candidate, report=rep, per_pose=per_pose,
+        deltas=f.deltas, covariance=f.cov, layout=layout, training_ranges=training_ranges(robot, q, p.valid),
+    )  # fmt: skip

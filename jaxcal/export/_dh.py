@@ -1,0 +1,75 @@
+"""The calibrated kinematic table beside the nominal one: per parameter the nominal and calibrated
+values, their difference and its standard error, in the robot file's units (``--out-dh``)."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import numpy as np
+
+from .._io import write_atomic
+from ..errors import RobotFileError
+from ..robot import ANGLE_UNITS, LENGTH_UNITS
+
+COLUMNS = ("parameter", "joint", "unit", "nominal", "calibrated", "delta", "std_error", "status")
+
+
+def dh_rows(result) -> list[dict]:
+    """One row per kinematic parameter of a :class:`jaxcal.DataCalibration` (DH, or a URDF
+    robot's joint-frame corrections, whose nominal values are 0), keyed by :data:`COLUMNS`;
+    ``std_error`` is ``None`` and ``status`` says why for a parameter held at its nominal value."""
+    nominal, rep = result.nominal, result.report
+    lu, au = nominal.units
+    per_joint = nominal.n_kinds
+    nom = np.asarray(nominal.dh).ravel()
+    cal = np.asarray(result.model.robot.dh).ravel()
+    held = rep.get("not_estimated", {})
+    rows = []
+    for i, (name, unit) in enumerate(zip(nominal.param_names(), nominal.param_units())):
+        file_unit, scale = (lu, LENGTH_UNITS[lu]) if unit == "mm" else (au, ANGLE_UNITS[au])
+        if name in result.deltas:
+            status, se = "estimated", result.deltas[name][1] / scale
+        else:
+            status = f"not estimated: {held[name]}" if name in held else f"not in the chosen set ({rep['choice']})"
+            se = None
+        rows.append(
+            {
+                "parameter": name,
+                "joint": i // per_joint + 1,
+                "unit": file_unit,
+                "nominal": float(nom[i] / scale),
+                "calibrated": float(cal[i] / scale),
+                "delta": float((cal[i] - nom[i]) / scale),
+                "std_error": se,
+                "status": status,
+            }
+        )
+    return rows
+
+
+def dh_table(result) -> str:
+    """:func:`dh_rows` as CSV text (full float precision; an empty ``std_error`` for a held
+    parameter)."""
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(COLUMNS)
+    for r in dh_rows(result):
+        w.writerow(["" if r[c] is None else repr(r[c]) if isinstance(r[c], float) else r[c] for c in COLUMNS])
+    return out.getvalue()
+
+
+def check_dh(robot, option: str | None = None) -> None:
+    """Raise :class:`jaxcal.RobotFileError` unless ``robot`` has a DH table."""
+    if robot.convention == "joint":
+        raise RobotFileError(
+            f"{option or 'a DH table'}: {robot.name!r} is described by joint frames (a URDF), not a DH table; "
+            "its corrections are in the JSON report's parameters",
+            option=option,
+        )
+
+
+def save_dh_table(result, path) -> None:
+    """Write :func:`dh_table` of a DH robot's calibration atomically."""
+    check_dh(result.nominal)
+    write_atomic(path, dh_table(result))

@@ -1,0 +1,257 @@
+"""A calibration on one page: a self-contained HTML file (``--report``) with the summary, the
+parameters and their standard errors, outliers, the held-out errors and the accuracy map (the
+calibrated model's predicted position standard deviation over the workspace,
+:func:`jaxcal.calibration.position_std`). Figures are embedded as PNG; nothing is linked."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+
+import numpy as np
+
+from .._io import write_atomic
+from ..calibration import position_std
+from ..model import Model, predict
+from ._dh import dh_rows
+
+
+def _base_frame_positions(model: Model, q) -> np.ndarray:
+    """``(K, 3)``: the first measured point (or the tool origin) in the robot's base frame."""
+    m = Model(model.robot.replace(base=np.eye(4)), model.points if model.n_points else None)
+    p = np.asarray(predict(m, np.asarray(q)))
+    return p[:, 0] if model.n_points else p[:, :3, 3]
+
+
+def accuracy_map(result, q, *, workspace_poses: int = 400, seed: int = 0) -> dict:
+    """The accuracy map of a :class:`jaxcal.DataCalibration` whose data had joint values ``q``:
+    ``data`` and ``workspace`` (``workspace_poses`` seeded poses uniform within the joint limits)
+    as ``(positions (K, 3) in the base frame, predicted sigma (K,) mm)``, the sigma the RMS over a
+    pose's points; ``heldout`` the measured held-out error per data pose; ``noise_mm`` the
+    measurement noise as an RMS distance, ``sqrt(3) sigma_pos``."""
+    from ..plots import heldout_errors
+
+    lim = np.asarray(result.nominal.q_limits)
+    qw = lim[:, 0] + np.random.default_rng(seed).uniform(size=(workspace_poses, len(lim))) * (lim[:, 1] - lim[:, 0])
+
+    def at(qq):
+        s = position_std(result.model, result.layout, result.covariance, qq)
+        return _base_frame_positions(result.model, qq), np.sqrt(np.mean(s**2, -1))
+
+    return {
+        "data": at(np.asarray(q)),
+        "workspace": at(qw),
+        "heldout": heldout_errors(result)[0],
+        "noise_mm": float(np.sqrt(3.0) * result.report["sigma_pos_mm"]),
+    }
+
+
+def _png(fig) -> str:
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool) or not isinstance(v, (float, np.floating)):
+        return html.escape(str(v))
+    return f"{v:.6g}"
+
+
+def _table(tid: str, head, rows) -> str:
+    th = "".join(f"<th>{html.escape(str(h))}</th>" for h in head)
+    body = "".join("<tr>" + "".join(f"<td>{_fmt(v)}</td>" for v in r) + "</tr>" for r in rows)
+    return f'<table id="{tid}"><thead><tr>{th}</tr></thead><tbody>{body}</tbody></table>'
+
+
+def _figure(fid: str, fig, caption: str) -> str:
+    return (
+        f'<figure id="{fid}"><img alt="{html.escape(caption)}" src="data:image/png;base64,{_png(fig)}">'
+        f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+    )
+
+
+CSS = (
+    "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+    "table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:.2em .6em;"
+    "text-align:right}th{background:#f3f3f3}td:first-child{text-align:left}img{max-width:100%}"
+    "figcaption{font-size:.9em;color:#555}"
+)
+
+
+def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> str:
+    """The report page of a :class:`jaxcal.DataCalibration` of the measurements ``data``
+    (:class:`jaxcal.Measurements`; their joint values place the accuracy map), as HTML text."""
+    from ..plots import accuracy_figure, parameters_figure, pose_errors_figure
+
+    rep = result.report
+    kind = "nested cross-validation" if rep["nested"] else "K-fold cross-validation"
+    parts = [
+        f"<h1>Calibration of {html.escape(rep['robot'])}</h1>",
+        f"<p>Data: {html.escape(str(rep['data']))}, {rep['poses']} poses, "
+        + (f"{rep['points']} measured point(s) per pose" if rep["points"] else "tool poses measured")
+        + f". Parameter set: {html.escape(rep['choice'])} ({html.escape(rep['choice_rule'])}). "
+        f"Held-out errors from {kind} ({rep['folds']} folds): every pose scored by a model fitted "
+        "without it.</p>",
+        "<h2>Summary</h2>",
+        _table(
+            "summary",
+            [
+                "model",
+                "train RMS (mm)",
+                "held-out RMS: new postures (mm)",
+                "beyond the training ranges (mm)",
+                "held-out max (mm)",
+                "held-out median (mm)",
+                "held-out rot RMS (deg)",
+            ],
+            [
+                [
+                    "frames only (nominal kinematics)",
+                    rep["frames_only_train_rms_mm"],
+                    rep["frames_only_heldout_rms_mm"],
+                    rep["frames_only_extrapolation_rms_mm"],
+                    rep["frames_only_heldout_max_mm"],
+                    rep["frames_only_heldout_median_mm"],
+                    rep["frames_only_heldout_rot_rms_deg"],
+                ],
+                [
+                    f"calibrated ({rep['choice']})",
+                    rep["train_rms_mm"],
+                    rep["heldout_rms_mm"],
+                    rep["extrapolation_rms_mm"],
+                    rep["heldout_max_mm"],
+                    rep["heldout_median_mm"],
+                    rep["heldout_rot_rms_deg"],
+                ],
+            ],
+        ),  # fmt: skip
+        _table(
+            "fit",
+            ["noise sigma_pos (mm)", "sigma_rot (deg)", "condition number", "converged", "steps", "CV fits converged"],
+            [
+                [
+                    rep["sigma_pos_mm"],
+                    rep["sigma_rot_deg"],
+                    rep["condition_number"],
+                    rep["converged"],
+                    rep["steps"],
+                    f"{rep['cv_fits_converged']}/{rep['cv_fits']}",
+                ]
+            ],
+        ),  # fmt: skip
+        "<h2>Parameter sets compared</h2>",
+        _table(
+            "cv",
+            ["parameter set", "score (mm)", "new postures (mm)", "beyond the ranges (mm)", "free", "failure"],
+            [
+                [
+                    c["name"] + (" (chosen)" if c["name"] == rep["choice"] else ""),
+                    c["score_mm"],
+                    c["heldout_rms_mm"],
+                    c["extrapolation_rms_mm"],
+                    c["free_parameters"],
+                    c["failure"] or "",
+                ]
+                for c in rep["cv"]
+            ],
+        ),  # fmt: skip
+        "<p>Scores are linearised held-out errors of the candidates; the chosen set was then pruned to "
+        + html.escape(", ".join(rep["selection"]["kept"]) or "no kinematic parameter")
+        + ".</p>",
+        "<h2>Parameters</h2>",
+        "<p>Kinematic parameters in the robot file's units; a standard error is 1 sigma.</p>",
+        _table(
+            "parameters",
+            ["parameter", "unit", "nominal", "calibrated", "delta", "std error", "status"],
+            [
+                [r["parameter"], r["unit"], r["nominal"], r["calibrated"], r["delta"], r["std_error"], r["status"]]
+                for r in dh_rows(result)
+            ],
+        ),  # fmt: skip
+        _table(
+            "frames",
+            ["frame", "x (mm)", "y (mm)", "z (mm)", "roll (deg)", "pitch (deg)", "yaw (deg)"],
+            [
+                [
+                    k + (" (measurement frame → robot base)" if k == "base" else " (flange → tool)"),
+                    *rep[k]["xyz_mm"],
+                    *rep[k]["rpy_deg"],
+                ]
+                for k in ("base", "tool")
+            ]
+            + [[f"point {j} on the tool", *p, None, None, None] for j, p in enumerate(rep.get("points_mm") or [], 1)],
+        ),  # fmt: skip
+    ]
+    frame_se = [(k, v) for k, v in result.deltas.items() if k.startswith(("base_", "tool_", "point", "camera_"))]
+    if frame_se:
+        parts.append(
+            _table("frame-errors", ["frame parameter", "std error", "unit"], [[k, v[1], v[2]] for k, v in frame_se])
+        )
+    parts.append("<h2>Outliers</h2>")
+    outliers = rep.get("outliers")
+    if outliers:
+        cols = list(dict.fromkeys(k for o in outliers for k in o))
+        parts.append(_table("outliers", cols, [[o.get(c) for c in cols] for o in outliers]))
+    else:
+        parts.append(
+            "<p>No outlier poses reported.</p>"
+            if outliers is not None
+            else "<p>No outlier analysis in this report.</p>"
+        )
+    parts.append("<h2>Accuracy map</h2>")
+    if result.covariance is not None:
+        acc = accuracy_map(result, data.q, workspace_poses=workspace_poses, seed=seed)
+        sw, sd = acc["workspace"][1], acc["data"][1]
+        parts.append(
+            "<p>The calibrated model's predicted position standard deviation (the parameter covariance "
+            "propagated through the model, sqrt(trace(J Σ J<sup>T</sup>)), an RMS distance) at "
+            f"{len(sw)} poses drawn within the joint limits and at the data's poses, beside the measured held-out "
+            "errors. A held-out error adds the measurement noise to the model's: the right panel compares "
+            "the measured errors with sqrt(σ<sub>model</sub>² + 3 σ<sub>pos</sub>²).</p>"
+        )
+        parts.append(
+            _table(
+                "accuracy",
+                ["poses", "predicted sigma, median (mm)", "predicted sigma, max (mm)"],
+                [
+                    ["sampled within the joint limits", float(np.median(sw)), float(np.max(sw))],
+                    ["data poses", float(np.median(sd)), float(np.max(sd))],
+                ],
+            )  # fmt: skip
+        )
+        fig = accuracy_figure(acc["workspace"], acc["data"], acc["heldout"], acc["noise_mm"])
+        parts.append(
+            _figure(
+                "accuracy-map",
+                fig,
+                "accuracy map: predicted std. dev. over the workspace; measured vs predicted held-out errors",
+            )
+        )
+    else:
+        parts.append("<p>No parameter covariance in this result.</p>")
+    parts += [
+        "<h2>Held-out errors</h2>",
+        _figure("pose-errors", pose_errors_figure(result), "held-out position error per pose"),
+        "<h2>Estimated DH errors</h2>",
+        _figure("parameter-errors", parameters_figure(result), "estimated DH errors with 1-sigma error bars"),
+    ]
+    notes = list(rep.get("notes", [])) + [f"{k}: {v}" for k, v in rep.get("not_estimated", {}).items()]
+    if notes:
+        parts += ["<h2>Notes</h2>", "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>"]
+    title = html.escape(f"jaxcal calibration report: {rep['robot']}")
+    return (
+        f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{title}</title>'
+        f"<style>{CSS}</style></head><body>\n" + "\n".join(parts) + "\n</body></html>\n"
+    )
+
+
+def save_report(result, data, path, **kw) -> None:
+    """Write :func:`report_html` atomically."""
+    write_atomic(path, report_html(result, data, **kw))

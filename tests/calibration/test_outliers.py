@@ -1,0 +1,174 @@
+"""Outliers found, named and left out by default (issue 33): the detection alone on a toy fit,
+its threshold against scipy, and simulated calibrations with 5 % gross outliers (3-6 mm) whose
+models are scored against the simulated truth by a NumPy forward kinematics."""
+
+import numpy as np
+import pytest
+from helpers import dh_fk
+from scipy.stats import chi2, norm
+
+import jaxcal
+from jaxcal.calibration import _outliers as outliers
+from jaxcal.calibration import calibrate, calibrate_batch
+from jaxcal.simulation import simulate
+
+K, NOISE = 80, 0.02
+
+
+def test_threshold_has_the_stated_false_alarm_rate():
+    """A clean pose of d rows passes the threshold with the one-sided normal tail beyond 5 sigma."""
+    for dof in (3, 6, 9, 12):
+        t = outliers.thresholds(dof, 5.0)
+        assert chi2.sf(t**2, dof) == pytest.approx(norm.sf(5.0), rel=1e-6)
+    assert outliers.false_alarm(5.0) == pytest.approx(2.8665e-7, rel=1e-4)
+    assert outliers.thresholds(3, 4.0) < outliers.thresholds(3, 5.0) < outliers.thresholds(6, 5.0)
+
+
+def _mean_fit(points):
+    """A toy member fit for :func:`outliers.detect`: each member's weighted mean point, and the
+    norms of the residuals (noise 1 per coordinate) -- nothing of jaxcal's engine."""
+    calls = []
+
+    def refit(w, x0):
+        calls.append(np.array(w))
+        x = np.einsum("bk,bkc->bc", w, points) / w.sum(1, keepdims=True)
+        return {"x": x, "pos_norms": np.linalg.norm(points - x[:, None], axis=-1), "rot_norms": np.zeros(w.shape)}
+
+    return refit, calls
+
+
+def test_detect_finds_gross_errors_and_leaves_clean_members_alone():
+    rng = np.random.default_rng(3)
+    B, n = 3, 60
+    pts = rng.normal(size=(B, n, 3))
+    bad = {1: [4, 17, 30], 2: list(range(0, 60, 4))}  # member 2: a quarter of its poses
+    for b, idx in bad.items():
+        pts[b, idx] += rng.choice([-1.0, 1.0], size=(len(idx), 3)) * rng.uniform(20, 60, (len(idx), 1))
+    refit, calls = _mean_fit(pts)
+    masks = np.ones((B, n), bool)
+    first = refit(masks.astype(float), None)
+    det = outliers.detect(refit, first, masks, 3, poses=False, sigmas=5.0)
+    for b in range(B):
+        assert list(np.flatnonzero(det.flags[b])) == bad.get(b, [])
+    truth = [pts[b][~det.flags[b]].mean(0) for b in range(B)]
+    np.testing.assert_allclose(det.fit["x"], truth, atol=1e-12)  # the fit without them
+    np.testing.assert_array_equal(det.fit["x"][0], first["x"][0])  # a clean member keeps its fit
+    assert all(np.array_equal(w[0], masks[0]) for w in calls)  # ... and its weights
+    assert det.rounds == len(calls) - 1 and det.scale[1, 0] == pytest.approx(1.0, rel=0.25)
+    # nothing flagged: no refit at all
+    refit0, calls0 = _mean_fit(pts[:1])
+    clean = refit0(masks[:1].astype(float), None)
+    det0 = outliers.detect(refit0, clean, masks[:1], 3, poses=False, sigmas=5.0)
+    assert not det0.flags.any() and det0.fit is clean and det0.rounds == 0 and len(calls0) == 1
+
+
+def test_too_many_names_the_worst_rows():
+    flags = np.array([1, 0, 1, 1, 0, 0, 0, 0, 0, 0], bool)
+    u = np.array([9.0, 1, 30, 12, 1, 1, 1, 1, 1, 1])
+    pos = u / 10
+    rows = np.arange(101, 111)
+    msg = outliers.too_many(flags, u, pos, rows, 0.2)
+    assert "3 of 10 poses (30 %) are outliers" in msg and "max_outlier_fraction 20 %" in msg
+    assert msg.index("103 (3 mm, 30 sigma)") < msg.index("104 (1.2 mm") < msg.index("101 (0.9 mm")
+    assert outliers.too_many(flags, u, pos, rows, 0.3) == ""
+
+
+def test_simulate_injects_gross_errors_on_a_key_of_their_own():
+    robot = jaxcal.preset("ur5")
+    kw = dict(n_robots=2, n_poses=40, n_val=3, seed=5, sigma_pos=NOISE, base=True, tool=True)
+    clean, bad = simulate(robot, **kw), simulate(robot, outliers=0.1, outlier_mm=(3.0, 6.0), **kw)
+    for a in ("q", "x_true", "q_val", "true_val"):
+        np.testing.assert_array_equal(getattr(clean, a), getattr(bad, a))
+    d = np.linalg.norm(bad.measured[..., :3, 3] - clean.measured[..., :3, 3], axis=-1)
+    assert (bad.outlier_mask.sum(1) == 4).all() and not clean.outlier_mask.any()
+    assert np.all((d[bad.outlier_mask] >= 3.0) & (d[bad.outlier_mask] <= 6.0)) and d[~bad.outlier_mask].max() < 1e-9
+    np.testing.assert_allclose(bad.measured[..., :3, :3], clean.measured[..., :3, :3], atol=1e-12)
+    with pytest.raises(jaxcal.DataError, match="outlier_mm"):
+        simulate(robot, outliers=0.1, outlier_mm=(6.0, 3.0))
+
+
+def _val_rms(result, sim) -> float:
+    """Position RMS (mm) of a calibrated robot against the simulated truth on the inspection
+    poses, by the NumPy forward kinematics of tests/helpers.py."""
+    r = result.robot
+    T = dh_fk(np.asarray(r.dh), sim.q_val[0], convention=r.convention, base=np.asarray(r.base), tool=np.asarray(r.tool))
+    return float(np.sqrt(np.mean(np.sum((T[:, :3, 3] - sim.true_val[0][:, :3, 3]) ** 2, -1))))
+
+
+@pytest.mark.parametrize(
+    "name, position_only", [("ur5", False), ("puma560", True), ("panda", True), ("paper-6r", False)]
+)
+def test_five_percent_gross_outliers_within_twice_the_clean_error(name, position_only):
+    """The default fit on a file with 5 % outliers of 3-6 mm is within 2x of the clean file's
+    model on clean validation poses; each outlier is named; without detection (keep_outliers)
+    the same file gives a model many times worse."""
+    robot = jaxcal.preset(name)
+    for seed in (1, 2):
+        kw = dict(n_poses=K, n_val=200, seed=seed, sigma_pos=NOISE, sigma_rot=2e-5, base=True, tool=True)
+        clean, bad = simulate(robot, **kw), simulate(robot, outliers=0.05, **kw)
+
+        def data(s):
+            return s.measured[0][:, :3, 3] if position_only else s.measured[0]
+
+        ref = calibrate(robot, clean.q[0], data(clean))
+        fit = calibrate(robot, bad.q[0], data(bad))
+        kept = calibrate(robot, bad.q[0], data(bad), keep_outliers=True)
+        e_clean, e_fit, e_kept = _val_rms(ref, clean), _val_rms(fit, bad), _val_rms(kept, bad)
+        assert ref.outliers == () and fit.outliers == tuple(np.flatnonzero(bad.outlier_mask[0]))
+        assert e_fit <= 2 * e_clean, (name, seed, e_clean, e_fit)
+        assert e_kept > 5 * e_clean and kept.degraded and not fit.degraded  # the outliers did matter
+        assert fit.plausible and fit.converged and all(fit.sigmas[list(fit.outliers)] > fit.outlier_threshold[0])
+    if name != "ur5":  # the check of likely mistakes is compiled once, for the UR5 (as the CLI test's)
+        return
+    # more than max_outlier_fraction of the poses: implausible, the worst rows (pose indices) named
+    worst = max(fit.outliers, key=lambda k: fit.sigmas[k])
+    with pytest.raises(
+        jaxcal.ImplausibleFitError, match=rf"4 of {K} poses \(5 %\) are outliers.*worst rows: {worst} \("
+    ):
+        calibrate(robot, bad.q[0], data(bad), max_outlier_fraction=0.04, strict=True)
+
+
+def test_clean_data_same_model_and_no_false_alarm_over_10000_poses():
+    """0.02 mm noise, 125 simulated UR5s x 80 full poses: no pose is flagged at the default
+    threshold (its false-alarm rate, 2.9e-7 per pose, expects 0.003 here), so detection changes
+    nothing: the same parameters as with keep_outliers, bit for bit."""
+    robot = jaxcal.preset("ur5")
+    sim = simulate(
+        robot, n_robots=125, n_poses=K, n_val=1, seed=8, sigma_pos=NOISE, sigma_rot=2e-5, base=True, tool=True
+    )
+    res = calibrate_batch(robot, sim.q, sim.measured)
+    assert res.outlier_mask.shape == (125, K) and not res.outlier_mask.any() and res.converged.all()
+    one = calibrate(robot, sim.q[0], sim.measured[0])
+    same = calibrate(robot, sim.q[0], sim.measured[0], keep_outliers=True)
+    np.testing.assert_array_equal(one.x, same.x)
+    np.testing.assert_allclose(one.x, res.x[0], atol=1e-9)
+
+
+def test_lost_points_weigh_nothing():
+    """Four points per pose, three of them lost at some poses (NaN): the fit is the one whose
+    lost points, filled in with its own predictions, leave it where it is."""
+    robot = jaxcal.preset("ur5")
+    sim = simulate(robot, n_poses=40, n_val=1, seed=6, sigma_pos=NOISE, sigma_rot=2e-5)
+    offsets = np.array([[0.0, 0, 0], [60.0, 0, 0], [0, 60.0, 0], [0, 0, 60.0]])
+    T = sim.measured[0]
+    pts = np.einsum("kij,mj->kmi", T[:, :3, :3], offsets) + T[:, None, :3, 3]
+    lost = [(3, 1), (10, 2), (25, 0)]
+    holes = pts.copy()
+    for k, j in lost:
+        holes[k, j] = np.nan
+    kw = dict(sigma_pos_mm=NOISE, estimate_base=False)
+    held = holes.copy()
+    r = calibrate(robot, sim.q[0], holes, **kw)
+    np.testing.assert_array_equal(holes, held)  # the caller's array untouched
+    assert r.converged and r.outliers == () and np.isnan(r.pos_errors_mm[3, 1]) and r.plausible
+    pred = np.asarray(jaxcal.model.predict(r.model, sim.q[0]))
+    filled = np.where(np.isnan(holes), pred, holes)
+    again = calibrate(robot, sim.q[0], filled, **kw)
+    np.testing.assert_allclose(np.asarray(again.model.points), np.asarray(r.model.points), atol=1e-7)
+    np.testing.assert_allclose(again.x, r.x, atol=1e-8)
+    with pytest.raises(jaxcal.DataError, match=r"measured\[2\]: no point measured"):
+        calibrate(robot, sim.q[0], np.where(np.arange(40)[:, None, None] == 2, np.nan, pts), **kw)
+    partial = pts.copy()
+    partial[5, 1, 0] = np.nan
+    with pytest.raises(jaxcal.DataError, match=r"index \(5, 1, 0\); a point not measured is NaN in all three"):
+        calibrate(robot, sim.q[0], partial, **kw)

@@ -1,0 +1,107 @@
+"""`jaxcal calibrate --out-ur-kinematics --out-dh --report` on simulated UR5 tracker data: the
+UR kinematics file's forward kinematics, computed from the YAML alone, reproduces the calibrated
+model to 1e-6 mm; every output is written only on success; robots the outputs cannot describe
+are refused before any fitting."""
+
+import csv
+
+import numpy as np
+import pytest
+import yaml
+from helpers import UR5_TRACKER, measurement_csv, pairwise_distances, run_cli, ur5_tracker, ur_yaml_fk
+
+import jaxcal
+import jaxcal.calibration
+
+OUTPUTS = {"--out-ur-kinematics": "cal.yaml", "--out-dh": "dh.csv", "--report": "report.html"}
+
+
+@pytest.fixture(scope="module")
+def tracker_csv(tmp_path_factory):
+    _, sim, _, _ = ur5_tracker()
+    path = tmp_path_factory.mktemp("d") / "tracker.csv"
+    path.write_text(measurement_csv(sim.q[0], sim.measured[0], position_only=True))
+    return path
+
+
+def _calibrate(monkeypatch, capsys, tmp_path, data, robot="ur5", *extra):
+    opts = ["--folds", UR5_TRACKER["folds"], "--params", UR5_TRACKER["params"]]
+    opts += ["--sigma-pos-mm", UR5_TRACKER["sigma_pos"], "--out-robot", tmp_path / "cal.toml"]
+    outs = [v for k, f in OUTPUTS.items() for v in (k, tmp_path / f)]
+    return run_cli(monkeypatch, capsys, "calibrate", robot, data, *opts, *outs, *extra)
+
+
+def test_ur_kinematics_reproduce_the_calibrated_model(tmp_path, monkeypatch, capsys, tracker_csv):
+    code, out, err = _calibrate(monkeypatch, capsys, tmp_path, tracker_csv)
+    assert code in (0, None), err
+    cal = jaxcal.load_robot(tmp_path / "cal.toml")
+    doc = yaml.safe_load((tmp_path / "cal.yaml").read_text())
+    q = np.random.default_rng(5).uniform(-np.pi, np.pi, (300, 6))
+    chain = ur_yaml_fk(doc, q)
+    chain[:, :3, 3] *= 1000.0  # m -> mm
+    # the last link's a6, alpha6 are held (the tool absorbs them): UR's flange is DH frame 6
+    assert np.all(np.asarray(cal.dh)[5, 2:] == 0.0)
+    flange = np.asarray(jaxcal.fk(cal.replace(tool=np.eye(4)), q))
+    worst = np.abs(pairwise_distances(chain[:, :3, 3]) - pairwise_distances(flange[:, :3, 3])).max()
+    assert worst < 1e-6, worst  # mm
+    # with the calibrated base in front and the tool (the reflector) behind: the measured points
+    ends = np.asarray(cal.base) @ chain @ np.asarray(cal.tool)
+    np.testing.assert_allclose(ends[:, :3, 3], np.asarray(jaxcal.fk(cal, q))[:, :3, 3], atol=1e-6)
+    out = " ".join(out.split())  # as rich wrapped it
+    assert "not in it" in out and "base (measurement frame -> base)" in out and "tool (tool0 -> TCP)" in out
+    text = (tmp_path / "cal.yaml").read_text()
+    assert "# not in this file" in text and "heldout_rms_mm" in text
+    # the DH table holds the calibrated table of the robot file
+    rows = list(csv.DictReader((tmp_path / "dh.csv").open()))
+    np.testing.assert_array_equal([float(r["calibrated"]) for r in rows], np.asarray(cal.dh).ravel())
+    html = (tmp_path / "report.html").read_text()
+    assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 3
+
+
+def test_nothing_written_unless_the_fit_converged(tmp_path, monkeypatch, capsys, tracker_csv):
+    """A final fit that did not converge writes none of the outputs (and keeps an old one)."""
+    real = jaxcal.calibration.calibrate_data
+
+    def not_converged(*a, **kw):
+        res = real(*a, **kw)
+        res.report["converged"] = False
+        return res
+
+    monkeypatch.setattr(jaxcal.calibration, "calibrate_data", not_converged)
+    (tmp_path / "dh.csv").write_text("the user's table\n")
+    code, out, err = _calibrate(monkeypatch, capsys, tmp_path, tracker_csv)
+    assert code == 1 and "did not converge" in out + err
+    assert not (tmp_path / "cal.yaml").exists() and not (tmp_path / "report.html").exists()
+    assert (tmp_path / "dh.csv").read_text() == "the user's table\n"
+
+
+def _no_fit(*a, **kw):
+    raise AssertionError("calibrate_data was called: the refusal came after the fit")
+
+
+@pytest.mark.parametrize(
+    "robot, flag, msg",
+    [
+        ("panda", "--out-ur-kinematics", "needs a six-joint revolute DH robot in UR's convention; 'panda' is not"),
+        ("tiago", "--out-ur-kinematics", "described by joint frames (a URDF), not a DH table"),
+        ("tiago", "--out-dh", "is described by joint frames (a URDF), not a DH table"),
+    ],
+)
+def test_robots_refused_before_fitting(tmp_path, monkeypatch, capsys, tracker_csv, robot, flag, msg):
+    from pathlib import Path
+
+    monkeypatch.setattr(jaxcal.calibration, "calibrate_data", _no_fit)
+    path = Path(jaxcal.__file__).parent / "data" / "tiago_mocap" / "tiago_arm.urdf" if robot == "tiago" else robot
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", path, tracker_csv, flag, tmp_path / "x.out")
+    err = " ".join(err.split())
+    assert code == 2 and err.startswith(f"error: {flag}") and msg in err, err
+    assert not (tmp_path / "x.out").exists()
+
+
+@pytest.mark.parametrize("flag", list(OUTPUTS))
+def test_unwritable_output_refused_before_fitting(tmp_path, monkeypatch, capsys, tracker_csv, flag):
+    monkeypatch.setattr(jaxcal.calibration, "calibrate_data", _no_fit)
+    (tmp_path / "afile").write_text("x")
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", tracker_csv, flag, tmp_path / "afile" / "x")
+    err = " ".join(err.split())
+    assert code == 2 and flag in err and "is a file, not a folder" in err, err

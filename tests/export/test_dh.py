@@ -1,0 +1,60 @@
+"""The DH table (`--out-dh`): nominal, calibrated and delta per parameter with its standard
+error, in the robot file's units, from a calibration of simulated UR5 tracker data."""
+
+import csv
+import dataclasses
+import io
+
+import numpy as np
+import pytest
+from helpers import ur5_tracker
+
+import jaxcal
+from jaxcal import RobotFileError
+from jaxcal.export import check_dh, dh_table, save_dh_table
+
+
+def _rows(res):
+    return list(csv.DictReader(io.StringIO(dh_table(res))))
+
+
+def test_table_agrees_with_the_model_and_covariance(tmp_path):
+    ur5, _, _, res = ur5_tracker()
+    save_dh_table(res, tmp_path / "dh.csv")
+    rows = list(csv.DictReader((tmp_path / "dh.csv").open()))
+    names = res.layout.names()
+    se = np.sqrt(np.diag(res.covariance))
+    nominal, calibrated = np.asarray(ur5.dh).ravel(), np.asarray(res.robot.dh).ravel()
+    assert [r["parameter"] for r in rows] == ur5.param_names()
+    for i, r in enumerate(rows):
+        assert float(r["nominal"]) == nominal[i] and float(r["calibrated"]) == calibrated[i]
+        assert abs(float(r["delta"]) - (calibrated[i] - nominal[i])) < 1e-12
+        assert r["unit"] == ("rad" if r["parameter"].startswith(("theta", "alpha")) else "mm")
+        assert int(r["joint"]) == i // 4 + 1
+        if r["status"] == "estimated":
+            assert float(r["std_error"]) == pytest.approx(se[names.index(r["parameter"])], rel=1e-12)
+        else:
+            assert r["std_error"] == "" and float(r["delta"]) == 0.0
+            assert r["status"].startswith("not estimated: not separable from"), r
+    # the base and the tool absorb theta1, d1 and the last link: held, with the reason
+    held = {r["parameter"] for r in rows if r["status"] != "estimated"}
+    assert {"theta1", "d1", "d6", "a6", "alpha6"} <= held
+
+
+def test_table_in_the_robot_files_units():
+    """A robot file in metres and degrees gives a table in metres and degrees."""
+    _, _, _, res = ur5_tracker()
+    mm_rad = _rows(res)
+    m_deg = _rows(dataclasses.replace(res, nominal=res.nominal.replace(units=("m", "deg"))))
+    for a, b in zip(mm_rad, m_deg):
+        angle = a["unit"] == "rad"
+        assert b["unit"] == ("deg" if angle else "m")
+        f = (lambda v: np.degrees(v)) if angle else (lambda v: v / 1000.0)
+        for col in ("nominal", "calibrated", "delta", "std_error"):
+            if a[col]:
+                assert float(b[col]) == pytest.approx(f(float(a[col])), rel=1e-12, abs=1e-15), (a, col)
+
+
+def test_joint_frame_robot_refused():
+    with pytest.raises(RobotFileError, match="out_dh: 'ur5' is described by joint frames"):
+        check_dh(jaxcal.to_joint(jaxcal.preset("ur5")), "out_dh")

@@ -1,0 +1,114 @@
+"""The one-page report (`--report`): one self-contained HTML file whose tables and embedded
+figures are there, parsed with the standard library's HTML parser."""
+
+import base64
+import dataclasses
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+from helpers import ur5_tracker
+
+from jaxcal.export import report_html
+
+
+class Page(HTMLParser):
+    """Tables (id -> header cells, body rows), images (figure id -> src), headings, outside links."""
+
+    def __init__(self, text):
+        super().__init__()
+        self.tables, self.images, self.headings, self.external = {}, {}, [], []
+        self._table = self._figure = self._cell = None
+        self._row, self._in = None, []
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        for key in ("src", "href"):
+            if key in a and not a[key].startswith("data:"):
+                self.external.append(a[key])
+        if tag == "table":
+            self._table = a["id"]
+            self.tables[self._table] = {"head": [], "rows": []}
+        elif tag == "figure":
+            self._figure = a["id"]
+        elif tag == "img":
+            self.images[self._figure] = a["src"]
+        elif tag == "tr":
+            self._row = []
+        elif tag in ("td", "th", "h1", "h2"):
+            self._cell = ""
+        if tag not in ("img", "meta", "br", "link"):  # void elements have no end tag
+            self._in.append(tag)
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell += data
+
+    def handle_endtag(self, tag):
+        self._in.pop()
+        if tag in ("td", "th"):
+            self._row.append(self._cell)
+            self._cell = None
+        elif tag in ("h1", "h2"):
+            self.headings.append(self._cell)
+            self._cell = None
+        elif tag == "tr":
+            t = self.tables[self._table]
+            (t["head"].extend(self._row) if "thead" in self._in else t["rows"].append(self._row))
+        elif tag == "table":
+            self._table = None
+
+
+@pytest.fixture(scope="module")
+def page():
+    """The report of the UR5 tracker calibration, with two outlier poses reported."""
+    _, _, data, res = ur5_tracker()
+    rep = dict(res.report, outliers=[{"row": 7, "residual_mm": 0.61}, {"row": 19, "residual_mm": 0.4, "z": 4.2}])
+    res = dataclasses.replace(res, report=rep)
+    return Page(report_html(res, data, workspace_poses=150)), res
+
+
+def test_tables(page):
+    p, res = page
+    rep = res.report
+    assert {"summary", "fit", "cv", "parameters", "frames", "accuracy", "outliers"} <= set(p.tables)
+    summary = p.tables["summary"]
+    assert summary["head"][:4] == [
+        "model",
+        "train RMS (mm)",
+        "held-out RMS: new postures (mm)",
+        "beyond the training ranges (mm)",
+    ]
+    assert float(summary["rows"][1][2]) == pytest.approx(rep["heldout_rms_mm"], rel=1e-5)
+    assert float(summary["rows"][0][2]) == pytest.approx(rep["frames_only_heldout_rms_mm"], rel=1e-5)
+    params = p.tables["parameters"]
+    assert [r[0] for r in params["rows"]] == res.nominal.param_names()
+    a2 = params["rows"][res.nominal.param_names().index("a2")]
+    assert float(a2[3]) == pytest.approx(float(np.asarray(res.robot.dh)[1, 2]), rel=1e-5)
+    assert float(a2[5]) == pytest.approx(res.deltas["a2"][1], rel=1e-5)  # its standard error
+    outliers = p.tables["outliers"]
+    assert outliers["head"] == ["row", "residual_mm", "z"] and outliers["rows"][0][:2] == ["7", "0.61"]
+    assert "Accuracy map" in p.headings and "Outliers" in p.headings
+
+
+def test_figures_embedded(page):
+    p, _ = page
+    assert set(p.images) == {"accuracy-map", "pose-errors", "parameter-errors"}
+    for src in p.images.values():
+        assert src.startswith("data:image/png;base64,")
+        assert base64.b64decode(src.split(",", 1)[1])[:8] == b"\x89PNG\r\n\x1a\n"
+    assert p.external == []  # self-contained: nothing to fetch
+
+
+def test_accuracy_table_from_the_covariance(page):
+    """The accuracy table's figures are the predicted sigma at the data's poses."""
+    from jaxcal.calibration import position_std
+
+    p, res = page
+    _, _, data, _ = ur5_tracker()
+    sd = position_std(res.model, res.layout, res.covariance, data.q)[:, 0]
+    row = p.tables["accuracy"]["rows"][1]
+    assert row[0] == "data poses"
+    assert float(row[1]) == pytest.approx(np.median(sd), rel=1e-5)
+    assert float(row[2]) == pytest.approx(np.max(sd), rel=1e-5)

@@ -1,0 +1,147 @@
+"""UR kinematics files (`jaxcal.save_ur_kinematics`): the forward kinematics computed from the
+written YAML alone (PyYAML and NumPy, `helpers.ur_yaml_fk`) reproduces the robot's; the UR
+presets give UR's published nominal files; the file reads back; other robots are refused."""
+
+import numpy as np
+import pytest
+import yaml
+from helpers import dh_fk, pairwise_distances, random_dh, random_transform, ur_yaml_fk
+
+import jaxcal
+from jaxcal import RobotFileError, preset
+from jaxcal.export import save_ur_kinematics, ur_kinematics
+
+# UR's published nominal DH (m, rad): d1, a2, a3, d4, d5, d6; alpha = pi/2, 0, 0, pi/2, -pi/2, 0
+UR_DH = {
+    "ur5": (0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823),
+    "ur10e": (0.1807, -0.6127, -0.57155, 0.17415, 0.11985, 0.11655),
+}
+
+
+@pytest.mark.parametrize("name", list(UR_DH))
+def test_presets_write_urs_nominal_file(tmp_path, name):
+    """UR's nominal files, entry by entry: shoulder z = d1, upper_arm roll = alpha1, forearm
+    x = a2, wrist_1 x = a3 and z = d4, wrist_2 y = -d5 and roll = pi/2, wrist_3 y = d6 and a
+    turn by alpha5 = -pi/2 about x (UR writes it as rpy (pi/2, pi, pi))."""
+    d1, a2, a3, d4, d5, d6 = UR_DH[name]
+    save_ur_kinematics(preset(name), tmp_path / "k.yaml")
+    kin = yaml.safe_load((tmp_path / "k.yaml").read_text())["kinematics"]
+    expect = {
+        "shoulder": (0, 0, d1, 0, 0, 0),
+        "upper_arm": (0, 0, 0, np.pi / 2, 0, 0),
+        "forearm": (a2, 0, 0, 0, 0, 0),
+        "wrist_1": (a3, 0, d4, 0, 0, 0),
+        "wrist_2": (0, -d5, 0, np.pi / 2, 0, 0),
+        "wrist_3": (0, d6, 0, -np.pi / 2, 0, 0),
+    }
+    for key, vals in expect.items():
+        got = [kin[key][k] for k in ("x", "y", "z", "roll", "pitch", "yaw")]
+        np.testing.assert_allclose(got, vals, atol=1e-12, err_msg=key)
+    assert list(kin) == [*expect, "hash"] and kin["hash"].startswith("calib_") and kin["hash"][6:].isdigit()
+    # UR's own spelling of wrist_3 is the same frame
+    e = dict(kin["wrist_3"], roll=np.pi / 2, pitch=np.pi, yaw=np.pi)
+    ur = ur_yaml_fk({"kinematics": dict(kin, wrist_3=e)}, np.zeros((1, 6)))
+    np.testing.assert_allclose(ur, ur_yaml_fk({"kinematics": kin}, np.zeros((1, 6))), atol=1e-12)
+
+
+@pytest.mark.parametrize("convention", ["sdh", "mdh"])
+def test_yaml_fk_reproduces_the_robot(tmp_path, rng, convention):
+    """A generic six-joint arm (offsets, a6 and alpha6 non-zero, base and tool): the YAML's chain
+    gives the flange (tool0) positions up to a rigid motion, to 1e-6 mm; with the base and tool
+    that `save_ur_kinematics` returns, the robot's end poses themselves."""
+    dh = random_dh(rng)
+    B, X = random_transform(rng, 500.0), random_transform(rng, 80.0)
+    robot = jaxcal.Robot(dh, convention=convention, base=B, tool=X)
+    base, tool = save_ur_kinematics(robot, tmp_path / "k.yaml")
+    doc = yaml.safe_load((tmp_path / "k.yaml").read_text())
+    q = rng.uniform(-np.pi, np.pi, (200, 6))
+    chain = ur_yaml_fk(doc, q)
+    chain[:, :3, 3] *= 1000.0  # m -> mm
+    ends = dh_fk(dh, q, convention=convention, base=B, tool=X)
+    np.testing.assert_allclose(base @ chain @ tool, ends, atol=1e-9)
+    flange = dh_fk(dh, q, convention=convention)  # jaxcal's flange: base and tool left out
+    if convention == "sdh":  # UR's flange is DH frame 6 less its link's Tx(a6) Rx(alpha6)
+        tail = np.eye(4)
+        tail[0, 3] = dh[5, 2]
+        c, s = np.cos(dh[5, 3]), np.sin(dh[5, 3])
+        tail[1:3, 1:3] = [[c, -s], [s, c]]
+        flange = flange @ np.linalg.inv(tail)
+    worst = np.abs(pairwise_distances(chain[:, :3, 3]) - pairwise_distances(flange[:, :3, 3])).max()
+    assert worst < 1e-6, worst
+
+
+def test_reads_back(tmp_path, rng):
+    """The file reads back (`load_robot`) as a modified-DH arm with the same kinematics from UR's
+    base to tool0; UR's nominal values round-trip to the preset's table."""
+    robot = jaxcal.Robot(random_dh(rng), convention="sdh", base=random_transform(rng), tool=random_transform(rng))
+    base, tool = save_ur_kinematics(robot, tmp_path / "k.yaml")
+    back = jaxcal.load_robot(tmp_path / "k.yaml")
+    assert back.convention == "mdh" and back.units == ("m", "rad") and back.joint_names[0] == "shoulder_pan_joint"
+    q = rng.uniform(-np.pi, np.pi, (50, 6))
+    np.testing.assert_allclose(base @ np.asarray(jaxcal.fk(back, q)) @ tool, np.asarray(jaxcal.fk(robot, q)), atol=1e-9)
+    save_ur_kinematics(preset("ur5"), tmp_path / "ur5.yaml")
+    sdh = jaxcal.to_sdh(jaxcal.load_robot(tmp_path / "ur5.yaml"))
+    np.testing.assert_allclose(np.asarray(sdh.dh), np.asarray(preset("ur5").dh), atol=1e-12)
+
+
+def test_a_factory_style_file_reads_as_joint_frames(tmp_path, rng):
+    """Origins off the DH form (UR's factory calibrations move them) read as joint frames whose
+    kinematics is the file's."""
+    save_ur_kinematics(preset("ur5"), tmp_path / "k.yaml")
+    doc = yaml.safe_load((tmp_path / "k.yaml").read_text())
+    for e in doc["kinematics"].values():
+        if isinstance(e, dict):
+            e["y"] += 1e-4
+            e["pitch"] += 2e-3
+    (tmp_path / "f.yaml").write_text(yaml.safe_dump(doc))
+    back = jaxcal.load_robot(tmp_path / "f.yaml")
+    assert back.convention == "joint"
+    q = rng.uniform(-np.pi, np.pi, (20, 6))
+    want = ur_yaml_fk(doc, q)
+    want[:, :3, 3] *= 1000.0
+    np.testing.assert_allclose(np.asarray(jaxcal.fk(back, q)), want, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "robot, why",
+    [
+        (preset("panda"), "it has 7 joints, not 6"),
+        (preset("ur5").replace(joint_types=("R", "R", "P", "R", "R", "R")), "joint 3 is prismatic"),
+        (jaxcal.to_joint(preset("ur5")), "described by joint frames (a URDF), not a DH table"),
+    ],
+)
+def test_other_robots_refused(tmp_path, robot, why):
+    with pytest.raises(RobotFileError, match="needs a six-joint revolute DH robot") as e:
+        ur_kinematics(robot)
+    assert why in str(e.value)
+    with pytest.raises(RobotFileError):
+        save_ur_kinematics(robot, tmp_path / "k.yaml")
+    assert not (tmp_path / "k.yaml").exists()
+
+
+@pytest.mark.parametrize(
+    "text, msg",
+    [
+        ("joints: []\n", "needs a top-level 'kinematics' mapping"),
+        ("kinematics:\n  shoulder: 3\n", "kinematics.shoulder must be a mapping"),
+        ("kinematics: [1, 2\n", "not valid YAML"),
+    ],
+)
+def test_bad_files_refused(tmp_path, text, msg):
+    (tmp_path / "bad.yaml").write_text(text)
+    with pytest.raises(RobotFileError, match=msg):
+        jaxcal.load_robot(tmp_path / "bad.yaml")
+
+
+def test_missing_value_named(tmp_path):
+    save_ur_kinematics(preset("ur5"), tmp_path / "k.yaml")
+    doc = yaml.safe_load((tmp_path / "k.yaml").read_text())
+    doc["kinematics"]["forearm"]["x"] = "abc"
+    (tmp_path / "k.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(RobotFileError, match=r"kinematics.forearm.x must be a finite number, got 'abc'"):
+        jaxcal.load_robot(tmp_path / "k.yaml")
+    del doc["kinematics"]["wrist_2"]["roll"]
+    doc["kinematics"]["forearm"]["x"] = 0.0
+    (tmp_path / "k.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(RobotFileError, match=r"kinematics.wrist_2.roll is missing"):
+        jaxcal.load_robot(tmp_path / "k.yaml")

@@ -1,0 +1,145 @@
+"""Joint compliance (jaxcal.Robot.compliance): gravity moments against the virtual-work formula,
+the deflected forward kinematics, the identification Jacobian against autodiff, and the robot
+files carrying it."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+import jaxcal
+from jaxcal.kinematics import gravity_moments, to_joint
+from jaxcal.model import Layout, Model, apply, errors, predict, residual_and_jacobian
+
+ROBOTS = {"sdh": lambda: jaxcal.preset("ur5"), "mdh": lambda: jaxcal.preset("panda")}
+ROBOTS["joint"] = lambda: to_joint(jaxcal.preset("panda"))
+
+
+def _rigid_z(robot, q):
+    """Tool height in the robot's base frame of a rigid copy (an FK of its own)."""
+    return jaxcal.fk(robot.replace(base=np.eye(4), compliance=None), q)[..., 2, 3]
+
+
+@pytest.mark.parametrize("conv", sorted(ROBOTS))
+def test_gravity_moments_are_the_virtual_work_of_a_unit_weight(conv, rng):
+    """A unit weight at the tool exerts ``-dz/dq_i`` about joint i (z up): the moment arm the
+    compliance multiplies, checked by autodiff of the forward kinematics."""
+    robot = ROBOTS[conv]().replace(base=jaxcal.preset("ur5").base)
+    q = rng.uniform(-1.2, 1.2, (9, robot.n_joints))
+    want = -np.asarray(jax.vmap(jax.grad(lambda qi: _rigid_z(robot, qi)))(jnp.asarray(q)))
+    assert_allclose(np.asarray(gravity_moments(robot, q)), want, atol=1e-8)
+    assert np.abs(want).max() > 100.0  # a test that can fail: moments of hundreds of mm
+
+
+def test_a_prismatic_joint_has_no_moment_and_no_compliance(rng):
+    robot = jaxcal.Robot(np.array([[0, 100.0, 0, 0], [0, 0, 300.0, 0]]), joint_types=["P", "R"])
+    assert np.all(np.asarray(gravity_moments(robot, rng.uniform(-1, 1, (5, 2))))[:, 0] == 0)
+    with pytest.raises(jaxcal.RobotFileError, match="joint 1: a prismatic joint has no compliance"):
+        robot.replace(compliance=[1e-5, 0.0])
+
+
+@pytest.mark.parametrize("conv", sorted(ROBOTS))
+def test_fk_of_a_compliant_robot_is_the_rigid_fk_at_the_deflected_joints(conv, rng):
+    robot = ROBOTS[conv]()
+    c = rng.uniform(1e-5, 3e-5, robot.n_joints)
+    q = rng.uniform(-1.2, 1.2, (6, robot.n_joints))
+    tau = -np.asarray(jax.vmap(jax.grad(lambda qi: _rigid_z(robot, qi)))(jnp.asarray(q)))
+    rigid = np.asarray(jaxcal.fk(robot, q + c * tau))
+    got = np.asarray(jaxcal.fk(robot.replace(compliance=c), q))
+    assert_allclose(got, rigid, atol=1e-9)
+    assert np.abs(got - np.asarray(jaxcal.fk(robot, q)))[..., :3, 3].max() > 1.0  # the deflection shows
+
+
+@pytest.mark.parametrize("conv", sorted(ROBOTS))
+@pytest.mark.parametrize("n_points", [0, 2])
+def test_jacobian_of_the_compliances_matches_autodiff(conv, n_points, rng):
+    """The analytic identification Jacobian with compliances (the joint offset's column times the
+    moment) against ``jax.jacfwd`` of the residual, away from zero; the moments are taken as given
+    in both (:func:`jaxcal.kinematics.deflected`)."""
+    robot = ROBOTS[conv]()
+    robot = robot.replace(compliance=np.where(np.array(robot.joint_types) == "R", 1e-5, 0.0))
+    lay = Layout.of(robot, base=True, tool=True, n_points=n_points, compliance=True)
+    model = Model(robot, rng.normal(0, 50, (n_points, 3)) if n_points else None)
+    q = jnp.asarray(rng.uniform(-1, 1, (5, robot.n_joints)))
+    x = rng.normal(0, 1e-3, lay.size)
+    x[list(lay.compliances)] = rng.normal(0, 1e-5, lay.n_comp)
+    target = predict(apply(model, lay, jnp.asarray(0.5 * x)), q)
+    _, J = residual_and_jacobian(model, lay, jnp.asarray(x), q, target)
+    want = jax.jacfwd(lambda v: errors(apply(model, lay, v), q, target))(jnp.asarray(x))
+    w = np.abs(np.asarray(want))
+    tol = 1e-10 * w.max(axis=(0, 1)) + 1e-13 * w.max()  # per column; a numerically zero one at rounding
+    assert np.all(np.abs(np.asarray(J) - np.asarray(want)) <= tol)
+    assert lay.names()[lay.compliances[0]] == "compliance1"
+
+
+def test_robot_files_carry_the_compliance(tmp_path, rng):
+    """A TOML (in metres and degrees) and a URDF written with compliances read back with the same
+    forward kinematics; yourdfpy still reads the URDF."""
+    import yourdfpy
+
+    ur5 = jaxcal.preset("ur5").replace(units=("m", "deg"), compliance=rng.uniform(0, 3e-5, 6))
+    jaxcal.save_robot(ur5, tmp_path / "ur5.toml")
+    back = jaxcal.load_robot(tmp_path / "ur5.toml")
+    assert_allclose(np.asarray(back.compliance), np.asarray(ur5.compliance), rtol=1e-14)
+    q = rng.uniform(-1, 1, (5, 6))
+    assert_allclose(np.asarray(jaxcal.fk(back, q)), np.asarray(jaxcal.fk(ur5, q)), atol=1e-9)
+
+    urdf = "jaxcal/data/tiago_mocap/tiago_arm.urdf"
+    tiago = jaxcal.load_robot(urdf)
+    tiago = tiago.replace(compliance=np.where(np.array(tiago.joint_types) == "R", 2e-5, 0.0))
+    jaxcal.save_model(Model(tiago), tmp_path / "t.urdf", template=urdf)
+    again = jaxcal.load_model(tmp_path / "t.urdf").robot
+    qt = np.c_[rng.uniform(0.05, 0.3, 5), rng.uniform(-1, 1, (5, 7))]
+    assert_allclose(np.asarray(jaxcal.fk(again, qt)), np.asarray(jaxcal.fk(tiago, qt)), atol=1e-9)
+    assert len(yourdfpy.URDF.load(str(tmp_path / "t.urdf"), load_meshes=False).robot.joints) > 8
+
+
+def _tiago_truth(rng, perturb: bool):
+    """A TIAGo arm (joint origins perturbed or not), an unknown measurement frame, three points on
+    the hand, compliant joints; its measurements from the virtual work of the rigid arm, not from
+    jaxcal's compliance code."""
+    from helpers import random_transform
+
+    nominal = jaxcal.load_robot("jaxcal/data/tiago_mocap/tiago_arm.urdf")
+    n = nominal.n_joints
+    err = np.c_[rng.normal(0, 2e-3, (n, 1)), rng.normal(0, 0.5, (n, 3)), rng.normal(0, 1e-3, (n, 3))]
+    true = nominal.replace(dh=np.asarray(nominal.dh) + perturb * err, base=random_transform(rng, 500.0))
+    c = np.where(np.array(nominal.joint_types) == "R", rng.uniform(0.5e-5, 2e-5, n), 0.0)
+    pts = rng.normal(0, 60.0, (3, 3))
+
+    def measure(q):
+        tau = -np.asarray(jax.vmap(jax.grad(lambda qi: _rigid_z(true, qi)))(jnp.asarray(q)))
+        T = np.asarray(jaxcal.fk(true, q + c * tau))
+        return np.einsum("kij,mj->kmi", T[:, :3, :3], pts) + T[:, None, :3, 3]
+
+    lim = np.asarray(nominal.q_limits) * 0.8
+    return nominal, c, measure, rng.uniform(lim[:, 0], lim[:, 1], (60, n)), rng.uniform(lim[:, 0], lim[:, 1], (20, n))
+
+
+def test_calibrate_recovers_compliance(rng):
+    """Nominal geometry, compliant joints: ``compliance="yes"`` gives the compliances back and
+    predicts new postures to 1e-6 mm (noise-free); a rigid fit misses by millimetres."""
+    nominal, c, measure, q, q_new = _tiago_truth(rng, perturb=False)
+    res = jaxcal.calibrate(nominal, q, measure(q), compliance="yes")
+    assert res.converged
+    free = [res.names[i] for i in res.free if res.names[i].startswith("compliance")]
+    assert len(free) >= 5  # the arm joints whose moments vary
+    for name in free:
+        assert abs(res.delta(name) - c[int(name.removeprefix("compliance")) - 1]) < 1e-11
+    assert np.abs(np.asarray(predict(res.model, q_new)) - measure(q_new)).max() < 1e-6
+    assert jaxcal.calibrate(nominal, q, measure(q), compliance="no").after["pos_rms_mm"] > 1.0
+
+
+def test_compliance_with_geometry_errors_is_close(rng):
+    """With perturbed joint origins too, the rigid errors the base frame absorbs tilt the model's
+    gravity a little (gravity is -z of the model's base frame): the compliances come back within
+    a few percent and new postures within 0.01 mm, where the rigid fit misses by millimetres."""
+    nominal, c, measure, q, q_new = _tiago_truth(rng, perturb=True)
+    res = jaxcal.calibrate(nominal, q, measure(q), compliance="yes")
+    assert res.converged
+    for name in (res.names[i] for i in res.free if res.names[i].startswith("compliance")):
+        j = int(name.removeprefix("compliance")) - 1
+        assert abs(res.delta(name) - c[j]) < 0.05 * c[j]
+    assert np.abs(np.asarray(predict(res.model, q_new)) - measure(q_new)).max() < 0.01
+    assert jaxcal.calibrate(nominal, q, measure(q), compliance="no").after["pos_rms_mm"] > 1.0
