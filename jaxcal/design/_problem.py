@@ -33,7 +33,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import as_f64
-from ..calibration import Options, make_layout, nominal_model, parse_params
+from ..calibration import Options, lever, make_layout, nominal_model, parse_params
 from ..errors import DataError
 from ..identifiability import analyze
 from ..kinematics import check_q
@@ -279,7 +279,8 @@ def design_problem(
 
     * ``options`` / keywords: :class:`jaxcal.Options`, as for :func:`jaxcal.calibrate`: the
       layout (``estimate_base``, ``estimate_tool``, ``camera``), the parameter set (``params``,
-      ``ridge_mm``; ``auto`` is ``all`` as in a single fit) and the noise (``sigma_pos_mm``,
+      ``compliance``, ``ridge_mm``: the calibration's prior, each parameter weighed by its lever
+      over the validation poses; ``auto`` is ``all`` as in a single fit) and the noise (``sigma_pos_mm``,
       ``sigma_rot_rad``; None: 0.02 mm and 2e-5 rad, which only weigh rotation rows against
       position rows).
     * ``criterion``: ``"validation"`` (default), ``"d"`` or ``"a"`` (module docstring).
@@ -289,8 +290,9 @@ def design_problem(
     * ``q_val (V, n)``: the validation poses; default ``n_val`` poses uniform within the joint
       limits, drawn with ``seed``. They also fix the base set and the column scale.
     * ``params_from``: a ``jaxcal calibrate --json`` report (path or dict): design for the
-      parameters that calibration estimated, and its ``estimate_base``/``estimate_tool``
-      (:func:`jaxcal.design.report_options`); keywords given here win over the report.
+      parameters that calibration estimated, with its prior, compliances, ``estimate_base`` and
+      ``estimate_tool`` (:func:`jaxcal.design.report_options`); keywords given here win over
+      the report.
     """
     if criterion not in CRITERIA:
         raise DataError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", option="criterion")
@@ -318,12 +320,14 @@ def design_problem(
         raise DataError(f"q_val must have shape (V, {robot.n_joints}) with V >= 1, got {q_val.shape}", option="q_val")
     J = reference(model, layout, q_val)[0]  # (V, rows, m)
 
-    # the identifiable set as calibrate finds it: frames offered first, then DH, then camera
-    frames, cams = list(layout.frames), list(layout.cameras)
-    ident = analyze(J, layout.names(), priority=frames + list(range(layout.n_kin)) + cams)
+    # the identifiable set as calibrate finds it: frames offered first, then DH and compliances,
+    # then camera
+    frames, cams, comps = list(layout.frames), list(layout.cameras), list(layout.compliances)
+    ident = analyze(J, layout.names(), priority=frames + list(range(layout.n_kin)) + comps + cams)
     spec = "all" if opts.params == "auto" else opts.params
-    cand = parse_params(spec, robot, opts.ridge_mm)[0]
-    base = tuple(i for i in ident.base if i in frames or i in cams or i in cand.dh)
+    cand = parse_params(spec, robot, opts.ridge_mm, compliance=opts.compliance == "yes")[0]
+    estimated = set(frames + cams + list(cand.dh) + (comps if cand.compliance else []))
+    base = tuple(i for i in ident.base if i in estimated)
     if not base:
         raise DataError("no identifiable parameter to design for (check params)", option="params")
     sp = DEFAULT_SIGMA_POS_MM if opts.sigma_pos_mm is None else opts.sigma_pos_mm
@@ -331,7 +335,11 @@ def design_problem(
     w = np.asarray(row_weights(layout, sp, sr))
     Jb = J[..., list(base)]
     scale = 1.0 / np.sqrt(np.mean(np.sum((Jb * w[:, None]) ** 2, axis=1), axis=0))
-    prior = np.array([cand.prior_weight(i) if i < layout.n_kin else 0.0 for i in base]) ** 2 * scale**2
+    # the calibration's physically scaled prior, its levers over the validation poses (a
+    # calibration takes them over its own poses, the ones being designed)
+    lev = lever(J, layout.n_points)
+    kinematic = set(range(layout.n_kin)) | set(comps)
+    prior = np.array([cand.prior_weight(lev[i]) if i in kinematic else 0.0 for i in base]) ** 2 * scale**2
     # validation: the position rows of every measured point (the tool origin for poses), averaged
     # over points and poses
     G = (Jb[:, :3] if layout.n_points == 0 else Jb) * scale

@@ -9,13 +9,15 @@ from pathlib import Path
 from ..errors import DataError
 from ..robot import Robot
 
-FRAME_PREFIXES = ("base_", "tool_")
+NOT_KINEMATIC = ("base_", "tool_", "point", "compliance")
+"""Prefixes of a report's parameters that are not the robot's kinematic ones."""
 
 
 def report_options(report, robot: Robot) -> dict:
     """The options of the calibration a ``jaxcal calibrate --json`` report (a path or the loaded
     dict) describes: ``params``, the estimated kinematic parameters by name (``"frames"`` when
-    none was), and ``estimate_base``/``estimate_tool`` where the report says.
+    none was), and ``estimate_base``, ``estimate_tool``, ``compliance`` (``"yes"``/``"no"``) and
+    ``ridge_mm`` (the chosen set's prior) where the report says.
 
     The names come from the report's ``estimated_dh`` list (else the kinematic names among its
     ``parameters``). Raises :class:`jaxcal.DataError` (option ``params_from``) for a file that is
@@ -35,7 +37,7 @@ def report_options(report, robot: Robot) -> dict:
         names = report["estimated_dh"]
     elif isinstance(report.get("parameters"), dict):
         cams = set(report.get("camera_parameters") or ())
-        names = [k for k in report["parameters"] if not k.startswith(FRAME_PREFIXES) and k not in cams]
+        names = [k for k in report["parameters"] if not k.startswith(NOT_KINEMATIC) and k not in cams]
     else:
         raise DataError(
             f"{where}: no 'estimated_dh' or 'parameters' (is it the --json of jaxcal calibrate?)", option="params_from"
@@ -55,4 +57,13 @@ def report_options(report, robot: Robot) -> dict:
     for key in ("estimate_base", "estimate_tool"):
         if isinstance(report.get(key), bool):
             out[key] = report[key]
+    if isinstance(report.get("compliance"), bool):
+        out["compliance"] = "yes" if report["compliance"] else "no"
+    ridge = report.get("ridge_mm")
+    if ridge is not None:
+        if isinstance(ridge, bool) or not isinstance(ridge, (int, float)) or not ridge > 0:
+            raise DataError(
+                f"{where}: 'ridge_mm' must be a prior (mm) > 0 or null, got {ridge!r}", option="params_from"
+            )
+        out["ridge_mm"] = float(ridge)
     return out

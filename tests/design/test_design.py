@@ -221,12 +221,52 @@ def test_params_from_a_calibration_report(robot, tmp_path):
     assert got.base_names() == ref.base_names()
     assert [n for n in got.base_names() if not n.startswith(("base_", "tool_"))] == names
     assert design.report_options({"parameters": {"theta2": {}, "base_x": {}}}, robot)["params"] == "theta2"
+    got = design.report_options({"estimated_dh": ["theta2"], "ridge_mm": 1.0, "compliance": False}, robot)
+    assert got == {"params": "theta2", "ridge_mm": 1.0, "compliance": "no"}
+    with pytest.raises(DataError, match=r"params_from: 'ridge_mm' must be a prior"):
+        design.report_options({"estimated_dh": ["theta2"], "ridge_mm": -1}, robot)
     assert design.report_options({"estimated_dh": []}, robot)["params"] == "frames"
     with pytest.raises(DataError, match=r"params_from: .*theta7 is not a parameter of robot"):
         design.design_problem(robot, params_from={"estimated_dh": ["theta2", "theta7"], "robot": "other"})
     (tmp_path / "bad.json").write_text("{not json")
     with pytest.raises(DataError, match=r"params_from: .*bad.json: not JSON"):
         design.design_problem(robot, params_from=tmp_path / "bad.json")
+
+
+def test_params_from_the_committed_franka_report():
+    """The report docs/make_results.sh writes with jaxcal calibrate (the Franka data, a sparse
+    set under a prior): its estimated kinematic parameters, frames, compliance and prior."""
+    import json
+    from pathlib import Path
+
+    rep = json.loads((Path(__file__).parents[2] / "docs/franka/report.json").read_text())
+    got = design.report_options(rep, jaxcal.preset(rep["robot"]))
+    assert got["params"].split(",") == rep["estimated_dh"]  # the robot's order, as the report's
+    assert (got["estimate_base"], got["estimate_tool"]) == (rep["estimate_base"], rep["estimate_tool"])
+    assert got["compliance"] == ("yes" if rep["compliance"] else "no")
+    assert got.get("ridge_mm") == rep.get("ridge_mm")
+
+
+def test_ridge_prior_is_physically_scaled(robot, problem):
+    """With ridge_mm the design's prior is the calibration's, weight lever / ridge_mm, the lever
+    the RMS position change per unit of each parameter over the validation poses (from
+    error_model's Jacobian; exactly 1 for a length): in the scaled information, (lever * scale /
+    ridge)^2, and information() adds it to the poses' information."""
+    ridge = 0.5
+    pb = design.design_problem(robot, n_val=60, seed=1, ridge_mm=ridge, **FRAMES_KNOWN)
+    assert pb.base_names() == problem.base_names()
+    lim = np.asarray(robot.q_limits)  # the problems' validation poses (seed 1)
+    qv = lim[:, 0] + np.random.default_rng([1, 1]).uniform(size=(60, 6)) * (lim[:, 1] - lim[:, 0])
+    J = np.asarray(identification_jacobian(robot, qv))[:, :3][..., list(pb.base)]  # position rows
+    lever = np.sqrt(np.mean(np.sum(J**2, 1), 0))
+    lengths = [i for i, n in enumerate(pb.base_names()) if n[0] in "ad" and not n.startswith("alpha")]
+    np.testing.assert_allclose(lever[lengths], 1.0, rtol=1e-12)
+    np.testing.assert_allclose(pb.scale, problem.scale, rtol=1e-12)
+    expected = (lever * np.asarray(pb.scale) / ridge) ** 2
+    np.testing.assert_allclose(pb.prior, expected, rtol=1e-9)
+    q = _random_q(robot, N, 5)
+    added = np.asarray(design.information(pb, q)) - np.asarray(design.information(problem, q))
+    np.testing.assert_allclose(added, np.diag(expected), atol=1e-9 * np.abs(added).max())
 
 
 @pytest.mark.parametrize("case", ["pose, base and tool", "two points, tool", "joint frames", "camera"])
