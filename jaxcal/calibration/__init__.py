@@ -8,6 +8,7 @@ from ._options import GAUGE as GAUGE
 from ._options import Options as Options
 from ._param_sets import Candidate as Candidate
 from ._param_sets import parse_params as parse_params
+from ._selection import lever as lever
 from ._single import BatchResult as BatchResult
 from ._single import CalibrationResult as CalibrationResult
 from ._single import calibrate as calibrate

@@ -253,6 +253,7 @@ def _choice(p, final, per_fold, names) -> dict:
             "dropped": [{"parameter": names[j], "t": float(t), "score_mm": float(s)} for j, t, s in ch.pruned],
         },
         "compliance": bool(layout.n_comp) and cand.compliance,
+        "ridge_mm": cand.ridge_mm,
         "not_estimated": _why_not(p, final, names),
     }
 

@@ -5,37 +5,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from ._app import app, console, load_robot_arg
+from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, numbers, read_poses_for, region_arg, view_arg
 
 
-def _numbers(text: str, count: int | tuple[int, ...], option: str) -> list[float]:
-    from ..errors import DataError
-
-    counts = (count,) if isinstance(count, int) else count
-    try:
-        out = [float(t) for t in text.split(",")]
-    except ValueError:
-        out = []
-    if len(out) not in counts:
-        said = " or ".join(map(str, counts))
-        raise DataError(f"{option} must be {said} comma-separated numbers, got {text!r}", option=option)
-    return out
-
-
-def _read_poses_for(path, robot, option: str):
-    """The pose file given to ``option`` (None if not given); its errors are said of the option."""
-    from ..design import read_poses
-    from ..errors import DataError
-
-    if path is None:
-        return None
-    try:
-        return read_poses(path, robot)
-    except DataError as e:
-        raise DataError(f"{option}: {e}", option=option) from None
+def _given(default: bool, **kw) -> dict:
+    """The options given on the command line; with ``default``, the others at their defaults
+    (estimated frames, all parameters), else left to the report."""
+    defaults = {"estimate_base": True, "estimate_tool": True, "params": "all"}
+    return {k: defaults[k] if v is None else v for k, v in kw.items() if v is not None or default}
 
 
 @app.command()
@@ -51,23 +31,28 @@ def design(
     point: list[str] = typer.Option(
         None, "--point", help="a measured point X,Y,Z on the tool (mm, tool frame); repeat for several"
     ),
-    estimate_base: bool = typer.Option(True, "--estimate-base/--no-estimate-base"),
-    estimate_tool: bool = typer.Option(True, "--estimate-tool/--no-estimate-tool"),
-    params: str = typer.Option("all", help="DH errors calibrated: frames | offsets | angles | all | a comma list"),
+    estimate_base: bool = typer.Option(
+        None, "--estimate-base/--no-estimate-base", help="estimated (default; or as --params-from's report)"
+    ),
+    estimate_tool: bool = typer.Option(
+        None, "--estimate-tool/--no-estimate-tool", help="estimated (default; or as --params-from's report)"
+    ),
+    params: str = typer.Option(
+        None, help="DH errors calibrated: frames | offsets | angles | all (default) | a comma list"
+    ),
+    params_from: Path = typer.Option(
+        None,
+        "--params-from",
+        help="a jaxcal calibrate --json report: design for the parameters it estimated (and its base/tool "
+        "choice); --params, --estimate-base/--estimate-tool given here win",
+    ),
     noise_mm: float = typer.Option(0.02, "--noise-mm", help="position noise sigma (mm)"),
     noise_rad: float = typer.Option(2e-5, "--noise-rad", help="rotation noise sigma (rad)"),
     starts: int = typer.Option(4, help="optimiser starts (gradient design)"),
     seed: int = typer.Option(0),
-    min_spread: float = typer.Option(0.0, help="smallest joint-space distance between two poses (rad)"),
-    region: str = typer.Option(
-        None, help="box the measured point(s) must stay in: xmin,ymin,zmin,xmax,ymax,zmax (mm, robot base frame)"
-    ),
-    view: str = typer.Option(
-        None,
-        help="a camera's view cone the measured point(s) must stay in: X,Y,Z,DX,DY,DZ,HALF_ANGLE[,NEAR,FAR] "
-        "(camera position and viewing direction in mm, robot base frame; half-angle in deg; range along "
-        "the axis in mm)",
-    ),
+    min_spread: float = typer.Option(0.0, help=SPREAD_HELP),
+    region: str = typer.Option(None, help=REGION_HELP),
+    view: str = typer.Option(None, help=VIEW_HELP),
     val_poses: int = typer.Option(200, "--val-poses", help="random validation poses of the validation criterion"),
     validation: Path = typer.Option(
         None,
@@ -87,18 +72,12 @@ def design(
     if json_out is not None:
         check_writable(json_out, "json_out")
     r = load_robot_arg(robot)
-    box = None
-    if region is not None:
-        v = _numbers(region, 6, "region")
-        box = (v[:3], v[3:])
-    cone = None
-    if view is not None:
-        v = _numbers(view, (7, 9), "view")
-        cone = (v[:3], v[3:6], np.radians(v[6]), *v[7:])
-    points = [_numbers(p, 3, "point") for p in point] if point else None
+    box, cone = region_arg(region), view_arg(view)
+    points = [numbers(p, 3, "point") for p in point] if point else None
     n_points = len(points) if points else int(position_only)
-    candidates = _read_poses_for(pool, r, "pool")
-    q_val = _read_poses_for(validation, r, "validation")
+    candidates = read_poses_for(pool, r, "pool")
+    q_val = read_poses_for(validation, r, "validation")
+    given = _given(params_from is None, estimate_base=estimate_base, estimate_tool=estimate_tool, params=params)
     with console.status("building the design problem") as status:
         problem = design_problem(
             r,
@@ -108,9 +87,8 @@ def design(
             n_val=val_poses,
             q_val=q_val,
             seed=seed,
-            estimate_base=estimate_base,
-            estimate_tool=estimate_tool,
-            params=params,
+            params_from=params_from,
+            **given,
             sigma_pos_mm=noise_mm,
             sigma_rot_rad=noise_rad,
         )
@@ -122,6 +100,8 @@ def design(
             result = optimal_poses(problem, poses, starts=starts, **common)
     if q_val is not None:
         console.print(f"validation poses: {len(q_val)} from {validation}", highlight=False, markup=False)
+    if params_from is not None:
+        console.print(f"parameters of {params_from}: {', '.join(result.base_names)}", highlight=False, markup=False)
     console.print(result.report(), highlight=False, markup=False, soft_wrap=True)
     write_poses(out, result.q, r)
     console.print(f"wrote {out}")
@@ -130,5 +110,6 @@ def design(
         summary["validation_poses"] = (
             {"file": str(validation), "count": len(q_val)} if q_val is not None else {"random": val_poses, "seed": seed}
         )
+        summary["params_from"] = None if params_from is None else str(params_from)
         write_atomic(json_out, json.dumps(summary, indent=2))
         console.print(f"wrote {json_out}")

@@ -12,6 +12,7 @@ import typer
 from rich.table import Table
 
 from ._app import app, console, err_console, load_robot_arg, progress
+from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, read_poses_for, region_arg, view_arg
 
 
 @contextlib.contextmanager
@@ -27,6 +28,20 @@ def _kept_on_interrupt(out_dir):
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(130)
+
+
+def _conditions_line(c: dict, n_val: int) -> str:
+    """The study's conditions in a line: where the calibration and inspection poses came from."""
+    where = [f"calibration poses {c['calibration_poses']}"]
+    if c["region"]:
+        where.append("in the box")
+    if c["view"]:
+        where.append(f"in the view cone ({c['view']['half_angle_deg']:g} deg)")
+    if c["min_spread"]:
+        where.append(f"{c['min_spread']:g} apart")
+    if c["acceptance"] is not None:
+        where.append(f"{c['acceptance']:.0%} of random configurations admitted")
+    return ", ".join(where) + f"; {n_val} inspection poses {c['validation_poses']}"
 
 
 @app.command()
@@ -53,6 +68,12 @@ def montecarlo(
     ),
     memory_mb: float = typer.Option(1024.0, "--memory-mb", help="memory budget of a chunk of robots (MB)"),
     max_chunks: int = typer.Option(None, "--max-chunks", help="stop after this many chunks (rerun to continue)"),
+    region: str = typer.Option(None, help=REGION_HELP + "; constrains the random calibration poses"),
+    view: str = typer.Option(None, help=VIEW_HELP + "; constrains the random calibration poses"),
+    min_spread: float = typer.Option(0.0, help=SPREAD_HELP + "; constrains the random calibration poses"),
+    validation: Path = typer.Option(
+        None, "--validation", help="pose file of the inspection poses (where the calibrated arm will work)"
+    ),
     outliers: float = typer.Option(0.0, "--outliers", help="share of each robot's poses given a gross position error"),
     outlier_mm: str = typer.Option("3,6", "--outlier-mm", help="A,B: the gross errors' length, uniform in [A, B] mm"),
     keep_outliers: bool = typer.Option(False, "--keep-outliers", help="fit the outlier poses (default: left out)"),
@@ -66,12 +87,9 @@ def montecarlo(
     if out_dir is not None:
         check_writable(out_dir / "study.json", "out")
     r = load_robot_arg(robot)
-    q = None
-    if poses_file is not None:
-        from ..design import read_poses
-
-        q = read_poses(poses_file, r)
-        poses = len(q)
+    q = read_poses_for(poses_file, r, "poses_file")
+    poses = poses if q is None else len(q)
+    q_val = read_poses_for(validation, r, "validation")
     with progress(f"{robots} robots x {poses} poses, {method}") as bar, _kept_on_interrupt(out_dir):
         out = run_montecarlo(
             r,
@@ -92,10 +110,16 @@ def montecarlo(
             out=out_dir,
             memory_mb=memory_mb,
             max_chunks=max_chunks,
+            region=region_arg(region),
+            view=view_arg(view),
+            min_spread=min_spread,
+            q_val=q_val,
             outliers=outliers,
             outlier_mm=_pair(outlier_mm),
             keep_outliers=keep_outliers,
         )
+    files = {"calibration_poses_file": poses_file, "validation_poses_file": validation}
+    out["conditions"] |= {k: str(v) for k, v in files.items() if v is not None}
     if not out["complete"]:
         console.print(
             f"stopped after {out['chunks_done']} of {out['chunks']} chunks ({out['robots_done']} robots): "
@@ -129,6 +153,8 @@ def montecarlo(
         )
     if "crlb_efficiency_mean" in out:
         rows.append(("CRLB efficiency (CRLB var / empirical var), mean", f"{out['crlb_efficiency_mean']:.3f}"))
+        rows.append(("validation position RMS by the CRLB (mm)", f"{out['crlb_validation_pos_rms_mm']:.4g}"))
+    rows.append(("conditions", _conditions_line(out["conditions"], out["n_val"])))
     for k, v in rows:
         t.add_row(k, v)
     console.print(t)

@@ -12,10 +12,9 @@ from jaxtyping import Array, Float
 
 from .._config import as_f64
 from ..errors import DataError
-from ._problem import DesignProblem, measures_batch, tool_positions, uniform_poses, values_of
-
-SAMPLE_CAP = 200_000
-"""Most random configurations drawn to find ones that keep the tool in the region."""
+from ..model import Layout, Model
+from ..robot import Robot
+from ._problem import DesignProblem, measures_batch, reference, tool_positions, uniform_poses, values_of
 
 
 class Constraints(eqx.Module):
@@ -119,35 +118,54 @@ def _view(view):
 
 def view_coordinates(cons: Constraints, p):
     """Distance along the view axis and angle from it (rad) of points ``p (..., 3)``."""
-    xp = np if isinstance(p, np.ndarray) else jnp
     v = p - cons.view_origin
     along = v @ cons.view_axis
-    radial = xp.sqrt(xp.sum((v - along[..., None] * cons.view_axis) ** 2, -1) + 1e-12)
-    return along, xp.arctan2(radial, along)
+    radial = jnp.sqrt(jnp.sum((v - along[..., None] * cons.view_axis) ** 2, -1) + 1e-12)
+    return along, jnp.arctan2(radial, along)
+
+
+class Workspace(eqx.Module):
+    """What the constraints are checked on: a nominal model, whose measured points (the tool
+    origin for poses) must stay in the region, and the joint limits. A :class:`DesignProblem`
+    has the same fields and serves as well."""
+
+    model: Model
+    lower: Float[Array, " n"]
+    upper: Float[Array, " n"]
+    layout: Layout = eqx.field(static=True)
+
+
+def workspace(robot: Robot, n_points: int = 0, points=None) -> Workspace:
+    """The workspace of ``robot`` measured at ``n_points`` points (``points (M, 3)`` on the tool,
+    mm; default: at the tool origin), or at the tool's pose (0)."""
+    layout = Layout.of(robot, n_points=n_points)
+    model = Model(robot.stripped(), None if n_points == 0 else np.zeros((n_points, 3)) if points is None else points)
+    lim = np.asarray(robot.q_limits, dtype=np.float64)
+    return Workspace(model, jnp.asarray(lim[:, 0]), jnp.asarray(lim[:, 1]), layout)
+
+
+def positions(space: Workspace | DesignProblem, q) -> np.ndarray:
+    """Positions ``(K, P, 3)`` of the measured points at the poses ``q (K, n)`` (the design's one
+    compiled Jacobian program, :func:`reference`)."""
+    return reference(space.model, space.layout, q)[1]
 
 
 @eqx.filter_jit
-def positions(problem: DesignProblem, q):
-    return tool_positions(problem.model, problem.layout, q)
+def _inside(cons: Constraints, p, margin):
+    """:func:`in_region`, traceable."""
+    m = margin * (cons.box_upper - cons.box_lower)
+    box = jnp.all((p >= cons.box_lower + m) & (p <= cons.box_upper - m), axis=(-2, -1))
+    along, angle = view_coordinates(cons, p)
+    far_given = cons.view_far < np.finfo(np.float64).max
+    m = jnp.where(far_given, margin * (cons.view_far - cons.view_near), 0.0)  # no far given: no range margin
+    cone = (angle <= (1 - margin) * cons.view_half_angle) & (along >= cons.view_near + m) & (along <= cons.view_far - m)
+    return (box | (cons.box_on == 0)) & (jnp.all(cone, axis=-1) | (cons.view_on == 0))
 
 
 def in_region(cons: Constraints, p, margin: float = 0.0) -> np.ndarray:
     """Whether every point ``p (..., P, 3)`` lies in the box and the view cone, each shrunk by
     ``margin`` of its size (the box's sides; the cone's half-angle and range)."""
-    p = np.asarray(p)
-    ok = np.ones(p.shape[:-2], bool)
-    if cons.has_box:
-        lo, hi = np.asarray(cons.box_lower), np.asarray(cons.box_upper)
-        m = margin * (hi - lo)
-        ok &= np.all((p >= lo + m) & (p <= hi - m), axis=(-2, -1))
-    if cons.has_view:
-        c = jax.tree_util.tree_map(np.asarray, cons)
-        along, angle = view_coordinates(c, p)
-        near, far = float(c.view_near), float(c.view_far)
-        m = margin * (far - near) if far < np.finfo(np.float64).max else 0.0  # no far given: no range margin
-        inside = (angle <= (1 - margin) * float(c.view_half_angle)) & (along >= near + m) & (along <= far - m)
-        ok &= np.all(inside, axis=-1)
-    return ok
+    return np.asarray(_inside(cons, jnp.asarray(p, jnp.float64), jnp.float64(margin)))
 
 
 def min_distance(q) -> float:
@@ -159,50 +177,172 @@ def min_distance(q) -> float:
     return float(d[np.triu_indices(len(q), 1)].min())
 
 
-def feasible(problem: DesignProblem, cons: Constraints, q) -> bool:
+def feasible(space: Workspace | DesignProblem, cons: Constraints, q) -> bool:
     """Limits, spread and region hold for the configurations ``q (K, n)``."""
     q = np.asarray(q)
-    ok = bool(np.all(q >= np.asarray(problem.lower)) and np.all(q <= np.asarray(problem.upper)))
+    ok = bool(np.all(q >= np.asarray(space.lower)) and np.all(q <= np.asarray(space.upper)))
     ok &= min_distance(q) >= float(cons.spread) * (1 - 1e-9)
     if cons.has_region:
-        ok &= bool(np.all(in_region(cons, np.asarray(positions(problem, jnp.asarray(q))))))
+        ok &= bool(np.all(in_region(cons, positions(space, q))))
     return ok
 
 
-def random_feasible(problem: DesignProblem, cons: Constraints, shape: tuple[int, int], rng) -> np.ndarray:
-    """``shape = (R, K)`` random configurations uniform within the joint limits and, with a
-    region, keeping the tool in it (drawn without replacement while enough are found)."""
+SAMPLE_CAP = 200_000
+"""Most random configurations drawn for one pose set (and to estimate how many keep the tool in
+the region)."""
+SAMPLE_MARGIN = 0.01
+"""Random configurations keep the measured points this fraction of the region's size inside it."""
+RETRIES = 8
+"""A set still short after this many times the candidates expected to fill it fails."""
+_PILOT = 4096
+_BLOCK = 2**17
+"""Candidates per compiled call of the sampler (sets x candidates per set)."""
+
+
+@eqx.filter_jit
+def _accepted(space, cons: Constraints, key, *, n: int):
+    """How many of ``n`` configurations uniform within the limits keep the points in the region."""
+    q = space.lower + jax.random.uniform(key, (n, space.lower.shape[0])) * (space.upper - space.lower)
+    return jnp.sum(_inside(cons, tool_positions(space.model, space.layout, q), SAMPLE_MARGIN))
+
+
+@eqx.filter_jit
+def _draw_sets(space, cons: Constraints, key, idx, *, n_poses: int, n_candidates: int, spread: bool):
+    """Set ``i`` of ``idx``: the first ``n_poses`` of ``n_candidates`` configurations uniform
+    within the limits (from ``fold_in(key, i)``) that keep the points in the region and, with
+    ``spread``, lie at least the minimum spread from every one taken before. Returns the sets
+    ``(R, n_poses, n)`` (inf where too few were found) and how many were found ``(R,)``."""
+    n = space.lower.shape[0]
+
+    def one(i):
+        u = jax.random.uniform(jax.random.fold_in(key, i), (n_candidates, n))
+        cand = space.lower + u * (space.upper - space.lower)
+        ok = _inside(cons, tool_positions(space.model, space.layout, cand), SAMPLE_MARGIN)
+        if not spread:
+            order = jnp.argsort(~ok, stable=True)[:n_poses]  # the accepted ones, in drawing order
+            found = jnp.minimum(jnp.sum(ok), n_poses)
+            return jnp.where((jnp.arange(n_poses) < found)[:, None], cand[order], jnp.inf), found
+
+        def take(state, c):  # sequential: a candidate too close to one taken is skipped
+            chosen, count = state
+            far = jnp.all(jnp.sum((chosen - c[0]) ** 2, -1) >= cons.spread**2)
+            new = c[1] & far & (count < n_poses)
+            chosen = chosen.at[jnp.minimum(count, n_poses - 1)].set(
+                jnp.where(new, c[0], chosen[jnp.minimum(count, n_poses - 1)])
+            )
+            return (chosen, count + new), None
+
+        (chosen, found), _ = jax.lax.scan(take, (jnp.full((n_poses, n), jnp.inf), 0), (cand, ok))
+        return chosen, found
+
+    return jax.vmap(one)(idx)
+
+
+class PoseSampler:
+    """Random pose sets under the design's conditions: configurations uniform within the joint
+    limits, conditioned on the measured points staying in the region and the view (a margin of
+    :data:`SAMPLE_MARGIN` inside) and, with a minimum spread, on every two of a set lying that far
+    apart (taken in drawing order). Set ``i`` depends on the key and ``i`` alone, so a Monte Carlo
+    study's robots do not depend on its chunking.
+
+    ``space``: :func:`workspace` (or a design problem); ``cons``: :func:`constraints`; ``key`` a
+    JAX key. Raises :class:`jaxcal.DataError` (naming ``region`` or ``view``) when too few random
+    configurations satisfy the region.
+    """
+
+    def __init__(self, space, cons: Constraints, n_poses: int, key):
+        self.space, self.cons, self.n_poses = space, cons, int(n_poses)
+        k_pilot, self.key = jax.random.split(key)
+        found, tried = 0, 0
+        if cons.has_region:  # the acceptance rate sizes the candidates per set
+            while tried < SAMPLE_CAP and found < 64:
+                found += int(_accepted(space, cons, jax.random.fold_in(k_pilot, tried), n=_PILOT))
+                tried += _PILOT
+        self.acceptance = found / tried if cons.has_region else 1.0
+        if cons.has_region and (found == 0 or self.n_poses / self.acceptance > SAMPLE_CAP):
+            option = "region" if cons.has_box else "view"
+            shape = " and the ".join(n for n, on in (("box", cons.has_box), ("view cone", cons.has_view)) if on)
+            raise DataError(
+                f"{option}: only {found} of {tried} random configurations within the joint limits keep the "
+                f"tool in the {shape}, too few for {self.n_poses} poses; check it (mm, robot base frame)",
+                option=option,
+            )
+        need = (self.n_poses + 4 * np.sqrt(self.n_poses) + 8) / self.acceptance
+        self.n_candidates = int(2 ** np.ceil(np.log2(max(need * (1.5 if float(cons.spread) > 0 else 1.0), 64))))
+
+    def sets(self, idx) -> np.ndarray:
+        """The pose sets ``idx`` as ``(len(idx), n_poses, n)`` joint values (rad, mm)."""
+        idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+        out = np.full((len(idx), self.n_poses, self.space.lower.shape[0]), np.inf)
+        todo, m, attempt = np.arange(len(idx)), self.n_candidates, 0
+        while todo.size:
+            if m > RETRIES * self.n_candidates:  # the spread, not chance: more candidates will not do
+                raise DataError(
+                    f"min_spread: fewer than {self.n_poses} random configurations {float(self.cons.spread):g} apart "
+                    f"among {m // 2} (in the region where given); lower min_spread or the pose count",
+                    option="min_spread",
+                )
+            block = min(max(1, _BLOCK // m), 2 ** int(np.ceil(np.log2(len(todo)))))  # few shapes, little waste
+            key = jax.random.fold_in(self.key, attempt)
+            padded = np.concatenate([todo, np.repeat(todo[-1:], -len(todo) % block)])
+            for s in range(0, len(padded), block):
+                rows = padded[s : s + block]
+                q, found = _draw_sets(
+                    self.space,
+                    self.cons,
+                    key,
+                    jnp.asarray(idx[rows]),
+                    n_poses=self.n_poses,
+                    n_candidates=m,
+                    spread=float(self.cons.spread) > 0,
+                )
+                ok = np.asarray(found) == self.n_poses
+                out[rows[ok]] = np.asarray(q)[ok]
+            todo = todo[~np.all(np.isfinite(out[todo]), axis=(1, 2))]
+            m, attempt = 2 * m, attempt + 1
+        return out
+
+
+def random_poses(
+    robot: Robot,
+    n_poses: int,
+    *,
+    n_sets: int | None = None,
+    n_points: int = 0,
+    points=None,
+    min_spread: float = 0.0,
+    region=None,
+    view=None,
+    seed: int = 0,
+) -> np.ndarray:
+    """Random configurations of ``robot`` under a design's conditions (:class:`PoseSampler`):
+    ``(n_poses, n)``, or ``(n_sets, n_poses, n)`` sets drawn apart. ``n_points``/``points``: what
+    must stay in the ``region``/``view`` (0: the tool origin); the rest as for
+    :func:`jaxcal.design.optimal_poses`. E.g. validation poses where a camera sees the tool."""
+    for name, v, lo in (("n_poses", n_poses, 1), ("n_sets", 1 if n_sets is None else n_sets, 1), ("seed", seed, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise DataError(f"{name} must be an integer >= {lo}, got {v!r}", option=name)
+    space = workspace(robot, n_points, points)
+    sampler = PoseSampler(space, constraints(min_spread, region, view), n_poses, jax.random.PRNGKey(seed))
+    q = sampler.sets(np.arange(1 if n_sets is None else n_sets))
+    return q[0] if n_sets is None else q
+
+
+def random_feasible(space, cons: Constraints, shape: tuple[int, int], rng) -> np.ndarray:
+    """``shape = (R, K)`` random configurations within the joint limits: uniform without
+    constraints, else from a :class:`PoseSampler` seeded by ``rng``."""
     R, K = shape
-    lim = np.stack([np.asarray(problem.lower), np.asarray(problem.upper)], 1)
-
-    def draw(n):
-        return lim[:, 0] + rng.uniform(size=(n, len(lim))) * (lim[:, 1] - lim[:, 0])
-
-    if not cons.has_region:
-        return draw(R * K).reshape(R, K, -1)
-    want, found, tried = R * K, [], 0
-    while sum(len(f) for f in found) < want and tried < SAMPLE_CAP:
-        n = min(max(4 * want, 1024), SAMPLE_CAP - tried)
-        qs = draw(n)
-        found.append(qs[in_region(cons, np.asarray(positions(problem, jnp.asarray(qs))), margin=0.01)])
-        tried += n
-    pool = np.concatenate(found)
-    if len(pool) < K:
-        option = "region" if cons.has_box else "view"
-        shape = " and the ".join(n for n, on in (("box", cons.has_box), ("view cone", cons.has_view)) if on)
-        raise DataError(
-            f"{option}: only {len(pool)} of {tried} random configurations within the joint limits keep the "
-            f"tool in the {shape}, fewer than the {K} poses asked for; check it (mm, robot base frame)",
-            option=option,
-        )
-    idx = rng.choice(len(pool), size=want, replace=len(pool) < want)
-    return pool[idx].reshape(R, K, -1)
+    lim = np.stack([np.asarray(space.lower), np.asarray(space.upper)], 1)
+    if not cons.has_region and float(cons.spread) == 0:
+        return (lim[:, 0] + rng.uniform(size=(R * K, len(lim))) * (lim[:, 1] - lim[:, 0])).reshape(R, K, -1)
+    key = jax.random.PRNGKey(int(rng.integers(2**31)))
+    return PoseSampler(space, cons, K, key).sets(np.arange(R))
 
 
 def random_values(problem: DesignProblem, cons: Constraints, n_poses: int, n_random: int, rng) -> dict:
     """All three criteria of ``n_random`` random feasible pose sets of ``n_poses``, ``(R,)`` each."""
     q = random_feasible(problem, cons, (n_random, n_poses), rng)
-    m = np.asarray(measures_batch(problem, jnp.asarray(q)))
+    m = measures_batch(problem, q)
     out = {k: np.array([values_of(r)[k] for r in m]) for k in ("log_det", "a_trace", "validation_rms_mm")}
     for v in out.values():
         v.flags.writeable = False
@@ -211,11 +351,15 @@ def random_values(problem: DesignProblem, cons: Constraints, n_poses: int, n_ran
 
 __all__ = [
     "Constraints",
+    "PoseSampler",
+    "Workspace",
+    "workspace",
     "constraints",
     "feasible",
     "in_region",
     "min_distance",
     "random_feasible",
+    "random_poses",
     "random_values",
     "uniform_poses",
 ]

@@ -12,6 +12,7 @@ constraints afterwards.
 
 from __future__ import annotations
 
+import functools
 import time
 import warnings
 
@@ -32,9 +33,12 @@ from ._constraints import (
     random_values,
     view_coordinates,
 )
-from ._problem import DesignProblem, information, loss, loss_of, measures, tool_positions, values_of
+from ._problem import DesignProblem, count, loss, loss_of, measures_batch, tool_positions, values_of
 from ._result import PoseDesign, frozen
+from ._select import exchange
 
+POOL_STARTS = 1000
+"""Random configurations each start is selected from under a region or view."""
 PENALTY = 100.0
 """Weight of the squared, normalised constraint violations against the criterion's O(1) loss."""
 SPREAD_MARGIN = 1.02
@@ -80,23 +84,25 @@ def to_u(problem: DesignProblem, q):
     return jnp.arcsin(jnp.clip((q - c) / h, -1.0 + 1e-9, 1.0 - 1e-9))
 
 
-def _objective(u, args):
+def _objective(u, args, penalised: bool = True):
     problem, cons = args
     q = to_q(problem, u)
-    return loss(problem, q) + penalty(problem, cons, q)
+    return loss(problem, q) + penalty(problem, cons, q) if penalised else loss(problem, q)
 
 
 @eqx.filter_jit
-def _optimise(problem: DesignProblem, cons: Constraints, q0: Float[Array, "S K n"], *, max_steps: int, tol: float):
-    """BFGS from every start ``q0[s]`` in one program: final configurations, their :func:`measures`
-    and criterion loss (without penalty), convergence flags and evaluations."""
-    vg = jax.value_and_grad(_objective)
+def _optimise(
+    problem: DesignProblem, cons: Constraints, q0: Float[Array, "S K n"], *, max_steps: int, tol: float, penalised: bool
+):
+    """BFGS from every start ``q0[s]`` in one program: final configurations, convergence flags and
+    evaluations (their criteria come from the design's shared programs, not a second copy of the
+    Jacobian here). Without constraints (``penalised`` False) the penalty, zero, is left out of
+    the program."""
+    vg = jax.value_and_grad(functools.partial(_objective, penalised=penalised))
 
     def one(q_):
         u, f, conv, n = minimise(vg, to_u(problem, q_), (problem, cons), max_evals=max_steps, tol=tol)
-        q = to_q(problem, u)
-        m = measures(problem, information(problem, q))
-        return q, m, loss_of(problem, m), conv, n
+        return to_q(problem, u), conv, n
 
     # one start after another: batched LAPACK calls (Cholesky) inside a vmapped while_loop ran
     # 10-40x slower than the same starts in turn on the CPU backend
@@ -104,16 +110,15 @@ def _optimise(problem: DesignProblem, cons: Constraints, q0: Float[Array, "S K n
 
 
 @eqx.filter_jit
+def _losses(problem: DesignProblem, m):
+    return jax.vmap(lambda m_: loss_of(problem, m_))(m)
+
+
+@eqx.filter_jit
 def objective_and_grad(problem: DesignProblem, q: Float[Array, "K n"]):
     """The criterion's loss (:func:`jaxcal.design.loss`) and its gradient with respect to the
     joint values."""
     return jax.value_and_grad(lambda q_: loss(problem, q_))(q)
-
-
-def _count(name: str, v, lo: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise DataError(f"{name} must be an integer >= {lo}, got {v!r}", option=name)
-    return int(v)
 
 
 def optimal_poses(
@@ -126,7 +131,8 @@ def optimal_poses(
     region=None,
     view=None,
     q0=None,
-    max_steps: int = 500,
+    start_pool: int | None = None,
+    max_steps: int | None = None,
     tol: float = 1e-6,
     n_random: int = 200,
 ) -> PoseDesign:
@@ -143,16 +149,29 @@ def optimal_poses(
       of the forward kinematics that every measured point must stay in. ``view``: ``(origin
       xyz, axis xyz, half_angle[, near, far])`` (mm, rad), a camera's view cone in that frame
       that every measured point must stay in.
-    * ``max_steps``, ``tol``: BFGS's limit on evaluations (trial points) and its tolerance on
-      the change of the loss, O(1), and of the reparametrised joint values.
+    * ``start_pool``: each start is then the exchange selection (as :func:`select_poses`) of
+      ``start_pool`` random configurations meeting the constraints, which the gradient refines.
+      Default 1000 with a region or view, where random sets are poor starts and the gradient
+      from them stalls in poor local optima (docs/design.md), else 0 (random sets).
+    * ``max_steps``, ``tol``: BFGS's limit on evaluations (trial points; default 500 from random
+      sets, 2000 from pool starts, whose refinement gains a little more with more steps) and
+      its tolerance on the change of the loss, O(1), and of the reparametrised joint values.
     * ``n_random``: random pose sets of the same count to compare with.
 
     **Returns** a :class:`PoseDesign`; ``feasible`` is False (with a warning) when no start met
     the constraints.
     """
-    n_poses = _count("n_poses", n_poses, 1)
-    starts, seed, n_random = _count("starts", starts, 1), _count("seed", seed, 0), _count("n_random", n_random, 1)
-    max_steps = _count("max_steps", max_steps, 1)
+    n_poses = count("n_poses", n_poses, 1)
+    starts, seed, n_random = count("starts", starts, 1), count("seed", seed, 0), count("n_random", n_random, 1)
+    cons = constraints(min_spread, region, view)
+    if start_pool is None:
+        start_pool = POOL_STARTS if cons.has_region and q0 is None else 0
+    start_pool = count("start_pool", start_pool, 0)
+    if start_pool and start_pool < n_poses:
+        raise DataError(f"start_pool must be 0 or at least n_poses ({n_poses}), got {start_pool}", option="start_pool")
+    if max_steps is None:
+        max_steps = 2000 if start_pool else 500
+    max_steps = count("max_steps", max_steps, 1)
     if problem.layout.rows * n_poses < problem.n_base:
         need = -(-problem.n_base // problem.layout.rows)
         raise DataError(
@@ -160,9 +179,12 @@ def optimal_poses(
             f"parameters; need at least {need}",
             option="n_poses",
         )
-    cons = constraints(min_spread, region, view)
     rng = np.random.default_rng([seed, 2])
-    if q0 is None:
+    if q0 is None and start_pool:
+        where = constraints(0.0, region, view)  # the exchange keeps the spread among the chosen
+        pools = random_feasible(problem, where, (starts, start_pool), rng)
+        q0 = np.stack([pools[s][exchange(problem, cons, pools[s], n_poses, 10 * n_poses)[0]] for s in range(starts)])
+    elif q0 is None:
         q0 = random_feasible(problem, cons, (starts, n_poses), rng)
     else:
         q0 = np.asarray(q0, dtype=np.float64)
@@ -170,10 +192,13 @@ def optimal_poses(
         if q0.shape[1:] != (n_poses, problem.lower.shape[0]):
             raise DataError(f"q0 must have shape (S, {n_poses}, {problem.lower.shape[0]}), got {q0.shape}", option="q0")
     t0 = time.perf_counter()
-    out = _optimise(problem, cons, jnp.asarray(q0), max_steps=max_steps, tol=tol)
-    q, m, losses, ok, evals = (np.asarray(a) for a in out)
+    penalised = cons.has_region or float(cons.spread) > 0
+    out = _optimise(problem, cons, jnp.asarray(q0), max_steps=max_steps, tol=tol, penalised=penalised)
+    q, ok, evals = (np.asarray(a) for a in out)
     seconds = time.perf_counter() - t0
     q = np.clip(q, np.asarray(problem.lower), np.asarray(problem.upper))  # rounding of c + h sin(u)
+    m = measures_batch(problem, q)
+    losses = np.asarray(_losses(problem, jnp.asarray(m)))
     good = np.array([np.isfinite(losses[s]) and feasible(problem, cons, q[s]) for s in range(len(q))])
     best = int(np.lexsort((np.where(np.isfinite(losses), losses, np.inf), ~good))[0])
     if not good[best]:
@@ -194,6 +219,7 @@ def optimal_poses(
         min_distance=min_distance(q[best]),
         details={
             "starts": int(len(q)),
+            "start_pool": start_pool,
             "start_losses": [float(v) for v in losses],
             "feasible_starts": int(good.sum()),
             "converged_starts": int(ok.sum()),

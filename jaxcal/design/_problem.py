@@ -33,12 +33,13 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import as_f64
-from ..calibration import Options, make_layout, nominal_model, parse_params
+from ..calibration import Options, lever, make_layout, nominal_model, parse_params
 from ..errors import DataError
 from ..identifiability import analyze
 from ..kinematics import check_q
-from ..model import Layout, Model, jacobian, predict, row_weights
+from ..model import Layout, Model, apply, predict, row_weights
 from ..robot import Robot
+from ._report import report_options
 
 CRITERIA = ("d", "a", "validation")
 DEFAULT_SIGMA_POS_MM = 0.02
@@ -88,8 +89,32 @@ def information(problem: DesignProblem, q: Float[Array, "K n"]) -> Float[Array, 
 
 def blocks(problem: DesignProblem, q: Float[Array, "K n"]) -> Float[Array, "K rows b"]:
     """Weighted, scaled base-set rows of each pose: ``M = sum_k L_k^T L_k``."""
-    J = jacobian(problem.model, problem.layout, q)[..., list(problem.base)]
+    J = identification_jacobian(problem.model, problem.layout, q)[..., list(problem.base)]
     return J * problem.scale * problem.row_weights[:, None]
+
+
+def identification_jacobian(model: Model, layout: Layout, q: Float[Array, "K n"]) -> Float[Array, "K rows m"]:
+    """:func:`jaxcal.model.jacobian` by reverse-mode autodiff of the measurement model
+    (:func:`jaxcal.model.apply`, :func:`jaxcal.model.predict`), pose by pose: the same matrix (the
+    tests compare them), whose derivative with respect to ``q``, which the design's gradient
+    needs, compiles in a fraction of the time the analytic form's does (that form's entry-by-entry
+    expressions are built for first-order speed). Rows as the model's: positions, then for poses
+    the rotation ``vee(dR R^T)``."""
+
+    def one(qk):
+        qk = qk[None]
+        if layout.n_points:
+            return jax.jacrev(lambda x: predict(apply(model, layout, x), qk).reshape(-1))(jnp.zeros(layout.size))
+        R0 = predict(model, qk)[0, :3, :3]
+
+        def pose(x):
+            T = predict(apply(model, layout, x), qk)[0]
+            W = T[:3, :3] @ R0.T  # I + skew(w) to first order
+            return jnp.concatenate([T[:3, 3], jnp.stack([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]]) / 2])
+
+        return jax.jacrev(pose)(jnp.zeros(layout.size))
+
+    return jax.vmap(one)(q)
 
 
 def measures(problem: DesignProblem, M: Float[Array, "b b"]) -> Float[Array, " 3"]:
@@ -123,17 +148,32 @@ def values_of(m) -> dict:
     return {"log_det": float(m[0]), "a_trace": float(m[1]), "validation_rms_mm": float(np.sqrt(m[2]))}
 
 
+def measures_batch(problem: DesignProblem, q) -> np.ndarray:
+    """:func:`measures` of many pose sets ``q (R, K, n)`` at once, ``(R, 3)``."""
+    q = np.asarray(q)
+    L = pose_blocks(problem, q.reshape(-1, q.shape[-1])).reshape(q.shape[:2] + (-1, problem.n_base))
+    M = np.einsum("rkab,rkac->rbc", L, L) + np.diag(np.asarray(problem.prior))
+    R = len(M)
+    padded = np.concatenate([M, np.broadcast_to(np.eye(M.shape[-1]), (-R % MEASURES_CHUNK,) + M.shape[1:])])
+    n = MEASURES_CHUNK
+    out = [np.asarray(_measures_of(problem, jnp.asarray(padded[s : s + n]))) for s in range(0, R, n)]
+    return np.concatenate(out)[:R]
+
+
+MEASURES_CHUNK = 256
+"""Pose sets per call of the one compiled program of :func:`measures_batch`."""
+
+
 @eqx.filter_jit
-def measures_batch(problem: DesignProblem, q: Float[Array, "R K n"]) -> Float[Array, "R 3"]:
-    """:func:`measures` of many pose sets at once."""
-    return jax.vmap(lambda q_: measures(problem, information(problem, q_)))(q)
+def _measures_of(problem: DesignProblem, M):
+    return jax.vmap(lambda M_: measures(problem, M_))(M)
 
 
 def evaluate(problem: DesignProblem, q) -> dict:
     """All three criteria of the poses ``q (K, n)``: ``log_det``, ``a_trace`` and
     ``validation_rms_mm`` (module docstring), whichever criterion the problem selects."""
     q = _checked_q(problem, q, "q")
-    return values_of(measures_batch(problem, jnp.asarray(q)[None])[0])
+    return values_of(measures_batch(problem, q[None])[0])
 
 
 def value(name: str, values: dict) -> float:
@@ -165,15 +205,48 @@ def tool_positions(model: Model, layout: Layout, q: Float[Array, "K n"]) -> Floa
     return pred[..., None, :3, 3] if layout.n_points == 0 else pred
 
 
-@eqx.filter_jit
-def _reference(model: Model, layout: Layout, q):
-    return jacobian(model, layout, q), tool_positions(model, layout, q)
+JACOBIAN_CHUNK = 256
+"""Poses per call of the one compiled Jacobian program (:func:`reference`) of a design."""
+
+
+def _reference_of(model: Model, layout: Layout, q):
+    return identification_jacobian(model, layout, q), tool_positions(model, layout, q)
+
+
+# run a few times per design on a few hundred poses: LLVM's optimisation would cost more
+# compile time than it saves (the values are the same)
+_reference = jax.jit(_reference_of, static_argnums=1, compiler_options={"xla_backend_optimization_level": 0})
+
+
+def reference(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray]:
+    """The identification Jacobian ``(K, rows, m)`` and the measured points' positions ``(K, P,
+    3)`` at the poses ``q (K, n)``, in chunks of :data:`JACOBIAN_CHUNK` poses: whatever the
+    count (validation poses, random sets, a pool, candidates), one compiled program."""
+    q = np.asarray(q, dtype=np.float64)
+    K = len(q)
+    padded = np.concatenate([q, np.repeat(q[-1:], -K % JACOBIAN_CHUNK, 0)])
+    n = JACOBIAN_CHUNK
+    parts = [_reference(model, layout, jnp.asarray(padded[s : s + n])) for s in range(0, K, n)]
+    return tuple(np.concatenate([np.asarray(p[i]) for p in parts])[:K] for i in (0, 1))
+
+
+def pose_blocks(problem: DesignProblem, q) -> np.ndarray:
+    """:func:`blocks` of the poses ``q (K, n)`` through :func:`reference`'s program."""
+    J = reference(problem.model, problem.layout, q)[0][..., list(problem.base)]
+    return J * np.asarray(problem.scale) * np.asarray(problem.row_weights)[:, None]
 
 
 def uniform_poses(robot: Robot, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` joint configurations uniform within the joint limits."""
     lim = np.asarray(robot.q_limits)
     return lim[:, 0] + rng.uniform(size=(n, len(lim))) * (lim[:, 1] - lim[:, 0])
+
+
+def count(name: str, v, lo: int) -> int:
+    """``v`` checked as an integer >= ``lo`` (a DataError naming ``name`` otherwise)."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+        raise DataError(f"{name} must be an integer >= {lo}, got {v!r}", option=name)
+    return int(v)
 
 
 def options_of(options: Options | None, kw: dict) -> Options:
@@ -197,6 +270,7 @@ def design_problem(
     q_val=None,
     n_val: int = 200,
     seed: int = 0,
+    params_from=None,
     **kw,
 ) -> DesignProblem:
     """The design problem of a calibration of ``robot`` with these options.
@@ -205,7 +279,8 @@ def design_problem(
 
     * ``options`` / keywords: :class:`jaxcal.Options`, as for :func:`jaxcal.calibrate`: the
       layout (``estimate_base``, ``estimate_tool``, ``camera``), the parameter set (``params``,
-      ``ridge_mm``; ``auto`` is ``all`` as in a single fit) and the noise (``sigma_pos_mm``,
+      ``compliance``, ``ridge_mm``: the calibration's prior, each parameter weighed by its lever
+      over the validation poses; ``auto`` is ``all`` as in a single fit) and the noise (``sigma_pos_mm``,
       ``sigma_rot_rad``; None: 0.02 mm and 2e-5 rad, which only weigh rotation rows against
       position rows).
     * ``criterion``: ``"validation"`` (default), ``"d"`` or ``"a"`` (module docstring).
@@ -214,9 +289,15 @@ def design_problem(
       the tool origin).
     * ``q_val (V, n)``: the validation poses; default ``n_val`` poses uniform within the joint
       limits, drawn with ``seed``. They also fix the base set and the column scale.
+    * ``params_from``: a ``jaxcal calibrate --json`` report (path or dict): design for the
+      parameters that calibration estimated, with its prior, compliances, ``estimate_base`` and
+      ``estimate_tool`` (:func:`jaxcal.design.report_options`); keywords given here win over
+      the report.
     """
     if criterion not in CRITERIA:
         raise DataError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", option="criterion")
+    if params_from is not None:
+        kw = report_options(params_from, robot) | kw
     opts = options_of(options, kw)
     for name, v, lo in (("n_points", n_points, 0), ("n_val", n_val, 1), ("seed", seed, 0)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
@@ -237,14 +318,16 @@ def design_problem(
     q_val = np.asarray(check_q(robot, as_f64(q_val, "q_val")))
     if q_val.ndim != 2 or q_val.shape[0] < 1:
         raise DataError(f"q_val must have shape (V, {robot.n_joints}) with V >= 1, got {q_val.shape}", option="q_val")
-    J = np.asarray(_reference(model, layout, jnp.asarray(q_val))[0])  # (V, rows, m)
+    J = reference(model, layout, q_val)[0]  # (V, rows, m)
 
-    # the identifiable set as calibrate finds it: frames offered first, then DH, then camera
-    frames, cams = list(layout.frames), list(layout.cameras)
-    ident = analyze(J, layout.names(), priority=frames + list(range(layout.n_kin)) + cams)
+    # the identifiable set as calibrate finds it: frames offered first, then DH and compliances,
+    # then camera
+    frames, cams, comps = list(layout.frames), list(layout.cameras), list(layout.compliances)
+    ident = analyze(J, layout.names(), priority=frames + list(range(layout.n_kin)) + comps + cams)
     spec = "all" if opts.params == "auto" else opts.params
-    cand = parse_params(spec, robot, opts.ridge_mm)[0]
-    base = tuple(i for i in ident.base if i in frames or i in cams or i in cand.dh)
+    cand = parse_params(spec, robot, opts.ridge_mm, compliance=opts.compliance == "yes")[0]
+    estimated = set(frames + cams + list(cand.dh) + (comps if cand.compliance else []))
+    base = tuple(i for i in ident.base if i in estimated)
     if not base:
         raise DataError("no identifiable parameter to design for (check params)", option="params")
     sp = DEFAULT_SIGMA_POS_MM if opts.sigma_pos_mm is None else opts.sigma_pos_mm
@@ -252,7 +335,11 @@ def design_problem(
     w = np.asarray(row_weights(layout, sp, sr))
     Jb = J[..., list(base)]
     scale = 1.0 / np.sqrt(np.mean(np.sum((Jb * w[:, None]) ** 2, axis=1), axis=0))
-    prior = np.array([cand.prior_weight(i) if i < layout.n_kin else 0.0 for i in base]) ** 2 * scale**2
+    # the calibration's physically scaled prior, its levers over the validation poses (a
+    # calibration takes them over its own poses, the ones being designed)
+    lev = lever(J, layout.n_points)
+    kinematic = set(range(layout.n_kin)) | set(comps)
+    prior = np.array([cand.prior_weight(lev[i]) if i in kinematic else 0.0 for i in base]) ** 2 * scale**2
     # validation: the position rows of every measured point (the tool origin for poses), averaged
     # over points and poses
     G = (Jb[:, :3] if layout.n_points == 0 else Jb) * scale

@@ -26,18 +26,13 @@ from jaxtyping import Array, Bool, Float, Int
 from .._config import as_f64
 from ..errors import DataError
 from ._constraints import constraints, feasible, in_region, min_distance, positions, random_values
-from ._problem import DesignProblem, blocks, measures_batch, values_of
+from ._problem import DesignProblem, count, measures_batch, pose_blocks, values_of
 from ._result import PoseDesign, frozen
 
 RIDGE = 1e-6
 """Ridge of the greedy start, relative to the mean information of one pool pose."""
 IMPROVEMENT = 1e-10
 """Smallest improvement of the loss an exchange must bring."""
-
-
-@eqx.filter_jit
-def _blocks(problem: DesignProblem, q):
-    return blocks(problem, q)
 
 
 def _loss_terms(problem: DesignProblem, logdet, tr_a, tr_v):
@@ -134,6 +129,27 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
     return out[0], out[2]
 
 
+def exchange(problem: DesignProblem, cons, pool: np.ndarray, n_poses: int, max_swaps: int):
+    """Pool rows of the best ``n_poses`` by greedy start and Fedorov exchange, among the pool
+    poses in the region and view and never two closer than the spread: ``(indices, swaps,
+    usable candidates)``. Raises :class:`jaxcal.DataError` when too few are usable."""
+    allowed = np.ones(len(pool), bool)
+    if cons.has_region:
+        allowed = in_region(cons, positions(problem, pool))
+    sq = np.sum(pool**2, 1)
+    close = sq[:, None] + sq[None] - 2 * pool @ pool.T < float(cons.spread) ** 2  # no (P, P, n) intermediate
+    L = jnp.asarray(pose_blocks(problem, pool))
+    start = np.asarray(_greedy(problem, L, jnp.asarray(allowed), jnp.asarray(close), n_poses))
+    if np.any(start < 0):
+        raise DataError(
+            f"pool: only {int(np.sum(start >= 0))} poses satisfy the region, the view and the minimum spread together, "
+            f"fewer than the {n_poses} asked for",
+            option="pool",
+        )
+    chosen, swaps = _exchange(problem, L, jnp.asarray(start), jnp.asarray(allowed), jnp.asarray(close), max_swaps)
+    return np.asarray(chosen), int(swaps), int(allowed.sum())
+
+
 def select_poses(
     problem: DesignProblem,
     pool,
@@ -160,11 +176,9 @@ def select_poses(
     **Raises** :class:`jaxcal.DataError` for a pool with bad values or values beyond the joint
     limits (naming the row and joint), or too few usable candidates.
     """
-    from ._optimize import _count
-
-    n_poses = _count("n_poses", n_poses, 1)
-    max_swaps = 10 * n_poses if max_swaps is None else _count("max_swaps", max_swaps, 0)
-    seed, n_random = _count("seed", seed, 0), _count("n_random", n_random, 1)
+    n_poses = count("n_poses", n_poses, 1)
+    max_swaps = 10 * n_poses if max_swaps is None else count("max_swaps", max_swaps, 0)
+    seed, n_random = count("seed", seed, 0), count("n_random", n_random, 1)
     pool = np.asarray(as_f64(pool, "pool"))
     n = problem.lower.shape[0]
     if pool.ndim != 2 or pool.shape[1] != n:
@@ -182,25 +196,11 @@ def select_poses(
     if problem.layout.rows * n_poses < problem.n_base:
         raise DataError(f"n_poses: {n_poses} poses cannot identify {problem.n_base} base parameters", option="n_poses")
     cons = constraints(min_spread, region, view)
-    allowed = np.ones(len(pool), bool)
-    if cons.has_region:
-        allowed = in_region(cons, np.asarray(positions(problem, jnp.asarray(pool))))
-    d = np.sqrt(np.sum((pool[:, None] - pool[None]) ** 2, -1))
-    close = d < float(cons.spread)
     t0 = time.perf_counter()
-    L = _blocks(problem, jnp.asarray(pool))
-    start = np.asarray(_greedy(problem, L, jnp.asarray(allowed), jnp.asarray(close), n_poses))
-    if np.any(start < 0):
-        raise DataError(
-            f"pool: only {int(np.sum(start >= 0))} poses satisfy the region, the view and the minimum spread together, "
-            f"fewer than the {n_poses} asked for",
-            option="pool",
-        )
-    chosen, swaps = _exchange(problem, L, jnp.asarray(start), jnp.asarray(allowed), jnp.asarray(close), max_swaps)
-    chosen = np.asarray(chosen)
+    chosen, swaps, usable = exchange(problem, cons, pool, n_poses, max_swaps)
     seconds = time.perf_counter() - t0
     q = pool[chosen]
-    values = values_of(measures_batch(problem, jnp.asarray(q)[None])[0])
+    values = values_of(measures_batch(problem, q[None])[0])
     rng = np.random.default_rng([seed, 3])
     return PoseDesign(
         q=frozen(q),
@@ -214,7 +214,7 @@ def select_poses(
         details={
             "indices": [int(i) for i in chosen],
             "pool_size": int(len(pool)),
-            "usable": int(allowed.sum()),
+            "usable": usable,
             "swaps": int(swaps),
             "select_seconds": seconds,
         },

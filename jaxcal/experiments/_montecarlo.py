@@ -15,8 +15,9 @@ import numpy as np
 from .._config import as_f64
 from ..calibration import Options, calibrate_batch, identify
 from ..error_model import perturb
+from ..errors import DataError
 from ..identifiability import base_covariance, row_sigmas
-from ..kinematics import fk
+from ..kinematics import check_q, fk
 from ..model import Layout, Model, jacobian
 from ..robot import Robot
 from ..sharding import describe, select_devices
@@ -68,6 +69,16 @@ def crlb_variances(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, 
     K, n)`` at the nominal model: the diagonal of :func:`jaxcal.identifiability.crlb`, from each
     robot's column-scaled information matrix, :data:`CRLB_SLICE` robots at a time (a slice's
     Jacobians are the largest arrays of a study)."""
+    return _variances(_base_information(robot, q, ident, layout, sigma_pos, sigma_rot))
+
+
+def _variances(N) -> np.ndarray:
+    d = np.sqrt(np.diagonal(N, axis1=-2, axis2=-1))  # column scales: inv of a matrix with unit diagonal
+    return np.diagonal(np.linalg.inv(N / (d[:, :, None] * d[:, None, :])), axis1=-2, axis2=-1) / d**2
+
+
+def _base_information(robot: Robot, q, ident, layout: Layout, sigma_pos, sigma_rot) -> np.ndarray:
+    """``(R, r, r)`` information of the base parameters of each robot's poses ``q (R, K, n)``."""
     q = np.asarray(q)
     R, K = q.shape[:2]
     sig = row_sigmas(
@@ -79,9 +90,28 @@ def crlb_variances(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, 
     step = min(R, CRLB_SLICE)
     padded = np.concatenate([q, np.repeat(q[-1:], -R % step, 0)])  # whole slices: one compile
     fn = lambda s: _information(robot.stripped(), padded[s : s + step], 1 / sig, layout=layout, base=tuple(ident.base))  # noqa: E731
-    N = np.concatenate([np.asarray(fn(s)) for s in range(0, len(padded), step)])[:R]
-    d = np.sqrt(np.diagonal(N, axis1=-2, axis2=-1))  # column scales: inv of a matrix with unit diagonal
-    return np.diagonal(np.linalg.inv(N / (d[:, :, None] * d[:, None, :])), axis1=-2, axis2=-1) / d**2
+    return np.concatenate([np.asarray(fn(s)) for s in range(0, len(padded), step)])[:R]
+
+
+@eqx.filter_jit
+def _position_moments(robot, q_val, *, layout: Layout, base: tuple[int, ...]):
+    """``(R, r, r)`` mean over each robot's inspection poses ``q_val (R, V, n)`` of ``G^T G``,
+    ``G`` the base columns of the tool point's position rows: ``tr(C S)`` is the expected squared
+    position error there for an estimate with covariance ``C``."""
+    model = Model(robot, jnp.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+
+    def one(qv):
+        G = jacobian(model, layout, qv)[:, :3][..., list(base)]
+        return jnp.einsum("vrb,vrc->bc", G, G) / qv.shape[0]
+
+    return jax.vmap(one)(q_val)
+
+
+def _validation_crlb(N, S) -> np.ndarray:
+    """``(R,)`` ``tr(N^-1 S)`` per robot, columns scaled to a unit diagonal of ``N`` first."""
+    d = np.sqrt(np.diagonal(N, axis1=-2, axis2=-1))
+    D = d[:, :, None] * d[:, None, :]
+    return np.trace(np.linalg.solve(N / D, np.broadcast_to(S, N.shape) / D), axis1=-2, axis2=-1)
 
 
 CRLB_SLICE = 256
@@ -119,26 +149,46 @@ def _true_x(x_true, layout: Layout) -> np.ndarray:
 
 
 @eqx.filter_jit
-def _draw(robot: Robot, key, idx, scales, q_given, sigmas, *, n_poses, n_val, base: bool, tool: bool, design, outliers):
+def _draw(
+    robot: Robot,
+    key,
+    idx,
+    scales,
+    q_given,
+    q_each,
+    q_val,
+    sigmas,
+    *,
+    n_poses: int,
+    n_val: int,
+    base,
+    tool,
+    design,
+    outliers,
+):
     """Robots ``idx`` of a study: true errors, poses, noisy measurements, inspection poses and
     their true poses. Robot ``i``'s draw depends on ``(key, i)`` alone, so a study's results do
-    not depend on how it is chunked, on the devices, or on being resumed."""
+    not depend on how it is chunked, on the devices, or on being resumed. ``q_each (R, K, n)``:
+    each robot's poses (drawn under the study's conditions); ``q_val (V, n)``: the inspection
+    poses of every robot."""
 
-    def one(i):
+    def one(i, q_e):
         kx, kq, kv, kn = jax.random.split(jax.random.fold_in(key, i), 4)
         x = jax.random.normal(kx, scales.shape, dtype=jnp.float64) * scales
         if design is not None:
             q = design_poses(kq, robot, n_pairs=design[0], n_abs=design[1])
+        elif q_e is not None:
+            q = q_e
         else:
             q = sample_poses(kq, robot, (n_poses,)) if q_given is None else q_given
         meas = measure(robot, x, q, kn, sigma_pos=sigmas[0], sigma_rot=sigmas[1], base=base, tool=tool)
         bad = jnp.zeros(q.shape[0], bool)
         if outliers is not None:  # gross errors, on a key of their own (the clean draws unchanged)
             meas, bad = inject_outliers(jax.random.fold_in(kn, 1), meas, *outliers)
-        qv = sample_poses(kv, robot, (n_val,))
+        qv = sample_poses(kv, robot, (n_val,)) if q_val is None else q_val
         return x, q, meas, qv, fk(perturb(robot, x, base=base, tool=tool), qv), bad
 
-    return jax.vmap(one)(idx)
+    return jax.vmap(one)(idx, q_each)
 
 
 def default_chunk(n_robots: int, n_poses: int, n_val: int, n_joints: int, memory_mb: float, n_devices: int) -> int:
@@ -176,6 +226,10 @@ def run_montecarlo(
     out=None,
     chunk_robots: int | None = None,
     max_chunks: int | None = None,
+    region=None,
+    view=None,
+    min_spread: float = 0.0,
+    q_val=None,
     outliers: float = 0.0,
     outlier_mm=(3.0, 6.0),
     keep_outliers: bool = False,
@@ -197,12 +251,18 @@ def run_montecarlo(
     call that computes a single chunk reruns it ``repeats`` times to time it warm (the chunk,
     never the whole study). ``compile_seconds`` = the first chunk's time minus its warm estimate.
 
+    Conditions, as for :func:`jaxcal.design.optimal_poses`: ``region`` (a box), ``view`` (a
+    camera's view cone) and ``min_spread`` constrain each robot's random poses, drawn by the
+    design's sampler (:class:`jaxcal.design.PoseSampler`); ``q_val (V, n)`` are the inspection
+    poses of every robot (where the calibrated arm will work) instead of ``n_val`` random ones.
+    The summary's ``conditions`` says which were used, and ``crlb_validation_pos_rms_mm`` is
+    the inspection RMS the Cramér–Rao bound predicts (first order, at the nominal robot).
+
     Outliers: ``outliers`` the share of each robot's poses given a gross position error of
     ``outlier_mm = (A, B)`` mm (:func:`jaxcal.simulation.inject_outliers`); the calibration finds
     and leaves them out unless ``keep_outliers``; the summary counts the poses flagged, injected
     or not (``outliers_found``, ``outliers_missed``, ``false_alarms``).
     """
-    from ..errors import DataError
     from ..solvers import METHODS
 
     for name, v in (("robots", n_robots), ("poses", n_poses), ("val_poses", n_val), ("repeats", repeats + 1)):
@@ -232,6 +292,12 @@ def run_montecarlo(
         if q.ndim != 2 or q.shape[1] != robot.n_joints or not np.all(np.isfinite(q)):
             raise DataError(f"q must be finite with shape (K, {robot.n_joints}), got {q.shape}", option="q")
         n_poses = q.shape[0]
+    sampler, q_val, conditions = _conditions(robot, q, q_val, region, view, min_spread, position_only, n_poses, seed)
+    if sampler is not None and design is not None:
+        raise DataError(
+            "region, view and min_spread need random poses, not the elimination's pair design", option="method"
+        )
+    n_val = n_val if q_val is None else len(q_val)
     definition = {
         "robot": robot.name,
         "robot_fingerprint": fingerprint(robot.stripped()),
@@ -245,6 +311,7 @@ def run_montecarlo(
         "estimate_base": estimate_base,
         "estimate_tool": estimate_tool,
         "poses_fingerprint": None if q is None else fingerprint(q),
+        **({"conditions": conditions} if conditions["constrained"] or q_val is not None else {}),
         "chunk_robots": chunk_robots or default_chunk(n_robots, n_poses, n_val, robot.n_joints, memory_mb, len(devs)),
     }
     gross = _gross(outliers, outlier_mm, n_poses)  # (count, A, B) or None; in the definition only when used
@@ -273,7 +340,11 @@ def run_montecarlo(
         idx = np.minimum(np.arange(i * c, (i + 1) * c), n_robots - 1)
         kw = dict(n_poses=n_poses, n_val=n_val, base=estimate_base, tool=estimate_tool, design=design, outliers=gross)
         sigmas = np.array([sigma_pos, sigma_rot])
-        return [np.asarray(a) for a in _draw(stripped, jax.random.PRNGKey(seed), idx, scales, q, sigmas, **kw)]
+        q_each = None if sampler is None else sampler.sets(idx)
+        return [
+            np.asarray(a)
+            for a in _draw(stripped, jax.random.PRNGKey(seed), idx, scales, q, q_each, q_val, sigmas, **kw)
+        ]
 
     ident = identify(robot, draw(0)[1][0], opts, n_points=int(position_only))  # on robot 0's poses
     base_idx = list(ident.base)
@@ -286,7 +357,7 @@ def run_montecarlo(
     for i in np.flatnonzero(~done):
         if max_chunks is not None and computed >= max_chunks:
             break
-        x_true, q_i, meas, q_val, true_val, bad = draw(int(i))
+        x_true, q_i, meas, q_val_i, true_val, bad = draw(int(i))
         measured = _measured(meas, position_only)
         t0 = time.perf_counter()
         res = calibrate_batch(robot, q_i, measured, opts, ident=ident, devices=devs)
@@ -296,7 +367,7 @@ def run_montecarlo(
         else:  # warm chunks time themselves: the first chunk's data are not needed again
             warm.append((len(q_i), dt))
             first = first[:2] + (None,)
-        rec = _record(robot, res, x_true, q_i, q_val, true_val, ident, sigma_pos, sigma_rot, noisy)
+        rec = _record(robot, res, x_true, q_i, q_val_i, true_val, ident, sigma_pos, sigma_rot, noisy, q_val is not None)
         rec |= _flag_counts(res, bad)
         n_i = min(c, n_robots - i * c)  # without the padding
         rec = {k: v[:n_i] for k, v in rec.items()}
@@ -317,6 +388,7 @@ def run_montecarlo(
     described += ("position_only", "estimate_base", "estimate_tool")
     described += tuple(k for k in ("outliers", "keep_outliers") if k in definition)
     out_d = {k: definition[k] for k in described} | {
+        "conditions": conditions,
         "devices": describe(devs),
         "chunk_robots": c,
         "chunks": n_chunks,
@@ -334,6 +406,75 @@ def run_montecarlo(
     if folder is not None and out_d["complete"]:
         folder.write_summary(out_d)
     return out_d
+
+
+def _conditions(robot, q, q_val, region, view, min_spread, position_only, n_poses, seed):
+    """The study's conditions: a sampler of each robot's poses (None: uniform within the
+    limits, or given), the checked inspection poses, and their description for the summary."""
+    from ..design import constraints, feasible, workspace
+
+    cons = constraints(min_spread, region, view)
+    constrained = cons.has_region or float(cons.spread) > 0
+    sampler = None
+    if q is None:
+        sampler = study_sampler(robot, n_poses, seed=seed, position_only=position_only, constraints=cons)
+    if q_val is not None:
+        q_val = np.asarray(check_q(robot, as_f64(q_val, "q_val")))
+        if q_val.ndim != 2 or len(q_val) < 1:
+            raise DataError(
+                f"q_val must have shape (V, {robot.n_joints}) with V >= 1, got {q_val.shape}", option="q_val"
+            )
+    view_doc = None
+    if cons.has_view:
+        far = float(cons.view_far)
+        view_doc = {
+            "origin_mm": np.asarray(cons.view_origin).tolist(),
+            "axis": np.asarray(cons.view_axis).tolist(),
+            "half_angle_deg": float(np.degrees(cons.view_half_angle)),
+            "near_mm": float(cons.view_near),
+            "far_mm": far if far < np.finfo(np.float64).max else None,
+        }
+    doc = {
+        "constrained": constrained,
+        "calibration_poses": "given" if q is not None else "random, constrained" if constrained else "random",
+        "region": [np.asarray(cons.box_lower).tolist(), np.asarray(cons.box_upper).tolist()] if cons.has_box else None,
+        "view": view_doc,
+        "min_spread": float(cons.spread),
+        "acceptance": None if sampler is None else sampler.acceptance,
+        "validation_poses": "random per robot" if q_val is None else "given",
+        "validation_fingerprint": None if q_val is None else fingerprint(q_val),
+    }
+    if q is not None and constrained:
+        doc["given_poses_meet_conditions"] = feasible(workspace(robot, int(position_only)), cons, q)
+    return sampler, q_val, doc
+
+
+def study_sampler(
+    robot: Robot,
+    n_poses: int,
+    *,
+    seed: int = 0,
+    position_only: bool = False,
+    region=None,
+    view=None,
+    min_spread: float = 0.0,
+    constraints=None,
+):
+    """The sampler of the robots' poses in a study with these conditions
+    (:class:`jaxcal.design.PoseSampler`; robot ``i`` calibrates on ``.sets([i])[0]``), or None
+    when they are not constrained (uniform within the joint limits). ``constraints``: already
+    checked ones (:func:`jaxcal.design.constraints`) instead of the three options."""
+    from ..design import PoseSampler, workspace
+    from ..design import constraints as make_constraints
+
+    cons = make_constraints(min_spread, region, view) if constraints is None else constraints
+    if not cons.has_region and float(cons.spread) == 0:
+        return None
+    key = jax.random.fold_in(jax.random.PRNGKey(seed), SAMPLER_STREAM)  # apart from the robots' own draws
+    return PoseSampler(workspace(robot, int(position_only)), cons, n_poses, key)
+
+
+SAMPLER_STREAM = 0x5A3
 
 
 def _gross(fraction, outlier_mm, n_poses: int):
@@ -359,7 +500,7 @@ def _measured(meas, position_only: bool):
     return meas[..., :3, 3] if position_only else meas
 
 
-def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot, noisy) -> dict:
+def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot, noisy, shared_val=False) -> dict:
     """One chunk's results: per robot the estimates, truths, base-set errors, convergence and
     inspection RMS; the chunk's sum of Cramér–Rao covariances."""
     layout = res.layout
@@ -376,8 +517,12 @@ def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot,
         "steps": res.num_steps,
         "val_rms": np.asarray(val),
     }
-    if noisy:  # each robot's bound on the base set's variances
-        rec["crlb_var"] = crlb_variances(robot, q, ident, layout, sigma_pos=sigma_pos, sigma_rot=sigma_rot)
+    if noisy:  # each robot's bound on the base set's variances, and on its inspection error
+        N = _base_information(robot, q, ident, layout, sigma_pos, sigma_rot)
+        rec["crlb_var"] = _variances(N)
+        qv = q_val[:1] if shared_val else q_val
+        S = _position_moments(robot.stripped(), jnp.asarray(qv), layout=layout, base=tuple(ident.base))
+        rec["crlb_val2"] = _validation_crlb(N, np.asarray(S))
     return rec
 
 
@@ -388,6 +533,7 @@ class _Sums:
     def __init__(self, r: int):
         self.n, self.conv, self.max_steps = 0, 0, 0
         self.err2, self.val2, self.crlb = np.zeros(r), 0.0, np.zeros(r)
+        self.crlb_val2 = 0.0
         self.flags = np.zeros(3, int)  # outliers found, missed, false alarms
 
     @classmethod
@@ -402,6 +548,8 @@ class _Sums:
         self.val2 += float(np.sum(rec["val_rms"] ** 2))
         if "crlb_var" in rec:
             self.crlb = self.crlb + np.sum(rec["crlb_var"], 0)
+        if "crlb_val2" in rec:
+            self.crlb_val2 += float(np.sum(rec["crlb_val2"]))
         if "flags" in rec:
             self.flags = self.flags + np.sum(rec["flags"], 0)
 
@@ -421,6 +569,7 @@ class _Sums:
             eff = (self.crlb / n) / (self.err2 / n)
             out["crlb_efficiency"] = dict(zip(names, eff.tolist()))
             out["crlb_efficiency_mean"] = float(eff.mean())
+            out["crlb_validation_pos_rms_mm"] = float(np.sqrt(self.crlb_val2 / n))
         return out
 
 

@@ -93,3 +93,37 @@ def test_design_bad_view_names_the_flag(monkeypatch, capsys, tmp_path):
     )
     err = " ".join(err.split())
     assert code == 2 and "--view must be 7 or 9 comma-separated numbers" in err and not (tmp_path / "p.csv").exists()
+
+
+def test_montecarlo_judges_a_design_in_its_conditions(monkeypatch, capsys, tmp_path):
+    """montecarlo --view --validation FILE draws its random poses in the cone and inspects at the
+    file's poses, and its JSON says so; a design made for the same conditions runs there with
+    --poses-file, checked against them."""
+    import numpy as np
+
+    import jaxcal
+    from jaxcal import design
+
+    robot = jaxcal.preset("paper-6r")
+    cone = ([2500.0, 0.0, 300.0], [-1.0, 0.0, 0.0], np.radians(12.0), 1500.0, 3500.0)
+    view = "2500,0,300,-1,0,0,12,1500,3500"
+    val, js, poses = tmp_path / "val.csv", tmp_path / "mc.json", tmp_path / "poses.csv"
+    design.write_poses(val, design.random_poses(robot, 12, view=cone, seed=3), robot)
+    common = ("--robots", "64", "--repeats", "0", "--view", view, "--validation", val, "--json", js)
+    code, stdout, err = run_cli(monkeypatch, capsys, "montecarlo", "paper-6r", "--poses", "8", *common)
+    assert code in (0, None), err
+    m = json.loads(js.read_text())
+    assert m["n_poses"] == 8 and m["n_val"] == 12 and m["validation_pos_rms_mm"] > 0
+    c = m["conditions"]
+    assert c["calibration_poses"] == "random, constrained" and c["validation_poses_file"] == str(val)
+    assert c["view"]["origin_mm"] == cone[0] and c["view"]["near_mm"] == 1500.0 and 0.1 < c["acceptance"] < 0.6
+    code, _, err = run_cli(
+        monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", poses, "--starts", "2",
+        "--no-estimate-base", "--no-estimate-tool", "--random-sets", "50", "--view", view, "--validation", val,
+    )  # fmt: skip
+    assert code in (0, None), err
+    code, _, err = run_cli(monkeypatch, capsys, "montecarlo", "paper-6r", "--poses-file", poses, *common)
+    assert code in (0, None), err
+    c = json.loads(js.read_text())["conditions"]
+    assert c["calibration_poses"] == "given" and c["given_poses_meet_conditions"]
+    assert c["calibration_poses_file"] == str(poses)

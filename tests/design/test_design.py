@@ -5,6 +5,7 @@ constraints, and the pool exchange against a brute-force check of every single s
 One small problem (paper 6R arm, full pose, frames known, 8 poses, 2 starts) serves every test,
 so that they share their compiled programs with the command-line test."""
 
+import jax
 import numpy as np
 import pytest
 
@@ -172,3 +173,151 @@ def test_pose_file_round_trip_and_errors(robot, tmp_path):
     (tmp_path / "short.csv").write_text("q1,q2,q3,q4,q5\n0,0,0,0,0\n")
     with pytest.raises(DataError, match="q1..q5"):
         design.read_poses(tmp_path / "short.csv", robot)
+
+
+def test_random_poses_keep_the_conditions_and_depend_on_the_set_index(robot):
+    """The sampler the design and the Monte Carlo share: every pose in the view cone (and, with a
+    box, in the box) by the NumPy forward kinematics, the spread kept, and set i the same
+    whichever sets are drawn with it."""
+    from helpers import dh_fk
+
+    q = design.random_poses(robot, N, n_sets=3, view=VIEW, min_spread=0.5, seed=4)
+    assert q.shape == (3, N, 6)
+    lim = np.asarray(robot.q_limits)
+    assert np.all(q >= lim[:, 0]) and np.all(q <= lim[:, 1])
+    angle, along = _in_view(robot, q.reshape(-1, 6))
+    assert np.all(angle <= VIEW[2]) and np.all((along >= VIEW[3]) & (along <= VIEW[4]))
+    assert min(design.min_distance(s) for s in q) >= 0.5
+    assert len(np.unique(q.reshape(-1, 6), axis=0)) == 3 * N
+    box = ([300.0, -600.0, -800.0], [1500.0, 600.0, 400.0])
+    qb = design.random_poses(robot, N, region=box, seed=1)
+    p = dh_fk(robot.dh, qb, convention=robot.convention, base=robot.base, tool=robot.tool)[:, :3, 3]
+    assert np.all(p >= box[0]) and np.all(p <= box[1])
+    sampler = design.PoseSampler(design.workspace(robot), design.constraints(0.0, None, VIEW), N, jax.random.PRNGKey(2))
+    assert 0.1 < sampler.acceptance < 0.6  # the cone really excludes configurations
+    np.testing.assert_array_equal(sampler.sets([0, 1, 2, 3])[3], sampler.sets([3])[0])
+    with pytest.raises(DataError, match="min_spread: fewer than"):
+        design.random_poses(robot, N, view=VIEW, min_spread=20.0)
+
+
+def test_params_from_a_calibration_report(robot, tmp_path):
+    """design_problem(params_from=report) designs for the parameters a real calibrate_data
+    report estimated, as if they were given by name; names the robot lacks are refused."""
+    import json
+
+    from jaxcal.simulation import simulate
+
+    sim = simulate(robot, n_robots=1, n_poses=30, seed=5, sigma_pos=0.02, sigma_rot=2e-5)
+    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(sim.q[0], sim.measured[0]), params="offsets", folds=2)
+    path = tmp_path / "report.json"
+    path.write_text(rep.to_json())
+    names = json.loads(path.read_text())["estimated_dh"]
+    assert names and all(n.startswith("theta") for n in names)
+    got = design.design_problem(robot, params_from=path, n_val=60, seed=1)
+    ref = design.design_problem(
+        robot, params=",".join(names), estimate_base=rep.report["estimate_base"],
+        estimate_tool=rep.report["estimate_tool"], n_val=60, seed=1,
+    )  # fmt: skip
+    assert got.base_names() == ref.base_names()
+    assert [n for n in got.base_names() if not n.startswith(("base_", "tool_"))] == names
+    assert design.report_options({"parameters": {"theta2": {}, "base_x": {}}}, robot)["params"] == "theta2"
+    got = design.report_options({"estimated_dh": ["theta2"], "ridge_mm": 1.0, "compliance": False}, robot)
+    assert got == {"params": "theta2", "ridge_mm": 1.0, "compliance": "no"}
+    with pytest.raises(DataError, match=r"params_from: 'ridge_mm' must be a prior"):
+        design.report_options({"estimated_dh": ["theta2"], "ridge_mm": -1}, robot)
+    assert design.report_options({"estimated_dh": []}, robot)["params"] == "frames"
+    with pytest.raises(DataError, match=r"params_from: .*theta7 is not a parameter of robot"):
+        design.design_problem(robot, params_from={"estimated_dh": ["theta2", "theta7"], "robot": "other"})
+    (tmp_path / "bad.json").write_text("{not json")
+    with pytest.raises(DataError, match=r"params_from: .*bad.json: not JSON"):
+        design.design_problem(robot, params_from=tmp_path / "bad.json")
+
+
+def test_params_from_the_committed_franka_report():
+    """The report docs/make_results.sh writes with jaxcal calibrate (the Franka data, a sparse
+    set under a prior): its estimated kinematic parameters, frames, compliance and prior."""
+    import json
+    from pathlib import Path
+
+    rep = json.loads((Path(__file__).parents[2] / "docs/franka/report.json").read_text())
+    got = design.report_options(rep, jaxcal.preset(rep["robot"]))
+    assert got["params"].split(",") == rep["estimated_dh"]  # the robot's order, as the report's
+    assert (got["estimate_base"], got["estimate_tool"]) == (rep["estimate_base"], rep["estimate_tool"])
+    assert got["compliance"] == ("yes" if rep["compliance"] else "no")
+    assert got.get("ridge_mm") == rep.get("ridge_mm")
+
+
+def test_ridge_prior_is_physically_scaled(robot, problem):
+    """With ridge_mm the design's prior is the calibration's, weight lever / ridge_mm, the lever
+    the RMS position change per unit of each parameter over the validation poses (from
+    error_model's Jacobian; exactly 1 for a length): in the scaled information, (lever * scale /
+    ridge)^2, and information() adds it to the poses' information."""
+    ridge = 0.5
+    pb = design.design_problem(robot, n_val=60, seed=1, ridge_mm=ridge, **FRAMES_KNOWN)
+    assert pb.base_names() == problem.base_names()
+    lim = np.asarray(robot.q_limits)  # the problems' validation poses (seed 1)
+    qv = lim[:, 0] + np.random.default_rng([1, 1]).uniform(size=(60, 6)) * (lim[:, 1] - lim[:, 0])
+    J = np.asarray(identification_jacobian(robot, qv))[:, :3][..., list(pb.base)]  # position rows
+    lever = np.sqrt(np.mean(np.sum(J**2, 1), 0))
+    lengths = [i for i, n in enumerate(pb.base_names()) if n[0] in "ad" and not n.startswith("alpha")]
+    np.testing.assert_allclose(lever[lengths], 1.0, rtol=1e-12)
+    np.testing.assert_allclose(pb.scale, problem.scale, rtol=1e-12)
+    expected = (lever * np.asarray(pb.scale) / ridge) ** 2
+    np.testing.assert_allclose(pb.prior, expected, rtol=1e-9)
+    q = _random_q(robot, N, 5)
+    added = np.asarray(design.information(pb, q)) - np.asarray(design.information(problem, q))
+    np.testing.assert_allclose(added, np.diag(expected), atol=1e-9 * np.abs(added).max())
+
+
+@pytest.mark.parametrize("case", ["pose, base and tool", "two points, tool", "joint frames", "camera"])
+def test_design_jacobian_is_the_model_jacobian(robot, case):
+    """The design's Jacobian (autodiff of the measurement model) against the analytic
+    jaxcal.model.jacobian, for poses, points, a joint-frame robot and a camera model, at a
+    perturbed camera and frames (so no entry is trivially zero)."""
+    from helpers import random_transform
+
+    from jaxcal.design._problem import identification_jacobian
+    from jaxcal.kinematics import to_joint
+    from jaxcal.model import Layout, Model, jacobian
+
+    rng = np.random.default_rng(6)
+    r, points, camera, cam_params = robot, None, "none", None
+    if case == "joint frames":
+        r = to_joint(robot)
+    if case == "two points, tool":
+        points = rng.normal(size=(2, 3)) * 50.0
+    if case == "camera":
+        camera, cam_params = "linear", rng.normal(size=8) * 1e-3
+    r = r.replace(base=random_transform(rng, 300.0), tool=random_transform(rng, 100.0))
+    layout = Layout.of(r, base=True, tool=True, n_points=0 if points is None else len(points), camera=camera)
+    model = Model(r, points, cam_params, camera=camera)
+    q = _random_q(robot, 5, 9)
+    got = np.asarray(identification_jacobian(model, layout, q))
+    ref = np.asarray(jacobian(model, layout, q))
+    assert got.shape == ref.shape
+    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-10 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("criterion", ["validation", "d"])
+def test_design_bound_holds_for_every_design_of_the_candidates(robot, problem, criterion):
+    """No N poses of the candidates beat the bound: not the exchange's choice, not random
+    subsets, not all candidates with equal weights (evaluate on the whole pool, scaled to N); the
+    relaxed optimum sits within its tolerance of the bound."""
+    pb = design.with_criterion(problem, criterion)
+    pool = _random_q(robot, 60, 12)
+    b = design.design_bound(pb, pool, N, tol=1e-4)
+    assert b["candidates"] == 60 and b["weights"].shape == (60,) and abs(b["weights"].sum() - 1) < 1e-12
+    rng = np.random.default_rng(3)
+    subsets = [design.evaluate(pb, pool[rng.choice(60, N, replace=False)]) for _ in range(30)]
+    chosen = design.select_poses(pb, pool, N, n_random=10).values
+    key = {"validation": "validation_rms_mm", "d": "log_det"}[criterion]
+    uniform = design.evaluate(pb, pool)[key]  # equal weights: the information scaled by N / 60
+    uniform = uniform * np.sqrt(60 / N) if criterion == "validation" else uniform + pb.n_base * np.log(N / 60)
+    if criterion == "validation":
+        assert all(b["bound"] <= v[key] for v in [*subsets, chosen])
+        assert b["bound"] <= b["relaxed"][key] <= min(uniform, chosen[key])
+        assert b["relaxed"][key] <= b["bound"] * np.exp(1e-4)
+    else:  # log det: larger is better, the bound an upper one
+        assert all(b["bound"] >= v[key] for v in [*subsets, chosen])
+        assert b["bound"] >= b["relaxed"][key] >= max(uniform, chosen[key])
+        assert b["relaxed"][key] >= b["bound"] - 1e-4

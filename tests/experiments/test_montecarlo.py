@@ -147,3 +147,64 @@ def test_batched_crlb_equals_per_robot_crlb():
             robot, q, ident, Layout.of(robot, n_points=int(position_only)), sigma_pos=0.02, sigma_rot=2e-5
         )  # the study's per-robot variances, from the information matrix
         np.testing.assert_allclose(each.mean(0), np.diag(ref), rtol=1e-9)
+
+
+VIEW = ([2500.0, 0.0, 300.0], [-1.0, 0.0, 0.0], np.radians(12.0), 1500.0, 3500.0)
+"""A camera in front of the paper's arm (as in tests/design): about a third of configurations in view."""
+
+
+def test_montecarlo_in_a_view_cone_on_given_inspection_poses(tmp_path):
+    """Random poses drawn in the view cone (NumPy forward kinematics), the inspection RMS at the
+    given poses (recomputed from the saved estimates by the NumPy forward kinematics), and the
+    CRLB prediction equal to the design's criterion on the same poses (another implementation)."""
+    from helpers import dh_fk
+
+    from jaxcal import design
+    from jaxcal.experiments import study_sampler
+
+    robot = jaxcal.preset("paper-6r")
+    qv = design.random_poses(robot, 15, view=VIEW, seed=9)
+    out = run_montecarlo(robot, n_robots=8, n_poses=20, seed=2, repeats=0, view=VIEW, q_val=qv, out=tmp_path / "s")
+    c = out["conditions"]
+    assert c["calibration_poses"] == "random, constrained" and c["validation_poses"] == "given"
+    assert c["view"]["half_angle_deg"] == pytest.approx(12.0) and c["view"]["far_mm"] == 3500.0
+    assert out["n_val"] == 15 and out["n_poses"] == 20 and out["converged_fraction"] == 1.0
+
+    def fk_np(dh, q):
+        return dh_fk(dh, q, convention=robot.convention, base=robot.base, tool=robot.tool)[:, :3, 3]
+
+    q = study_sampler(robot, 20, seed=2, view=VIEW).sets(np.arange(8))
+    v = fk_np(robot.dh, q.reshape(-1, 6)) - VIEW[0]
+    along = v @ VIEW[1]
+    angle = np.arctan2(np.linalg.norm(v - along[:, None] * np.asarray(VIEW[1]), axis=1), along)
+    assert np.all(angle <= VIEW[2]) and np.all((along >= VIEW[3]) & (along <= VIEW[4]))
+
+    problem = design.design_problem(robot, q_val=qv, **DH)
+    crlb = np.array([design.evaluate(problem, qr)["validation_rms_mm"] for qr in q])
+    np.testing.assert_allclose(out["crlb_validation_pos_rms_mm"], np.sqrt(np.mean(crlb**2)), rtol=1e-8)
+
+    with np.load(tmp_path / "s" / "chunk-000000.npz") as rec:
+        x, x_true, val = rec["x"], rec["x_true"], rec["val_rms"]
+    for xr, tr, vr in zip(x, x_true, val):
+        d = fk_np(robot.dh + xr.reshape(6, 4), qv) - fk_np(robot.dh + tr.reshape(6, 4), qv)
+        np.testing.assert_allclose(vr, np.sqrt(np.mean(np.sum(d**2, -1))), rtol=1e-9)
+    assert np.sqrt(np.mean(val**2)) == pytest.approx(out["validation_pos_rms_mm"], rel=1e-12)
+
+
+def test_outliers_injected_in_a_view_cone_on_given_inspection_poses():
+    """Gross outliers and the design's conditions together: two of each robot's 20 cone poses
+    moved by 3-6 mm are found and left out (no clean pose flagged), the conditions are reported,
+    and the models are as good at the given inspection poses as on the same clean data."""
+    from jaxcal import design
+
+    robot = jaxcal.preset("paper-6r")
+    qv = design.random_poses(robot, 15, view=VIEW, seed=9)
+    kw = dict(n_robots=8, n_poses=20, seed=2, repeats=0, view=VIEW, q_val=qv)
+    clean = run_montecarlo(robot, **kw)
+    out = run_montecarlo(robot, **kw, outliers=0.1, outlier_mm=(3.0, 6.0))
+    assert (out["outliers_found"], out["outliers_missed"], out["false_alarms"]) == (16, 0, 0)
+    assert out["outliers"] == {"fraction": 0.1, "outlier_mm": [3.0, 6.0]}
+    assert out["conditions"] == clean["conditions"] and out["conditions"]["calibration_poses"] == "random, constrained"
+    assert out["n_val"] == 15 and out["converged_fraction"] == 1.0
+    # 18 clean poses of the same 20 instead of 20: a little less information, nothing of the gross errors
+    assert out["validation_pos_rms_mm"] < 1.5 * clean["validation_pos_rms_mm"]
