@@ -1,16 +1,34 @@
-"""Precision policy: jaxcal runs in float64, always.
+"""Process-wide settings :mod:`jaxcal` makes when imported: float64, the persistent compilation
+cache, and how its small programs are compiled.
 
-Importing :mod:`jaxcal` switches on ``jax_enable_x64``. Every public entry point calls
-:func:`as_f64` on the arrays it receives, which
+**Precision.** Importing :mod:`jaxcal` switches on ``jax_enable_x64``. Every public entry point
+calls :func:`as_f64` on the arrays it receives, which
 
 * raises :class:`jaxcal.PrecisionError` if something switched x64 off again after import
   (then ``jnp.asarray`` would silently truncate float64 to float32), and
 * upcasts float32/float16/integer inputs to float64 (documented behaviour: a float32 input
   carries only float32 information, but the calibration itself never runs in float32).
+
+**Compilation cache.** Importing :mod:`jaxcal` also points JAX's persistent compilation cache at
+the user's cache folder (:func:`use_compilation_cache`), so a second process does not compile
+what a first one did. ``JAXCAL_CACHE=0`` in the environment turns that off; a cache the user set
+up (``JAX_COMPILATION_CACHE_DIR``, ``jax.config``) is used as it is.
+
+**Quick compiles.** A calibration compiles a few programs and runs each a few times on small
+arrays: XLA's optimisations cost seconds and save milliseconds. :func:`jit` compiles such a
+program with :data:`QUICK_COMPILE` on CPU, where the caller says its run time is small; the
+options apply to that program alone, never to the user's own.
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import gc
+import os
+from pathlib import Path
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -18,6 +36,20 @@ import numpy as np
 from .errors import DataError, PrecisionError
 
 jax.config.update("jax_enable_x64", True)
+
+CACHE_SWITCH = "JAXCAL_CACHE"
+"""Environment variable: ``0`` (or ``false``, ``no``, ``off``) keeps jaxcal from setting up the
+persistent compilation cache."""
+MIN_CACHED_COMPILE_S = 0.05
+"""Programs that compile faster than this are not written to the cache (JAX's default, 1 s,
+would leave out every quick-compiled program)."""
+QUICK_COMPILE = {
+    "xla_backend_optimization_level": 0,
+    "xla_llvm_disable_expensive_passes": True,
+    "xla_cpu_use_fusion_emitters": False,
+}
+"""XLA options for a program whose run time is small next to its compile time: on CPU they
+compile the calibration's programs several times faster, and run them a few times slower."""
 
 
 def ensure_x64() -> None:
@@ -45,3 +77,71 @@ def as_f64(x, name: str = "array") -> jax.Array:
     ):
         raise DataError(f"{name}: expected real numbers, got dtype {arr.dtype}")
     return jnp.asarray(arr, dtype=jnp.float64)
+
+
+def cache_folder() -> Path:
+    """Where jaxcal keeps compiled programs: ``$XDG_CACHE_HOME/jaxcal/xla`` (default
+    ``~/.cache/jaxcal/xla``). Deleting it is safe: programs are compiled again."""
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(root) / "jaxcal" / "xla"
+
+
+def use_compilation_cache() -> str | None:
+    """Keep compiled programs in :func:`cache_folder`, unless ``JAXCAL_CACHE=0`` or the user
+    configured JAX's cache (then theirs is used, with their settings); returns the folder in
+    use, or None. Every program the process compiles for :data:`MIN_CACHED_COMPILE_S` or more
+    is kept, the user's own too (JAX's cache is one per process)."""
+    if os.environ.get(CACHE_SWITCH, "1").strip().lower() in ("0", "false", "no", "off"):
+        return None
+    if jax.config.jax_compilation_cache_dir:
+        return jax.config.jax_compilation_cache_dir
+    if not jax.config.jax_enable_compilation_cache:
+        return None
+    path = cache_folder()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None  # a read-only home: compile every time, as without the cache
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    if "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS" not in os.environ:
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_CACHED_COMPILE_S)
+    return str(path)
+
+
+use_compilation_cache()
+
+
+class _Jit:
+    """A function jitted twice (:func:`jax.jit` through :func:`equinox.filter_jit`): with XLA's
+    default optimisations, and with :data:`QUICK_COMPILE`. ``quick=True`` (the default) calls the
+    quick one when JAX's default backend is the CPU."""
+
+    def __init__(self, fn):
+        functools.update_wrapper(self, fn)
+        self.full = eqx.filter_jit(fn)
+        self.quick = eqx.filter_jit(fn, compiler_options=QUICK_COMPILE)
+
+    def __call__(self, *args, quick: bool = True, **kwargs):
+        fast = quick and jax.default_backend() == "cpu"
+        with gc_paused():
+            return (self.quick if fast else self.full)(*args, **kwargs)
+
+
+@contextlib.contextmanager
+def gc_paused():
+    """Python's cyclic garbage collector off for the block: tracing and compiling create many
+    objects, and each full collection would scan every object of JAX's modules again. Cycles
+    made meanwhile are collected after it."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def jit(fn):
+    """``equinox.filter_jit(fn)``, compiled quickly on CPU unless called with ``quick=False``
+    (for a call whose run time matters more than its compile time)."""
+    return _Jit(fn)

@@ -4,13 +4,13 @@ Twists are ordered ``[v, w]`` (translation, then rotation). Every function broad
 leading axes. The rotation maps used inside fits (:func:`so3_exp`, :func:`so3_log`, the SO(3)
 Jacobians) are closed forms written here rather than taken from jaxlie: they are a handful of
 operations each, which keeps the compiled calibration small, and they accept NumPy arrays too
-(evaluated by NumPy, nothing compiled). jaxlie serves the file-format conversions (roll-pitch-yaw,
-quaternions) and the SE(3) exponential.
+(evaluated by NumPy, nothing compiled), as do the roll-pitch-yaw and quaternion-to-matrix
+conversions of the file formats. jaxlie serves the rest (matrix to quaternion, the SE(3)
+exponential).
 """
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -155,21 +155,28 @@ def se3_exp(xi: Float[Array, "*b 6"]) -> Float[Array, "*b 4 4"]:
 
 def rpy_to_matrix(rpy: Float[Array, "*b 3"]) -> Float[Array, "*b 3 3"]:
     """Roll-pitch-yaw about fixed axes x, y, z: ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    import jaxlie  # imported when needed: it is slow to import and off the hot path
-
-    rpy = jnp.asarray(rpy)
-    fn = lambda r: jaxlie.SO3.from_rpy_radians(r[0], r[1], r[2]).as_matrix()
-    for _ in range(rpy.ndim - 1):
-        fn = jax.vmap(fn)
-    return fn(rpy)
+    xp = _xp(rpy)
+    s, c = xp.sin(rpy), xp.cos(rpy)
+    sr, sp, sy = s[..., 0], s[..., 1], s[..., 2]
+    cr, cp, cy = c[..., 0], c[..., 1], c[..., 2]
+    rows = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
+    return xp.stack([xp.stack(r, -1) for r in rows], -2)
 
 
 def matrix_to_rpy(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 3"]:
-    """Inverse of :func:`rpy_to_matrix` (pitch in [-pi/2, pi/2])."""
-    import jaxlie  # imported when needed: it is slow to import and off the hot path
-
-    so3 = jaxlie.SO3.from_matrix(R)
-    return jnp.stack([so3.compute_roll_radians(), so3.compute_pitch_radians(), so3.compute_yaw_radians()], -1)
+    """Inverse of :func:`rpy_to_matrix` (pitch in [-pi/2, pi/2]; at pitch +-pi/2, where only yaw
+    -+ roll is defined, roll 0)."""
+    xp = _xp(R)
+    cp = xp.sqrt(R[..., 2, 1] ** 2 + R[..., 2, 2] ** 2)
+    locked = cp < 1e-12
+    pitch = xp.arctan2(-R[..., 2, 0], cp)
+    roll = xp.where(locked, 0.0, xp.arctan2(R[..., 2, 1], R[..., 2, 2]))
+    yaw = xp.where(locked, xp.arctan2(-R[..., 0, 1], R[..., 1, 1]), xp.arctan2(R[..., 1, 0], R[..., 0, 0]))
+    return xp.stack([roll, pitch, yaw], -1)
 
 
 def xyz_rpy_to_transform(xyz, rpy) -> Float[Array, "4 4"]:
@@ -178,9 +185,14 @@ def xyz_rpy_to_transform(xyz, rpy) -> Float[Array, "4 4"]:
 
 def quat_to_matrix(q_wxyz: Float[Array, "*b 4"]) -> Float[Array, "*b 3 3"]:
     """Unit quaternion, scalar first -> rotation matrix."""
-    import jaxlie  # imported when needed: it is slow to import and off the hot path
-
-    return jaxlie.SO3(wxyz=q_wxyz).as_matrix()
+    xp = _xp(q_wxyz)
+    w, x, y, z = (q_wxyz[..., i] for i in range(4))
+    rows = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ]
+    return xp.stack([xp.stack(r, -1) for r in rows], -2)
 
 
 def matrix_to_quat(R: Float[Array, "*b 3 3"]) -> Float[Array, "*b 4"]:

@@ -45,6 +45,7 @@ import numpy as np
 
 from ._io import write_atomic
 from .errors import DataError
+from .lie import quat_to_matrix
 from .robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 
 POSITION_COLUMNS = ("x", "y", "z")
@@ -360,8 +361,6 @@ def _missing(text: str) -> str:
 def quaternions_to_rotations(quat, rows, lines, src) -> np.ndarray:
     """Rotation matrices of scalar-first unit quaternions ``(K, 4)``; near-unit ones normalised,
     others refused naming the row."""
-    from scipy.spatial.transform import Rotation
-
     norm = np.linalg.norm(quat, axis=1)
     bad = np.flatnonzero(np.abs(norm - 1.0) > QUAT_NORM_TOL)
     if bad.size:
@@ -370,8 +369,7 @@ def quaternions_to_rotations(quat, rows, lines, src) -> np.ndarray:
             f"{src}: row {rows[k]} (line {lines[k]}): quaternion (qw, qx, qy, qz) has norm "
             f"{norm[k]:.6g}, not 1 (tolerance {QUAT_NORM_TOL:g}); {bad.size} such row(s)"
         )
-    quat = quat / norm[:, None]
-    return Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_matrix()
+    return quat_to_matrix(quat / norm[:, None])
 
 
 def mixed_units(q, pos, robot: Robot, rows, src, joint_cols) -> None:

@@ -165,8 +165,12 @@ def measured_robot(model: Model) -> Robot:
     a controller should load."""
     if model.n_points != 1:
         return model.robot
-    offset = jnp.eye(4).at[:3, 3].set(jnp.asarray(model.points)[0])
-    return eqx.tree_at(lambda r: r.tool, model.robot, jnp.asarray(model.robot.tool) @ offset)
+    if isinstance(model.points, jax.core.Tracer) or isinstance(model.robot.tool, jax.core.Tracer):
+        offset = jnp.eye(4).at[:3, 3].set(model.points[0])
+        return eqx.tree_at(lambda r: r.tool, model.robot, model.robot.tool @ offset)
+    tool = np.array(model.robot.tool)  # NumPy: eager JAX operations would each compile
+    tool[:3, 3] += tool[:3, :3] @ np.asarray(model.points)[0]
+    return eqx.tree_at(lambda r: r.tool, model.robot, jnp.asarray(tool, jnp.float64))
 
 
 def apply(model: Model, layout: Layout, x: Float[Array, " m"]) -> Model:

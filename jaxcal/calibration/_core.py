@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._config import jit
 from ..identifiability import Identifiability, analyze
 from ..kinematics import fk
 from ..lie import so3_log
@@ -91,7 +92,7 @@ def _member(cfg: Config, model: Model, q, target, pose_w, weights, prior, loss_s
     )
 
 
-@eqx.filter_jit
+@jit
 def _members(cfg: Config, models, q, target, pose_w, weights, prior, loss_scale, norms0, x0):
     data_axis = None if cfg.shared_data else 0
     if pose_w.shape[0] == 1:  # one member: no batching transform to trace
@@ -121,6 +122,10 @@ smaller chunks waste less on easy members; and a workflow pads its small calls t
 CACHE_BYTES = 2**22
 """The Jacobians of one compiled call's members are kept within this many bytes (about a CPU's
 share of its last-level cache): each step then reads them from cache, not from memory."""
+QUICK_WORK = 2**14
+"""Member poses (members x padded poses, all chunks of one call) up to which the member solve is
+compiled quickly (:func:`jaxcal._config.jit`): beyond, its run time outweighs the compile time
+saved (a Monte Carlo study, a large batch)."""
 
 
 def pose_bucket(n: int, fine: bool = False) -> int:
@@ -216,16 +221,17 @@ def run_members(
     axis = 0 if cfg.shared_data else 1
     q, target = pad_poses(q, Kp, axis), pad_poses(target, Kp, axis)
     pose_w = np.concatenate([np.asarray(pose_w, float), np.zeros((B, Kp - K))], 1)
+    quick = -(-B // c) * c * Kp <= QUICK_WORK
     outs = []
     for start in range(0, B, c):
         idx = np.minimum(np.arange(start, start + c), B - 1)
         args = _chunk_args(cfg, models, q, target, pose_w, weights, prior, ls, n0, x0, idx)
         if mesh is None:
-            outs.append(jax.tree.map(np.asarray, _members(cfg, *args)))
+            outs.append(jax.tree.map(np.asarray, _members(cfg, *args, quick=quick)))
         else:  # every member array split over the devices; data shared by all members on each
             m_, q_, t_, *rest = args
             q_, t_ = distribute((q_, t_), mesh, split=not cfg.shared_data)
-            outs.append(gather(_members(cfg, distribute(m_, mesh), q_, t_, *distribute(rest, mesh))))
+            outs.append(gather(_members(cfg, distribute(m_, mesh), q_, t_, *distribute(rest, mesh), quick=quick)))
         if progress is not None:
             progress(min(start + c, B), B, label)
     out = jax.tree.map(lambda *a: np.concatenate(a)[:B], *outs)
@@ -234,7 +240,7 @@ def run_members(
     return out
 
 
-@eqx.filter_jit
+@jit
 def _starts(robot: Robot, q, target, masks, *, layout: Layout, shared: bool):
     def one(q_, t_, w):
         B, X, pts = initial_frames(
@@ -327,7 +333,7 @@ def weights_of(layout: Layout, sigmas) -> np.ndarray:
     return np.repeat(1 / sigmas[:, :1], layout.rows, 1)
 
 
-@eqx.filter_jit
+@jit
 def _nominal(model: Model, layout: Layout, q):
     pred = predict(model, q)
     pos = pred[..., :3, 3] if layout.n_points == 0 else pred[..., 0, :]

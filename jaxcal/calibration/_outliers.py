@@ -28,6 +28,7 @@ does not fit the model: :func:`too_many` says so, and the fit is refused.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -86,9 +87,7 @@ def position_rows(target) -> np.ndarray:
 
 def false_alarm(sigmas: float) -> float:
     """Probability that a clean pose is flagged at the level ``sigmas``: the one-sided normal tail."""
-    from scipy.stats import norm
-
-    return float(norm.sf(sigmas))
+    return 0.5 * math.erfc(sigmas / math.sqrt(2.0))
 
 
 def thresholds(dof, sigmas: float) -> np.ndarray:

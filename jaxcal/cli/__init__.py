@@ -3,6 +3,7 @@ prints. One module per command."""
 
 from __future__ import annotations
 
+from .._config import use_compilation_cache
 from . import (  # noqa: F401  (register commands)
     _calibrate,
     _compensate,
@@ -13,7 +14,7 @@ from . import (  # noqa: F401  (register commands)
     _reproduce,
     _verify,
 )
-from ._app import app, err_console, say_error, use_compilation_cache
+from ._app import app, err_console, say_error
 
 
 def main():

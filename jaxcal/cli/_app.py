@@ -1,12 +1,10 @@
-"""The Typer application shared by every ``jaxcal`` command: consoles, progress display, the
-persistent compilation cache, and how library errors are said on the command line."""
+"""The Typer application shared by every ``jaxcal`` command: consoles, progress display, and how
+library errors are said on the command line."""
 
 from __future__ import annotations
 
 import contextlib
-import os
 import re
-from pathlib import Path
 
 import typer
 from rich.console import Console
@@ -37,23 +35,6 @@ def say_error(message: str, option: str | None) -> str:
         message = flag(option) + message[len(option) :]
     message = re.sub(rf'\b{option}="([^"]*)"', lambda m: f"{flag(option)} {m.group(1)}", message)
     return message.replace(f"({option})", f"({flag(option)})")
-
-
-def use_compilation_cache() -> None:
-    """Keep JAX's compiled functions in the user's cache folder (``$XDG_CACHE_HOME/jaxcal/xla``,
-    or ``JAX_COMPILATION_CACHE_DIR``), so a second run of a command does not compile again."""
-    import jax
-
-    if jax.config.jax_compilation_cache_dir:
-        return
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    path = Path(root) / "jaxcal" / "xla"
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return  # a read-only home: compile every time, as without the cache
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
 
 
 def load_robot_arg(robot: str, base_link: str | None = None, tip_link: str | None = None):

@@ -275,7 +275,7 @@ def _check_compliance(c, joint_types):
 
 def _check_transform(T, name):
     if T is None:
-        return jnp.asarray(np.eye(4))  # a transfer, where jnp.eye would compile
+        return jnp.asarray(np.eye(4), dtype=jnp.float64)  # a transfer (with its dtype: no copy compiled)
     T = as_f64(T, name)
     if T.shape != (4, 4):
         raise RobotFileError(f"{name} must be a 4x4 transform, got shape {T.shape}")

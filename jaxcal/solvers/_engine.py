@@ -49,6 +49,8 @@ A NaN coordinate of a measured point (a marker not seen at that pose) is not obs
 
 from __future__ import annotations
 
+import math
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -70,23 +72,40 @@ SCALE_FLOOR = 1e-3
 turn rounding noise into outliers."""
 
 
-# sqrt of chi2 quantiles for the common row counts (position only, full pose): scipy.stats is
-# imported only for other counts, to keep `import jaxcal` light
-_CHI2_SQRT = {
-    (0.5, 3): 1.5381722544550522,
-    (0.95, 3): 2.7954834829151074,
-    (0.9999, 3): 4.594291399787397,
-    (0.5, 6): 2.312600403754855,
-    (0.95, 6): 3.54846265920102,
-    (0.9999, 6): 5.277910688521943,
-}
+def chi2_sf(x: float, dof: int) -> float:
+    """Survival function of the chi-square distribution with an integer ``dof``, in closed form
+    (a finite sum, with ``erfc`` for an odd ``dof``): scipy.stats, which would give it too, takes
+    longer to import than a calibration takes to run."""
+    if x <= 0:
+        return 1.0
+    h = 0.5 * x
+    if dof % 2 == 0:
+        terms = (j * math.log(h) - h - math.lgamma(j + 1) for j in range(dof // 2))
+        return math.fsum(math.exp(t) for t in terms)
+    terms = ((j + 0.5) * math.log(h) - h - math.lgamma(j + 1.5) for j in range(dof // 2))
+    return math.erfc(math.sqrt(h)) + math.fsum(math.exp(t) for t in terms)
+
+
+def chi2_isf(p: float, dof: int) -> float:
+    """``x`` with :func:`chi2_sf` ``(x, dof) = p`` (``0 < p < 1``), by bisection to rounding."""
+    lo, hi = 0.0, float(dof) + 1.0
+    while chi2_sf(hi, dof) > p:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        lo, hi = (mid, hi) if chi2_sf(mid, dof) > p else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+_CHI2_SQRT: dict = {}
 
 
 def _chi2_sqrt(p: float, dof: int) -> float:
+    """``sqrt`` of the chi-square quantile ``p`` for ``dof`` degrees of freedom."""
     if (p, dof) not in _CHI2_SQRT:
-        from scipy.stats import chi2
-
-        _CHI2_SQRT[(p, dof)] = float(np.sqrt(chi2.ppf(p, dof)))
+        _CHI2_SQRT[(p, dof)] = math.sqrt(chi2_isf(1.0 - p, dof))
     return _CHI2_SQRT[(p, dof)]
 
 
@@ -115,9 +134,7 @@ def outlier_threshold(dof: int, sigmas: float = OUTLIER_SIGMAS) -> float:
     ``sigmas`` (5: 5.77 for a position, 6.40 for a pose, 7.34 for four points)."""
     key = ("outlier", float(sigmas), int(dof))
     if key not in _CHI2_SQRT:
-        from scipy.stats import chi2, norm
-
-        _CHI2_SQRT[key] = float(np.sqrt(chi2.isf(norm.sf(sigmas), dof)))
+        _CHI2_SQRT[key] = math.sqrt(chi2_isf(0.5 * math.erfc(sigmas / math.sqrt(2.0)), int(dof)))
     return _CHI2_SQRT[key]
 
 

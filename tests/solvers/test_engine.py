@@ -7,7 +7,8 @@ import numpy as np
 from numpy.testing import assert_allclose
 
 import jaxcal
-from jaxcal.solvers import fit, gauss_newton
+from jaxcal.solvers import fit, gauss_newton, outlier_threshold
+from jaxcal.solvers._engine import chi2_isf, chi2_sf, tuning
 
 COLUMN_SCALE = 1e3  # columns of the test problem near the engine's scaled size
 
@@ -92,3 +93,17 @@ def test_fit_gn_equals_the_reference_on_a_calibration():
 
     ref = _reference(r, jac, np.zeros(len(free)))
     assert_allclose(np.asarray(sol.x)[list(free)], ref[-1], atol=1e-9)
+
+
+def test_chi_square_quantiles_are_scipys():
+    """The closed-form chi-square tail (the robust tuning, the outlier thresholds) against
+    scipy.stats, for the row counts of positions, poses and several points."""
+    from scipy.stats import chi2, norm
+
+    for dof in range(1, 41):
+        for x in (0.01, 0.5, 3.0, 20.0, 80.0):
+            assert_allclose(chi2_sf(x, dof), chi2.sf(x, dof), rtol=1e-12, atol=1e-300)
+        for p in (0.5, 0.05, 1e-4, norm.sf(5.0), 1e-12):
+            assert_allclose(chi2_isf(p, dof), chi2.isf(p, dof), rtol=1e-12)
+        assert_allclose(outlier_threshold(dof, 4.0), np.sqrt(chi2.isf(norm.sf(4.0), dof)), rtol=1e-12)
+    assert_allclose(tuning(np.array([3, 6, 12])), np.sqrt(chi2.ppf(0.95, [3, 6, 12])), rtol=1e-12)
