@@ -20,6 +20,11 @@ Also timed in the same run: scipy ``least_squares`` with 2-point finite differen
 jaxcal's jitted residual (the stand-in the issue names if pybotics cannot be installed; without
 ``--pybotics-python`` only this stand-in is compared, and the output says so). "Cold" is a
 fresh Python process: ``import jaxcal`` plus the first ``calibrate`` call (compilation).
+
+"Whole processes" (``--processes N``, after the pybotics timings): in turn, ``N`` times each, a
+fresh jaxcal process with an empty compilation cache (its own ``XDG_CACHE_HOME``), one with the
+cache an earlier process filled, and pybotics' whole process (``pybotics_worker.py --repeats 1``:
+interpreter, imports, one fit); wall times from outside, medians and the ratios to pybotics.
 """
 
 from __future__ import annotations
@@ -59,6 +64,29 @@ def cold_start(problem: str) -> None:
     )
     t2 = time.perf_counter()
     print(json.dumps({"import_s": t1 - t0, "first_call_s": t2 - t1, "converged": res.converged}))
+
+
+def whole_processes(prob_jaxcal: str, pyb_cmd: list[str] | None, n: int, tmp: str) -> dict:
+    """Wall seconds of whole processes, run in turn (module docstring): ``jaxcal cold``, ``jaxcal
+    warm cache`` and, with ``pyb_cmd``, ``pybotics``. A JAX cache the caller's environment sets is
+    removed from the children's, so that cold means cold."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("JAX_") and k != "JAXCAL_CACHE"}
+
+    def wall(cmd, **kw):
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True, **kw)
+        return time.perf_counter() - t0
+
+    jaxcal_cmd = [sys.executable, __file__, "--_cold", prob_jaxcal]
+    warm_home = os.path.join(tmp, "warm")
+    wall(jaxcal_cmd, env=dict(env, XDG_CACHE_HOME=warm_home))  # fills the warm cache
+    out = {"jaxcal cold": [], "jaxcal warm cache": []} | ({"pybotics": []} if pyb_cmd else {})
+    for i in range(n):
+        out["jaxcal cold"].append(wall(jaxcal_cmd, env=dict(env, XDG_CACHE_HOME=os.path.join(tmp, f"cold{i}"))))
+        out["jaxcal warm cache"].append(wall(jaxcal_cmd, env=dict(env, XDG_CACHE_HOME=warm_home)))
+        if pyb_cmd:
+            out["pybotics"].append(wall(pyb_cmd))
+    return out
 
 
 def make_problem(n_poses, n_val, noise, seed):
@@ -111,6 +139,7 @@ def run_pybotics(python, robot, free, sim, noise, repeats, tmp):
     # pybotics' fitted parameter errors back in jaxcal's layout
     d = np.asarray(r["mdh_fitted"]) - mdh
     r["x_fit"] = np.stack([d[:, 2], d[:, 3], d[:, 1], d[:, 0]], axis=1).reshape(-1)
+    r["command"] = [python, os.path.join(HERE, "pybotics_worker.py"), prob, out, "--repeats", "1"]
     return r
 
 
@@ -159,6 +188,7 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--pybotics-repeats", type=int, default=3)
+    ap.add_argument("--processes", type=int, default=5, help="whole-process runs of each tool (0: none)")
     ap.add_argument("--json")
     ap.add_argument("--_cold", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -248,6 +278,14 @@ def main():
                 f"pybotics not found at {args.pybotics_python}: only the scipy finite-difference stand-in is "
                 "compared (see the module docstring to install pybotics in its own venv)"
             )
+        processes = {}
+        if args.processes > 0:
+            processes = whole_processes(prob, pyb["command"] if have_pyb else None, args.processes, tmp)
+            ref = statistics.median(processes["pybotics"]) if have_pyb else None
+            print(f"\nwhole processes, {args.processes} each, run in turn (wall s)")
+            for name, t in processes.items():
+                ratio = f"  {statistics.median(t) / ref:5.2f}x pybotics" if ref else ""
+                print(f"  {name:18s} median {statistics.median(t):6.2f}  (min {min(t):.2f}, max {max(t):.2f}){ratio}")
 
     base = rows["jaxcal gn (calibrate)"]["median_s"]
     print(f"\n{'tool':44s} {'median s':>10s} {'ratio':>9s} {'val RMS mm':>11s} {'param RMS':>10s} converged")
@@ -277,6 +315,7 @@ def main():
                     "noise_mm": args.noise_mm,
                     "n_params": len(free),
                     "cold": cold,
+                    "whole_processes_s": processes,
                     "rows": summary_rows,
                 },
                 f,

@@ -27,6 +27,8 @@ def test_bench_vs_pybotics_standin(tmp_path):
             "1",
             "--pybotics-repeats",
             "1",
+            "--processes",
+            "0",
             "--json",
             str(out),
         ],

@@ -29,6 +29,7 @@ def jax_cache_settings():
 
 def test_the_users_own_cache_is_kept(jax_cache_settings, monkeypatch, tmp_path):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.delenv(_config.CACHE_SWITCH, raising=False)
     jax.config.update("jax_compilation_cache_dir", str(tmp_path / "mine"))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 2.5)
     assert _config.use_compilation_cache() == str(tmp_path / "mine")
@@ -39,6 +40,7 @@ def test_the_users_own_cache_is_kept(jax_cache_settings, monkeypatch, tmp_path):
 
 def test_the_cache_goes_in_the_users_cache_folder(jax_cache_settings, monkeypatch, tmp_path):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.delenv(_config.CACHE_SWITCH, raising=False)
     monkeypatch.delenv("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", raising=False)
     jax.config.update("jax_compilation_cache_dir", None)
     folder = tmp_path / "jaxcal" / "xla"
