@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._config import LOOP_EMITTERS, jit
 from ..errors import DataError
 from ._bfgs import minimise
 from ._constraints import (
@@ -90,7 +91,7 @@ def _objective(u, args, penalised: bool = True):
     return loss(problem, q) + penalty(problem, cons, q) if penalised else loss(problem, q)
 
 
-@eqx.filter_jit
+@jit(options=LOOP_EMITTERS)
 def _optimise(
     problem: DesignProblem, cons: Constraints, q0: Float[Array, "S K n"], *, max_steps: int, tol: float, penalised: bool
 ):
