@@ -2,6 +2,7 @@
 the deflected forward kinematics, the identification Jacobian against autodiff, and the robot
 files carrying it."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -16,9 +17,11 @@ ROBOTS = {"sdh": lambda: jaxcal.preset("ur5"), "mdh": lambda: jaxcal.preset("pan
 ROBOTS["joint"] = lambda: to_joint(jaxcal.preset("panda"))
 
 
-def _rigid_z(robot, q):
-    """Tool height in the robot's base frame of a rigid copy (an FK of its own)."""
-    return jaxcal.fk(robot.replace(base=np.eye(4), compliance=None), q)[..., 2, 3]
+def _moments_by_autodiff(robot, q):
+    """``-dz/dq`` of the tool height (base frame) of a rigid copy, pose by pose, by autodiff of its
+    FK: the moments of a unit weight (compiled as one program, not one per operation)."""
+    rigid = robot.replace(base=np.eye(4), compliance=None)
+    return eqx.filter_jit(lambda r, q: -jax.vmap(jax.grad(lambda qi: jaxcal.fk(r, qi)[2, 3]))(q))(rigid, q)
 
 
 @pytest.mark.parametrize("conv", sorted(ROBOTS))
@@ -27,14 +30,14 @@ def test_gravity_moments_are_the_virtual_work_of_a_unit_weight(conv, rng):
     compliance multiplies, checked by autodiff of the forward kinematics."""
     robot = ROBOTS[conv]().replace(base=jaxcal.preset("ur5").base)
     q = rng.uniform(-1.2, 1.2, (9, robot.n_joints))
-    want = -np.asarray(jax.vmap(jax.grad(lambda qi: _rigid_z(robot, qi)))(jnp.asarray(q)))
-    assert_allclose(np.asarray(gravity_moments(robot, q)), want, atol=1e-8)
+    want = np.asarray(_moments_by_autodiff(robot, jnp.asarray(q)))
+    assert_allclose(np.asarray(eqx.filter_jit(gravity_moments)(robot, q)), want, atol=1e-8)
     assert np.abs(want).max() > 100.0  # a test that can fail: moments of hundreds of mm
 
 
 def test_a_prismatic_joint_has_no_moment_and_no_compliance(rng):
     robot = jaxcal.Robot(np.array([[0, 100.0, 0, 0], [0, 0, 300.0, 0]]), joint_types=["P", "R"])
-    assert np.all(np.asarray(gravity_moments(robot, rng.uniform(-1, 1, (5, 2))))[:, 0] == 0)
+    assert np.all(np.asarray(eqx.filter_jit(gravity_moments)(robot, rng.uniform(-1, 1, (5, 2))))[:, 0] == 0)
     with pytest.raises(jaxcal.RobotFileError, match="joint 1: a prismatic joint has no compliance"):
         robot.replace(compliance=[1e-5, 0.0])
 
@@ -44,7 +47,7 @@ def test_fk_of_a_compliant_robot_is_the_rigid_fk_at_the_deflected_joints(conv, r
     robot = ROBOTS[conv]()
     c = rng.uniform(1e-5, 3e-5, robot.n_joints)
     q = rng.uniform(-1.2, 1.2, (6, robot.n_joints))
-    tau = -np.asarray(jax.vmap(jax.grad(lambda qi: _rigid_z(robot, qi)))(jnp.asarray(q)))
+    tau = np.asarray(_moments_by_autodiff(robot, jnp.asarray(q)))
     rigid = np.asarray(jaxcal.fk(robot, q + c * tau))
     got = np.asarray(jaxcal.fk(robot.replace(compliance=c), q))
     assert_allclose(got, rigid, atol=1e-9)
@@ -64,9 +67,14 @@ def test_jacobian_of_the_compliances_matches_autodiff(conv, n_points, rng):
     q = jnp.asarray(rng.uniform(-1, 1, (5, robot.n_joints)))
     x = rng.normal(0, 1e-3, lay.size)
     x[list(lay.compliances)] = rng.normal(0, 1e-5, lay.n_comp)
-    target = predict(apply(model, lay, jnp.asarray(0.5 * x)), q)
-    _, J = residual_and_jacobian(model, lay, jnp.asarray(x), q, target)
-    want = jax.jacfwd(lambda v: errors(apply(model, lay, v), q, target))(jnp.asarray(x))
+
+    @jax.jit  # one program, not one per operation
+    def both(x):
+        target = predict(apply(model, lay, 0.5 * x), q)
+        want = jax.jacfwd(lambda v: errors(apply(model, lay, v), q, target))(x)
+        return residual_and_jacobian(model, lay, x, q, target)[1], want
+
+    J, want = both(jnp.asarray(x))
     w = np.abs(np.asarray(want))
     tol = 1e-10 * w.max(axis=(0, 1)) + 1e-13 * w.max()  # per column; a numerically zero one at rounding
     assert np.all(np.abs(np.asarray(J) - np.asarray(want)) <= tol)
@@ -109,7 +117,7 @@ def _tiago_truth(rng, perturb: bool):
     pts = rng.normal(0, 60.0, (3, 3))
 
     def measure(q):
-        tau = -np.asarray(jax.vmap(jax.grad(lambda qi: _rigid_z(true, qi)))(jnp.asarray(q)))
+        tau = np.asarray(_moments_by_autodiff(true, jnp.asarray(q)))
         T = np.asarray(jaxcal.fk(true, q + c * tau))
         return np.einsum("kij,mj->kmi", T[:, :3, :3], pts) + T[:, None, :3, 3]
 

@@ -2,6 +2,7 @@
 scaled prior against its formula, the folds of the scoring rule, the linearised fit against the
 full one, and the selection on simulated robots whose true errors are known."""
 
+import equinox as eqx
 import numpy as np
 import pytest
 from helpers import dh_fk, random_transform
@@ -24,7 +25,7 @@ def test_lever_is_the_rms_distance_of_the_points_from_the_axis(rng):
     T = dh_fk(dh, q)
     P = np.einsum("kij,mj->kmi", T[:, :3, :3], pts) + T[:, None, :3, 3]
     lay = Layout.of(ur5, n_points=2)
-    lev = selection.lever(np.asarray(jacobian(Model(ur5, pts), lay, q)), 2)
+    lev = selection.lever(np.asarray(eqx.filter_jit(jacobian)(Model(ur5, pts), lay, q)), 2)
     for i in range(6):  # standard DH: joint i turns about z of frame i-1
         F = np.broadcast_to(np.eye(4), (25, 4, 4)) if i == 0 else dh_fk(dh[:i], q[:, :i])
         u, o = F[:, None, :3, 2], F[:, None, :3, 3]
@@ -83,14 +84,15 @@ def test_linearised_fit_is_the_full_fit_to_second_order(rng):
     points = dh_fk(np.asarray(r.dh) + dx, q, base=random_transform(rng, 400.0))[:, :3, 3]
     res = jaxcal.calibrate(r, q, points, params="all", keep_outliers=True)
     ref = jaxcal.calibrate(r, q, points, params="frames", keep_outliers=True).model
-    J = np.asarray(jacobian(ref, res.layout, q))
-    p0 = np.asarray(jaxcal.model.predict(ref, q))[:, 0]
+    J = np.asarray(eqx.filter_jit(jacobian)(ref, res.layout, q))  # compiled: one program, not one per operation
+    predict = eqx.filter_jit(jaxcal.model.predict)
+    p0 = np.asarray(predict(ref, q))[:, 0]
     lin = selection.linearise(J, points - p0, np.ones(3), 1)
     free = np.zeros(res.layout.size, bool)
     free[list(res.identifiability.base)] = True
     x = selection.fit(lin, np.ones((1, 40)), free[None], np.zeros((1, res.layout.size)))[0, 0]
     moved_lin = np.einsum("krm,m->kr", J, x)
-    moved_full = np.asarray(jaxcal.model.predict(res.model, q))[:, 0] - p0
+    moved_full = np.asarray(predict(res.model, q))[:, 0] - p0
     assert np.abs(moved_full).max() > 0.05  # the calibration moves the points
     assert np.abs(moved_lin - moved_full).max() < 1e-2 * np.abs(moved_full).max()
 
