@@ -1,5 +1,6 @@
 """Compensation by inverse kinematics of the calibrated model, checked against simulated truth."""
 
+import equinox as eqx
 import numpy as np
 import pytest
 from helpers import dh_fk, random_transform
@@ -30,7 +31,7 @@ def test_compensation_reduces_true_error_to_calibration_accuracy():
     r = preset("paper-6r")
     sim = simulate(r, n_poses=60, n_val=50, seed=11, sigma_pos=0.05, sigma_rot=2e-4, base=True, tool=True)
     res = calibrate_data(r, Measurements(sim.q[0], sim.measured[0]), params="all", folds=3)
-    true_robot = perturb(r, sim.x_true[0], base=True, tool=True)
+    true_robot = eqx.filter_jit(perturb)(r, sim.x_true[0], base=True, tool=True)  # one program, not one per operation
     q_cmd = np.asarray(sim.q_val[0])
     targets = np.asarray(fk(r, q_cmd))  # where the nominal model says the commands go
     before = np.linalg.norm(np.asarray(fk(true_robot, q_cmd))[:, :3, 3] - targets[:, :3, 3], axis=1)

@@ -5,6 +5,7 @@ Every check compares against autodiff or against the simulated true robot, never
 numbers printed by the solver itself.
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jaxlie
@@ -38,6 +39,7 @@ def _generic_arm(seed=1, n=6):
     return jaxcal.Robot(dh, name="generic")
 
 
+@eqx.filter_jit  # one program, not one per operation
 def _autodiff_twist_jac(robot, q):
     """d log(T(x) T(0)^-1) / dx at x = 0, by forward-mode autodiff through exact FK."""
     T0 = fk(robot, q)
@@ -87,7 +89,7 @@ def test_design_structure_and_limits():
 
 
 def _val_rms(robot, x, sim):
-    T = jax.vmap(lambda xx, qv: fk(perturb(robot, xx), qv))(jnp.asarray(x), jnp.asarray(sim.q_val))
+    T = eqx.filter_jit(jax.vmap(lambda xx, qv: fk(perturb(robot, xx), qv)))(jnp.asarray(x), jnp.asarray(sim.q_val))
     d = np.linalg.norm(np.asarray(T)[..., :3, 3] - sim.true_val[..., :3, 3], axis=-1)
     return np.sqrt(np.mean(d**2))
 
