@@ -82,7 +82,7 @@ def test_one_two_four_devices_over_two_processes_give_the_same_results():
         s.bind(("localhost", 0))
         port = s.getsockname()[1]
     # the device count comes from jax_num_cpu_devices: no forced count from XLA_FLAGS, only
-    # conftest's compile-time flag
+    # conftest's compile-time flags
     flags = " ".join(f for f in os.environ.get("XLA_FLAGS", "").split() if "device_count" not in f)
     procs = [_run(CHILD, pid, port, env={"XLA_FLAGS": flags}) for pid in (0, 1)]
     try:
