@@ -11,6 +11,9 @@ os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 # optimisations compiles about twice as fast, and the tests check values, not speed
 # (benchmarks/ measures speed with the default compiler).
 os.environ.setdefault("JAX_DISABLE_MOST_OPTIMIZATIONS", "1")
+# No Python traceback in the source locations of the programs' operations (100 frames each by
+# default): lowering writes less, and no test reads them (Python's own tracebacks are unchanged).
+os.environ.setdefault("JAX_TRACEBACK_IN_LOCATIONS_LIMIT", "0")
 # XLA CPU's older loop emitters compile these programs about twice as fast as its fusion
 # emitters (and run them slower, which the tests do not mind); not for benchmarks or the CLI.
 # One LLVM module per program instead of several compiled in parallel: the two xdist workers

@@ -93,8 +93,8 @@ print(json.dumps(seen))
 def test_a_second_process_compiles_nothing_it_has_seen(tmp_path):
     """Two fresh processes with the user's cache folder (nothing configured): the first compiles
     the calibration's programs and keeps them, the second loads them and gets the same result."""
-    # no cache settings of the suite's; its quick-compile setting kept (the same in both processes)
-    quick = ("JAX_DISABLE_MOST_OPTIMIZATIONS",)
+    # no cache settings of the suite's; its quick-compile settings kept (the same in both processes)
+    quick = ("JAX_DISABLE_MOST_OPTIMIZATIONS", "JAX_TRACEBACK_IN_LOCATIONS_LIMIT")
     env = {
         k: v for k, v in os.environ.items() if (not k.startswith("JAX_") or k in quick) and k != _config.CACHE_SWITCH
     }
