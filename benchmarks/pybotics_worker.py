@@ -2,9 +2,9 @@
 
 Runs in pybotics' own virtual environment (pybotics pins numpy<2 and cannot share a venv with
 jax); it imports neither jax nor jaxcal. The fit is the one pybotics documents: an
-``OptimizationHandler`` with a kinematic-chain mask and ``scipy.optimize.least_squares`` on
-``pybotics.optimization.optimize_accuracy`` (per-pose position-error norms, 2-point finite
-differences, default ``trf`` method and tolerances).
+``OptimizationHandler`` with a kinematic-chain mask (and a tool mask when the problem has one)
+and ``scipy.optimize.least_squares`` on ``pybotics.optimization.optimize_accuracy`` (per-pose
+position-error norms, 2-point finite differences, default ``trf`` method and tolerances).
 
     .venv-pybotics/bin/python benchmarks/pybotics_worker.py PROBLEM.npz RESULT.json [--repeats 3]
 """
@@ -41,6 +41,7 @@ def main():
     args = ap.parse_args()
     p = np.load(args.problem)
     q, pos, mask = p["q"], p["positions"], p["mask"].astype(bool)
+    tool_mask = p["tool_mask"].astype(bool) if "tool_mask" in p else np.zeros(6, bool)
 
     # the FK of the nominal model must match jaxcal's before anything is timed
     nominal = build_robot(p)
@@ -48,7 +49,7 @@ def main():
 
     times, res = [], None
     for _ in range(args.repeats):
-        handler = OptimizationHandler(robot=build_robot(p), kinematic_chain_mask=list(mask))
+        handler = OptimizationHandler(robot=build_robot(p), kinematic_chain_mask=list(mask), tool_mask=list(tool_mask))
         t0 = time.perf_counter()
         res = scipy.optimize.least_squares(
             fun=optimize_accuracy, x0=handler.generate_optimization_vector(), args=(handler, q, pos)
@@ -67,6 +68,7 @@ def main():
         "message": str(res.message),
         "x": res.x.tolist(),
         "mdh_fitted": fitted.kinematic_chain.matrix.tolist(),
+        "tool_fitted": np.asarray(fitted.tool.matrix).tolist(),
         "val_positions": val.tolist(),
         "train_rms_mm": float(np.sqrt(np.mean(train_err**2))),
         "fk_nominal_check": fk_nominal.tolist(),

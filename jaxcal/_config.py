@@ -14,6 +14,10 @@ the user's cache folder (:func:`use_compilation_cache`), so a second process doe
 what a first one did. ``JAXCAL_CACHE=0`` in the environment turns that off; a cache the user set
 up (``JAX_COMPILATION_CACHE_DIR``, ``jax.config``) is used as it is.
 
+**Exit.** The objects still alive when the interpreter exits are frozen (:func:`gc.freeze`), so
+that its last garbage collections do not scan them all (``benchmarks/bench_vs_pybotics.py``
+times whole processes).
+
 **Quick compiles.** A calibration compiles a few programs and runs each a few times on small
 arrays: XLA's optimisations cost seconds and save milliseconds. :func:`jit` compiles such a
 program with :data:`QUICK_COMPILE` on CPU, where the caller says its run time is small; the
@@ -22,6 +26,7 @@ options apply to that program alone, never to the user's own.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import functools
 import gc
@@ -112,6 +117,11 @@ def use_compilation_cache() -> str | None:
 
 
 use_compilation_cache()
+
+# At exit the interpreter's last collections scan every object JAX's modules made, a noticeable
+# part of a short process; frozen, they are not scanned and their memory goes back with the
+# process's (Python does not promise finalisers at exit in any case).
+atexit.register(gc.freeze)
 
 
 class _Jit:

@@ -3,6 +3,7 @@
 (:func:`calibrate_data`, behind ``jaxcal calibrate``), all on the one engine."""
 
 from ._accuracy import position_std as position_std
+from ._core import nominal_model as nominal_model
 from ._evaluate import evaluate as evaluate
 from ._options import GAUGE as GAUGE
 from ._options import Options as Options
@@ -15,7 +16,6 @@ from ._single import calibrate as calibrate
 from ._single import calibrate_batch as calibrate_batch
 from ._single import identify as identify
 from ._single import make_layout as make_layout
-from ._single import nominal_model as nominal_model
 from ._workflow import DataCalibration as DataCalibration
 from ._workflow import calibrate_data as calibrate_data
 from ._workflow import fold_ids as fold_ids

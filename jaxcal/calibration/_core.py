@@ -241,28 +241,39 @@ def run_members(
 
 
 @jit
-def _starts(robot: Robot, q, target, masks, *, layout: Layout, shared: bool):
-    def one(q_, t_, w):
-        B, X, pts = initial_frames(
-            robot, q_, t_, w, n_points=layout.n_points, estimate_base=layout.base, estimate_tool=layout.tool
-        )
-        r = eqx.tree_at(lambda r: (r.base, r.tool), robot, (B, robot.tool @ X))
-        return Model(r, pts, None, camera=layout.camera)
-
-    axis = None if shared else 0
-    return jax.vmap(one, in_axes=(axis, axis, 0))(q, target, masks)
+def _chain_poses(robot: Robot, q):
+    """The chain's poses with an identity base, its tool included: what the closed-form frames
+    (:mod:`._initial`) work from."""
+    return fk(eqx.tree_at(lambda r: r.base, robot, jnp.eye(4)), q)
 
 
 def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool) -> Model:
     """A reference model per member (leading axis of ``masks (B, K)``): the robot with the
     closed-form guess of its frames (:mod:`._initial`) from the member's poses, when estimated."""
-    K = np.shape(masks)[1]
-    Kp = pose_bucket(K)
+    masks = np.asarray(masks, float)
+    S, K = masks.shape
     axis = 0 if shared else 1
-    masks = np.concatenate([np.asarray(masks, float), np.zeros((np.shape(masks)[0], Kp - K))], 1)
     robot = carrying(robot, layout)
-    models = _starts(robot, pad_poses(q, Kp, axis), pad_poses(target, Kp, axis), masks, layout=layout, shared=shared)
-    return jax.tree.map(np.asarray, models)
+    F = np.asarray(_chain_poses(robot, pad_poses(q, pose_bucket(K), axis)))
+    F = F[:K] if shared else F[:, :K]
+    B, X, pts = initial_frames(
+        F,
+        robot.base,
+        target,
+        masks,
+        n_points=layout.n_points,
+        estimate_base=layout.base,
+        estimate_tool=layout.tool,
+    )
+    models = broadcast_model(nominal_model(robot, layout), S)
+    return eqx.tree_at(lambda m: (m.robot.base, m.robot.tool, m.points), models, (B, np.asarray(robot.tool) @ X, pts))
+
+
+def nominal_model(robot: Robot, layout: Layout) -> Model:
+    """The nominal model of a layout: the robot (its structure alone: compiled functions are
+    shared by robots of one structure), its measured points at the tool origin."""
+    pts = np.zeros((layout.n_points, 3)) if layout.n_points else None
+    return Model(carrying(robot.stripped(), layout), pts, camera=layout.camera)
 
 
 def carrying(robot: Robot, layout: Layout) -> Robot:

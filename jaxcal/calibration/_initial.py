@@ -1,6 +1,5 @@
-"""Closed-form starting values of the unknown base and tool frames (hand-eye style), in pure JAX
-so that every data set of a batch and every cross-validation training set gets its own in one
-vmapped call.
+"""Closed-form starting values of the unknown base and tool frames (hand-eye style), for every
+data set of a batch and every cross-validation training set at once.
 
 Measured poses obey ``T_meas_k = B F_k X`` with ``F_k = fk(robot with identity base, q_k)`` (the
 nominal chain with the robot's own tool, e.g. a flange) and two unknown rigid transforms ``B``
@@ -19,144 +18,152 @@ closed form (``weights`` select a training set):
    the current model points and repeat.
 
 The result is only a starting point; the frames-only fit refines it.
+
+In NumPy, batched over leading axes (data sets, training sets): a handful of small SVDs and
+solves per member, where a compiled program would cost more to trace and compile than it saves.
 """
 
 from __future__ import annotations
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
+import numpy as np
 
-from ..kinematics import fk
 from ..lie import so3_log
-from ..robot import Robot
 
 
 def _proper(U, Vt):
     """``U diag(1, 1, det(U Vt)) Vt``: the nearest rotation of an SVD."""
-    d = jnp.sign(jnp.linalg.det(U @ Vt))
-    return (U * jnp.stack([jnp.ones_like(d), jnp.ones_like(d), d])) @ Vt
+    d = np.sign(np.linalg.det(U @ Vt))
+    return (U * np.stack([np.ones_like(d), np.ones_like(d), d], -1)[..., None, :]) @ Vt
 
 
 def _project_so3(M):
-    U, _, Vt = jnp.linalg.svd(M)
+    U, _, Vt = np.linalg.svd(M)
     return _proper(U, Vt)
 
 
 def _kabsch(A, B, w):
-    """Weighted rotation ``R`` with ``R a ~ b`` (vectors ``(N, 3)``, centred by the caller) and the
-    singular values of the cross-covariance (to tell a degenerate alignment)."""
-    U, s, Vt = jnp.linalg.svd(jnp.einsum("n,ni,nj->ij", w, B, A))
+    """Weighted rotation ``R`` with ``R a ~ b`` (vectors ``(..., N, 3)``, centred by the caller) and
+    the singular values of the cross-covariance (to tell a degenerate alignment)."""
+    U, s, Vt = np.linalg.svd(np.einsum("...n,...ni,...nj->...ij", w, B, A))
     return _proper(U, Vt), s
 
 
 def _register(P_from, P_to, w):
     """Weighted rigid transform ``(R, t)`` with ``R p_from + t ~ p_to``."""
-    wn = w / jnp.sum(w)
-    ca, cb = wn @ P_from, wn @ P_to
-    R, _ = _kabsch(P_from - ca, P_to - cb, w)
-    return R, cb - R @ ca
+    wn = w / np.sum(w, -1, keepdims=True)
+    ca, cb = np.einsum("...n,...ni->...i", wn, P_from), np.einsum("...n,...ni->...i", wn, P_to)
+    R, _ = _kabsch(P_from - ca[..., None, :], P_to - cb[..., None, :], w)
+    return R, cb - np.einsum("...ij,...j->...i", R, ca)
 
 
 def _lstsq(A, b):
     """Least squares by the normal equations with a trace-relative ridge of 1e-12, so that a
     direction the poses do not determine stays at 0 instead of making the solve fail."""
-    N = A.T @ A
-    return jnp.linalg.solve(N + 1e-12 * jnp.trace(N) / N.shape[0] * jnp.eye(N.shape[0]), A.T @ b)
+    N = np.einsum("...ri,...rj->...ij", A, A)
+    n = N.shape[-1]
+    ridge = 1e-12 * np.trace(N, axis1=-2, axis2=-1) / n
+    rhs = np.einsum("...ri,...r->...i", A, b)
+    return np.linalg.solve(N + ridge[..., None, None] * np.eye(n), rhs[..., None])[..., 0]
+
+
+def _transform(R, p):
+    T = np.zeros(R.shape[:-2] + (4, 4))
+    T[..., :3, :3], T[..., :3, 3], T[..., 3, 3] = R, p, 1.0
+    return T
 
 
 def initial_frames(
-    robot: Robot,
-    q,
+    F,
+    base,
     target,
-    weights=None,
+    weights,
     *,
     n_points: int = 0,
     estimate_base: bool = True,
     estimate_tool: bool = True,
     iterations: int = 50,
 ):
-    """Starting ``(B, X, points)`` (module docstring). Pure and vmappable.
+    """Starting ``(B, X, points)`` (module docstring), for every member of leading axes ``...``.
 
-    **Arguments**: ``q`` ``(K, n)``; ``target`` measured poses ``(K, 4, 4)`` (``n_points = 0``) or
-    points ``(K, M, 3)`` (NaN where a point was lost: left out); ``weights`` ``(K,)`` select the
-    poses used (default all). Frames not
-    estimated are kept: ``B = robot.base``, ``X = I``, points 0.
+    **Arguments**: ``F`` ``(..., K, 4, 4)`` the nominal chain's poses with an identity base (its
+    own tool included); ``base`` ``(4, 4)`` the nominal base; ``target`` measured poses
+    ``(..., K, 4, 4)`` (``n_points = 0``) or points ``(..., K, M, 3)`` (NaN where a point was
+    lost: left out); ``weights`` ``(..., K)`` select the poses used. Frames not estimated are
+    kept: ``B = base``, ``X = I``, points 0.
 
-    **Returns** ``B (4, 4)``, ``X (4, 4)`` (the reference tool is ``robot.tool @ X``) and points
-    ``(M, 3)`` in that tool frame (``(0, 3)`` for poses).
+    **Returns** ``B (..., 4, 4)``, ``X (..., 4, 4)`` (the reference tool is ``tool @ X``) and
+    points ``(..., M, 3)`` in that tool frame (``(..., 0, 3)`` for poses).
     """
-    F = fk(eqx.tree_at(lambda r: r.base, robot, jnp.eye(4)), q)
-    K = q.shape[0]
-    w = jnp.ones(K) if weights is None else jnp.asarray(weights, jnp.float64)
-    RF, pF = F[:, :3, :3], F[:, :3, 3]
-    R_B, p_B = robot.base[:3, :3], robot.base[:3, 3]
-    X = jnp.eye(4)
+    F, base, target = np.asarray(F, float), np.asarray(base, float), np.asarray(target, float)
+    w = np.asarray(weights, float)
+    lead, K = w.shape[:-1], w.shape[-1]
+    F = np.broadcast_to(F, lead + (K, 4, 4))
+    RF, pF = F[..., :3, :3], F[..., :3, 3]
+    R_B = np.broadcast_to(base[:3, :3], lead + (3, 3))
+    p_B = np.broadcast_to(base[:3, 3], lead + (3,))
+    X = np.broadcast_to(np.eye(4), lead + (4, 4)).copy()
     if n_points == 0:
-        RM, pM = target[:, :3, :3], target[:, :3, 3]
+        target = np.broadcast_to(target, lead + (K, 4, 4))
+        RM, pM = target[..., :3, :3], target[..., :3, 3]
         if estimate_base:
             R_B, p_B = _register(pF, pM, w)
         if estimate_tool:
             if estimate_base:
-                a = so3_log(RM[1:] @ jnp.swapaxes(RM[:-1], 1, 2))
-                b = so3_log(RF[1:] @ jnp.swapaxes(RF[:-1], 1, 2))
-                R_rel, s = _kabsch(b, a, w[1:] * w[:-1])
-                R_B = jnp.where(s[1] > 1e-6 * s[0], R_rel, R_B)  # the motions span two axes or more
-            R_X = _project_so3(jnp.einsum("k,kji,lj,klm->im", w, RF, R_B, RM))
-            X = X.at[:3, :3].set(R_X)
+                a = so3_log(RM[..., 1:, :, :] @ np.swapaxes(RM[..., :-1, :, :], -1, -2))
+                b = so3_log(RF[..., 1:, :, :] @ np.swapaxes(RF[..., :-1, :, :], -1, -2))
+                R_rel, s = _kabsch(b, a, w[..., 1:] * w[..., :-1])
+                spans = s[..., 1] > 1e-6 * s[..., 0]  # the motions span two axes or more
+                R_B = np.where(spans[..., None, None], R_rel, R_B)
+            X[..., :3, :3] = _project_so3(np.einsum("...k,...kji,...lj,...klm->...im", w, RF, R_B, RM))
         elif estimate_base:
-            R_B = _project_so3(jnp.einsum("k,kij,kmj->im", w, RM, RF))
+            R_B = _project_so3(np.einsum("...k,...kij,...kmj->...im", w, RM, RF))
         cols = []
         if estimate_tool:
-            cols.append(jnp.einsum("ij,kjl->kil", R_B, RF))  # p_X
+            cols.append(np.einsum("...ij,...kjl->...kil", R_B, RF))  # p_X
         if estimate_base:
-            cols.append(jnp.broadcast_to(jnp.eye(3), (K, 3, 3)))  # p_B
+            cols.append(np.broadcast_to(np.eye(3), lead + (K, 3, 3)))  # p_B
         if cols:
-            sw = jnp.sqrt(w)[:, None]
-            A = (jnp.concatenate(cols, 2) * sw[..., None]).reshape(3 * K, -1)
-            rhs = pM - pF @ R_B.T - (0.0 if estimate_base else p_B)
-            sol = _lstsq(A, (rhs * sw).reshape(-1))
+            sw = np.sqrt(w)[..., None]
+            A = (np.concatenate(cols, -1) * sw[..., None]).reshape(lead + (3 * K, -1))
+            rhs = pM - np.einsum("...kj,...ij->...ki", pF, R_B) - (0.0 if estimate_base else p_B[..., None, :])
+            sol = _lstsq(A, (rhs * sw).reshape(lead + (3 * K,)))
             if estimate_tool:
-                X = X.at[:3, 3].set(sol[:3])
+                X[..., :3, 3] = sol[..., :3]
             if estimate_base:
-                p_B = sol[-3:]
-        return _transform(R_B, p_B), X, jnp.zeros((0, 3))
+                p_B = sol[..., -3:]
+        return _transform(R_B, p_B), X, np.zeros(lead + (0, 3))
 
     M = n_points
-    PM = target.reshape(K, M, 3)
-    seen = jnp.all(jnp.isfinite(PM), -1)  # (K, M): a lost point (NaN) weighs nothing
-    PM = jnp.where(seen[..., None], PM, 0.0)
-    wkm = w[:, None] * seen
-    ww = wkm.reshape(K * M)
-    pts = jnp.zeros((M, 3))
+    PM = np.broadcast_to(target, lead + (K, M, 3))
+    seen = np.all(np.isfinite(PM), -1)  # (..., K, M): a lost point (NaN) weighs nothing
+    PM = np.where(seen[..., None], PM, 0.0)
+    wkm = w[..., None] * seen
+    ww = wkm.reshape(lead + (K * M,))
+    pts = np.zeros(lead + (M, 3))
 
     def model_points(pts):
-        return (jnp.einsum("kij,mj->kmi", RF, pts) + pF[:, None]).reshape(K * M, 3)
+        P = np.einsum("...kij,...mj->...kmi", RF, pts) + pF[..., None, :]
+        return P.reshape(lead + (K * M, 3))
 
-    def step(_, c):
-        R_B, p_B, pts = c
+    for _ in range(iterations if (estimate_base and estimate_tool) else 1):
         if estimate_base:
-            R_B, p_B = _register(model_points(pts), PM.reshape(K * M, 3), ww)
+            R_B, p_B = _register(model_points(pts), PM.reshape(lead + (K * M, 3)), ww)
         if estimate_tool:
             # p_kj = R_B (R_Fk m_j + p_Fk) + p_B: linear in (m_1..m_M, p_B)
-            blocks = jnp.einsum("ij,kjl->kil", R_B, RF)  # (K, 3, 3)
-            Am = jnp.eye(M)[None, :, None, :, None] * blocks[:, None, :, None, :]  # (K, M, 3, M, 3)
-            A = [Am.reshape(K, M, 3, 3 * M)]
+            blocks = np.einsum("...ij,...kjl->...kil", R_B, RF)  # (..., K, 3, 3)
+            Am = np.eye(M)[:, None, :, None] * blocks[..., :, None, :, None, :]  # (..., K, M, 3, M, 3)
+            A = [Am.reshape(lead + (K, M, 3, 3 * M))]
             if estimate_base:
-                A.append(jnp.broadcast_to(jnp.eye(3), (K, M, 3, 3)))
-            A = jnp.concatenate(A, -1)
-            rhs = PM - pF[:, None] @ R_B.T - (0.0 if estimate_base else p_B)
-            sw = jnp.sqrt(wkm)[:, :, None]
-            sol = _lstsq((A * sw[..., None]).reshape(3 * K * M, -1), (rhs * sw).reshape(-1))
-            pts = sol[: 3 * M].reshape(M, 3)
+                A.append(np.broadcast_to(np.eye(3), lead + (K, M, 3, 3)))
+            A = np.concatenate(A, -1)
+            rhs = (
+                PM
+                - np.einsum("...kj,...ij->...ki", pF, R_B)[..., None, :]
+                - (0.0 if estimate_base else p_B[..., None, None, :])
+            )
+            sw = np.sqrt(wkm)[..., None]
+            sol = _lstsq((A * sw[..., None]).reshape(lead + (3 * K * M, -1)), (rhs * sw).reshape(lead + (-1,)))
+            pts = sol[..., : 3 * M].reshape(lead + (M, 3))
             if estimate_base:
-                p_B = sol[3 * M :]
-        return R_B, p_B, pts
-
-    n_iter = iterations if (estimate_base and estimate_tool) else 1
-    R_B, p_B, pts = jax.lax.fori_loop(0, n_iter, step, (R_B, p_B, pts))
+                p_B = sol[..., 3 * M :]
     return _transform(R_B, p_B), X, pts
-
-
-def _transform(R, p):
-    return jnp.eye(4).at[:3, :3].set(R).at[:3, 3].set(p)

@@ -28,6 +28,7 @@ from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
 from ._checks import as_target, check_units
+from ._core import nominal_model
 from ._options import ELIMINATION_METHODS, Options, make_options
 from ._param_sets import Candidate, parse_params
 
@@ -239,13 +240,6 @@ def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
         f"parameters are not identified apart from its neighbours', and the model is only checked there"
         for j in np.flatnonzero(span <= tiny)
     )
-
-
-def nominal_model(robot: Robot, layout: Layout) -> Model:
-    """The nominal model of a layout: the robot (its structure alone: compiled functions are
-    shared by robots of one structure), its measured points at the tool origin."""
-    pts = np.zeros((layout.n_points, 3)) if layout.n_points else None
-    return Model(core.carrying(robot.stripped(), layout), pts, camera=layout.camera)
 
 
 def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: int = 0, **kw) -> Identifiability:

@@ -1,7 +1,6 @@
 """The real-data workflow (`calibrate_data`) on simulated data: folds, the base/tool initial
 guess, the cross-validated choice of parameter set, camera models, recovery of the true robot."""
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -39,14 +38,22 @@ def test_initial_frames_exact_on_nominal_robot(rng, position_only):
     lim = np.asarray(r.q_limits)
     q = lim[:, 0] + rng.uniform(size=(30, r.n_joints)) * (lim[:, 1] - lim[:, 0])
     meas = np.asarray(fk(r.replace(base=B, tool=np.asarray(r.tool) @ X), q))
-    guess = eqx.filter_jit(initial_frames)
+    F = np.asarray(fk(r.replace(base=np.eye(4)), q))
+    w = np.ones(len(q))
     if position_only:
-        Bh, _, pts = guess(r, q, meas[:, None, :3, 3], n_points=1)
+        Bh, _, pts = initial_frames(F, np.asarray(r.base), meas[:, None, :3, 3], w, n_points=1)
         assert_allclose(pts[0], X[:3, 3], atol=1e-8)  # the tool rotation does not move the point
     else:
-        Bh, Xh, _ = guess(r, q, meas)
+        Bh, Xh, _ = initial_frames(F, np.asarray(r.base), meas, w)
         assert_allclose(Xh, X, atol=1e-8)
     assert_allclose(Bh, B, atol=1e-8)
+    # every member of a batch gets its own frames: all poses, the first 20 (consecutive poses give
+    # the relative motions), all again
+    sets = np.stack([w, (np.arange(len(q)) < 20).astype(float), w])
+    target = meas[:, None, :3, 3] if position_only else meas
+    Bs, Xs, _ = initial_frames(F, np.asarray(r.base), target, sets, n_points=int(position_only))
+    assert Bs.shape == (3, 4, 4) and Xs.shape == (3, 4, 4)
+    assert_allclose(Bs, np.broadcast_to(B, (3, 4, 4)), atol=1e-8)
 
 
 def _sim(robot, x_dh, B, X, *, n=60, sp=0.05, sr=2e-4, seed=0):
