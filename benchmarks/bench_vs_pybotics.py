@@ -341,7 +341,12 @@ def main():
             estimate_tool=prob["estimate_tool"],
             params=prob["params"],
         )
-        env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        env = {
+            k: v
+            for k, v in os.environ.items()
+            if not k.startswith("JAX_") and k not in ("JAXCAL_CACHE", "PYTHONDONTWRITEBYTECODE")
+        }
+        env["XDG_CACHE_HOME"] = os.path.join(tmp, "cold-single")  # an empty compilation cache
         t0 = time.perf_counter()
         out = subprocess.run(
             [sys.executable, __file__, "--_cold", path], check=True, capture_output=True, text=True, env=env

@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._config import as_f64
+from .._config import as_f64, jit
 from ..calibration import Options, lever, make_layout, nominal_model, parse_params
 from ..errors import DataError
 from ..identifiability import analyze
@@ -213,9 +213,9 @@ def _reference_of(model: Model, layout: Layout, q):
     return identification_jacobian(model, layout, q), tool_positions(model, layout, q)
 
 
-# run a few times per design on a few hundred poses: LLVM's optimisation would cost more
-# compile time than it saves (the values are the same)
-_reference = jax.jit(_reference_of, static_argnums=1, compiler_options={"xla_backend_optimization_level": 0})
+# run a few times per design on a few hundred poses: XLA's optimisations would cost more
+# compile time than they save (the values are the same)
+_reference = jit(_reference_of)
 
 
 def reference(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray]:
