@@ -37,7 +37,7 @@ from ..calibration import Options, lever, make_layout, nominal_model, parse_para
 from ..errors import DataError
 from ..identifiability import analyze
 from ..kinematics import check_q
-from ..model import Layout, Model, apply, predict, row_weights
+from ..model import Layout, Model, apply, jacobian, predict, row_weights
 from ..robot import Robot
 from ._report import report_options
 
@@ -210,7 +210,9 @@ JACOBIAN_CHUNK = 256
 
 
 def _reference_of(model: Model, layout: Layout, q):
-    return identification_jacobian(model, layout, q), tool_positions(model, layout, q)
+    # values only: the analytic Jacobian traces and compiles faster than the autodiff one, which
+    # the optimiser needs for its derivative in q
+    return jacobian(model, layout, q), tool_positions(model, layout, q)
 
 
 # run a few times per design on a few hundred poses: XLA's optimisations would cost more
