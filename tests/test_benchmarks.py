@@ -7,16 +7,23 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "benchmarks" / "bench_vs_pybotics.py"
 
 
-def test_bench_vs_pybotics_standin(tmp_path):
+@pytest.mark.parametrize("robot", ["panda", "ur10"])
+def test_bench_vs_pybotics_standin(tmp_path, robot):
+    """ur10: pybotics' model from a robot file with the probe estimated, whose chart (an offset in
+    the tool frame) the stand-in's residual and the accuracy share with jaxcal's result."""
     out = tmp_path / "r.json"
     p = subprocess.run(
         [
             sys.executable,
             str(BENCH),
+            "--robot",
+            robot,
             "--pybotics-python",
             str(tmp_path / "none"),
             "--poses",
