@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._config import jit
 from ..errors import DataError
 from ..model import Model, predict
 from ..robot import Robot
+
+_predict = jit(predict)  # one program, not one per operation
 
 REPEAT_RAD = 1e-2
 """A pose whose every revolute joint is within this of a training pose's (and every prismatic
@@ -80,7 +83,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
         have = "poses" if M == 0 else f"{M} point(s) per pose"
         want = "poses" if model.n_points == 0 else f"{model.n_points} point(s)"
         raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}", option="data")
-    pred = np.asarray(predict(model, np.asarray(meas.q)))
+    pred = np.asarray(_predict(model, np.asarray(meas.q)))
     if M:
         pos = np.linalg.norm(meas.measured - pred, axis=-1)  # (K, M)
         rot = None

@@ -32,6 +32,7 @@ import dataclasses
 import jax
 import numpy as np
 
+from .._config import jit
 from ..camera import CAMERA_MODELS, check_target_in_front
 from ..errors import DataError
 from ..kinematics import gravity_moments
@@ -96,12 +97,18 @@ class _Problem:
         return self.opts.params.strip() == "auto"
 
 
+# each compiled as one program: run op by op, every operation would be a program of its own to
+# compile in each process
+_gravity_moments = jit(gravity_moments)
+_errors = jit(errors)
+
+
 def _compliant(robot: Robot, q, opts: Options) -> bool:
     """Whether the candidates may carry joint compliances: asked for, or (``auto``) a revolute
     joint's gravity moment varies over the data by more than 1 % of the reach."""
     if opts.compliance != "auto":
         return opts.compliance == "yes"
-    tau = np.asarray(gravity_moments(robot.stripped(), q))
+    tau = np.asarray(_gravity_moments(robot.stripped(), q))
     return bool(np.ptp(tau, axis=0).max() > 0.01 * robot.reach())
 
 
@@ -292,7 +299,7 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     ref = fr.member(-1)
     J = core.analyse(ref, p.layout, p.q)[0]
     w = core.weights_of(p.layout, fr.sig[[-1]])[0]
-    lin = selection.linearise(J, np.asarray(errors(ref, p.q, p.target)), w, p.n_points)
+    lin = selection.linearise(J, np.asarray(_errors(ref, p.q, p.target)), w, p.n_points)
     final = _select(p, lin, J, p.valid, opts.seed)
     train = p.masks[:-1]
     per_fold = [_select(p, lin, J, train[o], opts.seed + 1 + o) if p.nested else final for o in range(len(train))]
