@@ -12,7 +12,9 @@ calls :func:`as_f64` on the arrays it receives, which
 **Compilation cache.** Importing :mod:`jaxcal` also points JAX's persistent compilation cache at
 the user's cache folder (:func:`use_compilation_cache`), so a second process does not compile
 what a first one did. ``JAXCAL_CACHE=0`` in the environment turns that off; a cache the user set
-up (``JAX_COMPILATION_CACHE_DIR``, ``jax.config``) is used as it is.
+up (``JAX_COMPILATION_CACHE_DIR``, ``jax.config``) is used as it is. With jaxcal's own cache,
+:func:`jit` also keeps the traced programs beside it (:mod:`jaxcal._kept`,
+:func:`programs_folder`), so a second process does not trace them either.
 
 **Exit.** The objects still alive when the interpreter exits are frozen (:func:`gc.freeze`), so
 that its last garbage collections do not scan them all (``benchmarks/bench_vs_pybotics.py``
@@ -38,10 +40,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _kept
 from .errors import DataError, PrecisionError
 
 jax.config.update("jax_enable_x64", True)
 
+PROGRAMS_FOLDER = "JAXCAL_PROGRAMS"
+"""Environment variable: a folder for the traced programs kept across processes
+(:func:`programs_folder`)."""
 CACHE_SWITCH = "JAXCAL_CACHE"
 """Environment variable: ``0`` (or ``false``, ``no``, ``off``) keeps jaxcal from setting up the
 persistent compilation cache."""
@@ -124,19 +130,39 @@ use_compilation_cache()
 atexit.register(gc.freeze)
 
 
+def programs_folder() -> str | None:
+    """Where traced programs are kept across processes (:mod:`jaxcal._kept`): ``$JAXCAL_PROGRAMS``
+    if set, else ``programs`` beside jaxcal's own compilation cache; None when the cache is off
+    or the user's own JAX cache is in use (their settings are left as they are)."""
+    if os.environ.get(CACHE_SWITCH, "1").strip().lower() in ("0", "false", "no", "off"):
+        return None
+    if os.environ.get(PROGRAMS_FOLDER):
+        return os.environ[PROGRAMS_FOLDER]
+    own = str(cache_folder())
+    return str(cache_folder().parent / "programs") if jax.config.jax_compilation_cache_dir == own else None
+
+
 class _Jit:
     """A function jitted twice (:func:`jax.jit` through :func:`equinox.filter_jit`): with XLA's
     default optimisations, and with ``options`` (:data:`QUICK_COMPILE`). ``quick=True`` (the
-    default) calls the quick one when JAX's default backend is the CPU."""
+    default) calls the quick one when JAX's default backend is the CPU. With the persistent
+    cache on, a call goes through the traced program kept for its arguments (:mod:`._kept`)."""
 
     def __init__(self, fn, options):
         functools.update_wrapper(self, fn)
         self.full = eqx.filter_jit(fn)
         self.quick = eqx.filter_jit(fn, compiler_options=options)
+        name = f"{fn.__module__}.{fn.__qualname__}"
+        self.kept = {True: _kept.Store(fn, name, options), False: _kept.Store(fn, name, {})}
 
     def __call__(self, *args, quick: bool = True, **kwargs):
         fast = quick and jax.default_backend() == "cpu"
         with gc_paused():
+            folder = programs_folder()
+            if folder is not None:
+                out = self.kept[fast].call(folder, args, kwargs)
+                if out is not _kept.MISSING:
+                    return out
             return (self.quick if fast else self.full)(*args, **kwargs)
 
 

@@ -7,6 +7,8 @@ from pathlib import Path
 _CACHE = Path(__file__).resolve().parent.parent / ".pytest_cache" / "jax-cache"
 os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", str(_CACHE))
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+# jaxcal's traced programs kept beside it, as a user's are beside jaxcal's own cache
+os.environ.setdefault("JAXCAL_PROGRAMS", str(_CACHE.parent / "jaxcal-programs"))
 # The suite is compile-bound (small data, many distinct programs): XLA without most of its
 # optimisations compiles about twice as fast, and the tests check values, not speed
 # (benchmarks/ measures speed with the default compiler).

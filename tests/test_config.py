@@ -83,11 +83,16 @@ log.setLevel(logging.DEBUG)
 log.addHandler(Log())
 import numpy as np
 import jaxcal
+from jaxcal.calibration import _core
+member = _core._member  # runs only while the solver is traced
+traced = []
+_core._member = lambda *a: traced.append(1) or member(*a)
 robot = jaxcal.preset("paper-6r")
 sim = jaxcal.simulate(robot, n_poses=30, seed=4, sigma_pos=0.02, tool=True)
 for v in seen.values(): v.clear()
 res = jaxcal.calibrate(robot, sim.q[0], sim.measured[0, :, :3, 3], estimate_base=False)
 seen["x"] = np.asarray(res.x).tolist()
+seen["traced"] = len(traced)
 print(json.dumps(seen))
 """
 
@@ -98,7 +103,9 @@ def test_a_second_process_compiles_nothing_it_has_seen(tmp_path):
     # no cache settings of the suite's; its quick-compile settings kept (the same in both processes)
     quick = ("JAX_DISABLE_MOST_OPTIMIZATIONS", "JAX_TRACEBACK_IN_LOCATIONS_LIMIT")
     env = {
-        k: v for k, v in os.environ.items() if (not k.startswith("JAX_") or k in quick) and k != _config.CACHE_SWITCH
+        k: v
+        for k, v in os.environ.items()
+        if (not k.startswith("JAX_") or k in quick) and k not in (_config.CACHE_SWITCH, _config.PROGRAMS_FOLDER)
     }
     env["XDG_CACHE_HOME"] = str(tmp_path)
     runs = []
@@ -116,6 +123,12 @@ def test_a_second_process_compiles_nothing_it_has_seen(tmp_path):
     assert ours(second["miss"]) <= ours(first["quick"])
     np.testing.assert_array_equal(second["x"], first["x"])
     assert any((tmp_path / "jaxcal" / "xla").iterdir())
+    # the traced programs are kept too: the second process traced none of them
+    assert {p.name.split("-")[0].rsplit(".", 1)[1] for p in (tmp_path / "jaxcal" / "programs").iterdir()} >= {
+        "_members",
+        "_nominal",
+    }
+    assert first["traced"] and not second["traced"]
 
 
 def test_quick_compile_options_are_known_and_change_no_result():

@@ -1,0 +1,162 @@
+"""Traced programs kept across processes (:mod:`jax.export`), next to the compilation cache.
+
+JAX's persistent cache keeps compiled executables, but finds them by the lowered program, so a
+new process still traces and lowers each of jaxcal's programs before it can load one: for the
+calibration's solver that costs more than the cached compile saves. This store keeps the
+lowered program itself (``jax.export`` serialisation), found by a key made of everything that
+decides it: the function, the compile options, the static part of the arguments (by value), the
+shapes and dtypes of the arrays, the source of the installed jaxcal, the versions of the
+libraries that trace it and the JAX settings that change lowering. A new process then loads it
+and only looks the executable up.
+
+Used by :func:`jaxcal._config.jit` when the persistent cache is on; any case it cannot serve
+(traced arguments, arrays spread over several devices, static arguments known only by their
+address, a damaged file, a program ``jax.export`` does not take) runs the ordinary ``jit`` path
+instead. Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import pickle
+from pathlib import Path
+
+import equinox as eqx
+import jax
+
+from ._io import write_atomic
+
+MISSING = object()
+"""Returned by :func:`call` when the store cannot serve the call (the caller runs ``jit``)."""
+
+_LIBRARIES = ("jax", "jaxlib", "equinox", "optimistix", "lineax", "numpy")
+_CONFIG = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion")
+_environment: bytes | None = None
+_usable: bool | None = None
+
+
+def _environment_key() -> bytes:
+    """The source of the installed jaxcal, the libraries' versions and the JAX settings that
+    change what a trace produces: computed once per process."""
+    global _environment
+    if _environment is None:
+        h = hashlib.sha256()
+        root = Path(__file__).resolve().parent
+        for path in sorted(root.rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode())
+            h.update(path.read_bytes())
+        for lib in _LIBRARIES:
+            try:
+                h.update(f"{lib}={importlib.metadata.version(lib)}".encode())
+            except importlib.metadata.PackageNotFoundError:
+                h.update(f"{lib}=none".encode())
+        for name in _CONFIG:
+            h.update(f"{name}={getattr(jax.config, name, None)}".encode())
+        h.update(jax.default_backend().encode())
+        _environment = h.digest()
+    return _environment
+
+
+def _serialisable() -> bool:
+    """Whether ``jax.export`` can serialise here (it needs the ``flatbuffers`` package)."""
+    global _usable
+    if _usable is None:
+        try:
+            import flatbuffers  # noqa: F401  (jax.export's serialisation needs it)
+
+            _usable = True
+        except ImportError:
+            _usable = False
+    return _usable
+
+
+class _Slot:
+    """Where output array ``i`` goes in a kept program's output structure (its skeleton)."""
+
+    def __init__(self, i: int):
+        self.i = i
+
+
+def _is_slot(x) -> bool:
+    return isinstance(x, _Slot)
+
+
+def _single_device(leaf) -> bool:
+    return not isinstance(leaf, jax.Array) or len(leaf.sharding.device_set) == 1
+
+
+class Store:
+    """The programs of one jitted function (``name``) compiled with ``options``: loaded or
+    exported once per argument structure in a process, then called directly."""
+
+    def __init__(self, fn, name: str, options: dict):
+        self.fn, self.name, self.options = fn, name, options
+        self.loaded: dict[str, tuple] = {}
+
+    def call(self, folder: str, args, kwargs):
+        """``fn(*args, **kwargs)`` through a kept program, or :data:`MISSING`."""
+        if not _serialisable():
+            return MISSING
+        dynamic, static = eqx.partition((args, kwargs), eqx.is_array)
+        leaves, treedef = jax.tree.flatten(dynamic)
+        if any(isinstance(x, jax.core.Tracer) or not _single_device(x) for x in leaves):
+            return MISSING
+        fixed, fixed_def = jax.tree.flatten(static)
+        # by value (a pickle would differ with which equal objects happen to be shared); an
+        # object printed by its address has no stable key
+        spec = f"{self.name}|{sorted(self.options.items())}|{fixed_def}|{fixed!r}|{treedef}"
+        if " at 0x" in spec:
+            return MISSING
+        h = hashlib.sha256(_environment_key() + spec.encode())
+        for x in leaves:
+            h.update(f"{getattr(x, 'shape', ())}{getattr(x, 'dtype', type(x))}".encode())
+        key = f"{self.name}-{h.hexdigest()[:40]}"
+        if key not in self.loaded:
+            entry = self._load(folder, key) or self._export(folder, key, static, treedef, leaves)
+            if entry is None:
+                return MISSING
+            self.loaded[key] = entry
+        run, skeleton = self.loaded[key]
+        out = run(*leaves)
+        return jax.tree.map(lambda s: out[s.i] if isinstance(s, _Slot) else s, skeleton, is_leaf=_is_slot)
+
+    def _runner(self, exported):
+        def run(*xs):
+            return exported.call(*xs)
+
+        run.__name__ = run.__qualname__ = self.fn.__name__  # the program keeps the function's name
+        return jax.jit(run, compiler_options=self.options or None)
+
+    def _load(self, folder: str, key: str):
+        path = Path(folder) / f"{key}.jaxcal"
+        if not path.is_file():
+            return None
+        try:
+            blob, skeleton = pickle.loads(path.read_bytes())
+            return self._runner(jax.export.deserialize(bytearray(blob))), skeleton
+        except Exception:  # damaged or from an incompatible version: trace afresh and replace it
+            return None
+
+    def _export(self, folder: str, key: str, static, treedef, leaves):
+        shape = {}
+
+        def flat(*xs):
+            args, kwargs = eqx.combine(jax.tree.unflatten(treedef, xs), static)
+            dyn, out_static = eqx.partition(self.fn(*args, **kwargs), eqx.is_array)
+            out, out_treedef = jax.tree.flatten(dyn)
+            slots = jax.tree.unflatten(out_treedef, [_Slot(i) for i in range(len(out))])
+            shape["skeleton"] = eqx.combine(slots, out_static, is_leaf=_is_slot)
+            return out
+
+        try:
+            specs = [jax.ShapeDtypeStruct(jax.numpy.shape(x), jax.numpy.result_type(x)) for x in leaves]
+            exported = jax.export.export(jax.jit(flat))(*specs)
+            blob = pickle.dumps((exported.serialize(), shape["skeleton"]))
+        except Exception:  # effects, callbacks or anything export does not take: plain jit
+            return None
+        try:
+            write_atomic(Path(folder) / f"{key}.jaxcal", blob)
+        except OSError:  # a read-only folder: this process still uses what it traced
+            pass
+        return self._runner(exported), shape["skeleton"]
