@@ -36,16 +36,21 @@ _environment: bytes | None = None
 _usable: bool | None = None
 
 
-def _environment_key() -> bytes:
+def _environment_key() -> bytes | None:
     """The source of the installed jaxcal, the libraries' versions and the JAX settings that
-    change what a trace produces: computed once per process."""
+    change what a trace produces: computed once per process; None (nothing kept) where the
+    source cannot be read."""
     global _environment
     if _environment is None:
         h = hashlib.sha256()
         root = Path(__file__).resolve().parent
-        for path in sorted(root.rglob("*.py")):
-            h.update(str(path.relative_to(root)).encode())
-            h.update(path.read_bytes())
+        try:
+            for path in sorted(root.rglob("*.py")):
+                h.update(str(path.relative_to(root)).encode())
+                h.update(path.read_bytes())
+        except OSError:
+            _environment = b""
+            return None
         for lib in _LIBRARIES:
             try:
                 h.update(f"{lib}={importlib.metadata.version(lib)}".encode())
@@ -55,7 +60,7 @@ def _environment_key() -> bytes:
             h.update(f"{name}={getattr(jax.config, name, None)}".encode())
         h.update(jax.default_backend().encode())
         _environment = h.digest()
-    return _environment
+    return _environment or None
 
 
 def _serialisable() -> bool:
@@ -96,7 +101,7 @@ class Store:
 
     def call(self, folder: str, args, kwargs):
         """``fn(*args, **kwargs)`` through a kept program, or :data:`MISSING`."""
-        if not _serialisable():
+        if not _serialisable() or _environment_key() is None:
             return MISSING
         dynamic, static = eqx.partition((args, kwargs), eqx.is_array)
         leaves, treedef = jax.tree.flatten(dynamic)
