@@ -24,6 +24,7 @@ from pathlib import Path
 
 import equinox as eqx
 import jax
+import numpy as np
 
 from ._io import write_atomic
 
@@ -87,6 +88,11 @@ def _is_slot(x) -> bool:
     return isinstance(x, _Slot)
 
 
+def _spec(x) -> jax.ShapeDtypeStruct:
+    """Shape, dtype and weak type (which changes type promotion in the trace) of an argument."""
+    return jax.ShapeDtypeStruct(np.shape(x), np.result_type(x), weak_type=bool(getattr(x, "weak_type", False)))
+
+
 def _single_device(leaf) -> bool:
     return not isinstance(leaf, jax.Array) or len(leaf.sharding.device_set) == 1
 
@@ -115,13 +121,12 @@ class Store:
             return MISSING
         h = hashlib.sha256(_environment_key() + spec.encode())
         for x in leaves:
-            h.update(f"{getattr(x, 'shape', ())}{getattr(x, 'dtype', type(x))}".encode())
+            h.update(f"{_spec(x)}".encode())
         key = f"{self.name}-{h.hexdigest()[:40]}"
-        if key not in self.loaded:
-            entry = self._load(folder, key) or self._export(folder, key, static, treedef, leaves)
-            if entry is None:
-                return MISSING
-            self.loaded[key] = entry
+        if key not in self.loaded:  # a program export does not take is remembered as None
+            self.loaded[key] = self._load(folder, key) or self._export(folder, key, static, treedef, leaves)
+        if self.loaded[key] is None:
+            return MISSING
         run, skeleton = self.loaded[key]
         out = run(*leaves)
         return jax.tree.map(lambda s: out[s.i] if isinstance(s, _Slot) else s, skeleton, is_leaf=_is_slot)
@@ -155,8 +160,7 @@ class Store:
             return out
 
         try:
-            specs = [jax.ShapeDtypeStruct(jax.numpy.shape(x), jax.numpy.result_type(x)) for x in leaves]
-            exported = jax.export.export(jax.jit(flat))(*specs)
+            exported = jax.export.export(jax.jit(flat))(*map(_spec, leaves))
             blob = pickle.dumps((exported.serialize(), shape["skeleton"]))
         except Exception:  # effects, callbacks or anything export does not take: plain jit
             return None
