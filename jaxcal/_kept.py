@@ -90,7 +90,11 @@ def _is_slot(x) -> bool:
 
 def _spec(x) -> jax.ShapeDtypeStruct:
     """Shape, dtype and weak type (which changes type promotion in the trace) of an argument."""
-    return jax.ShapeDtypeStruct(np.shape(x), np.result_type(x), weak_type=bool(getattr(x, "weak_type", False)))
+    return jax.ShapeDtypeStruct(
+        np.shape(x),
+        np.asarray(x).dtype if not hasattr(x, "dtype") else x.dtype,
+        weak_type=bool(getattr(x, "weak_type", False)),
+    )
 
 
 def _single_device(leaf) -> bool:
