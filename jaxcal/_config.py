@@ -13,7 +13,7 @@ calls :func:`as_f64` on the arrays it receives, which
 the user's cache folder (:func:`use_compilation_cache`), so a second process does not compile
 what a first one did. ``JAXCAL_CACHE=0`` in the environment turns that off; a cache the user set
 up (``JAX_COMPILATION_CACHE_DIR``, ``jax.config``) is used as it is. With jaxcal's own cache,
-:func:`jit` also keeps the traced programs beside it (:mod:`jaxcal._kept`,
+:func:`jit` also keeps the traced programs of the calibration's solver beside it (:mod:`jaxcal._kept`,
 :func:`programs_folder`), so a second process does not trace them either.
 
 **Exit.** The objects still alive when the interpreter exits are frozen (:func:`gc.freeze`), so
@@ -145,20 +145,21 @@ def programs_folder() -> str | None:
 class _Jit:
     """A function jitted twice (:func:`jax.jit` through :func:`equinox.filter_jit`): with XLA's
     default optimisations, and with ``options`` (:data:`QUICK_COMPILE`). ``quick=True`` (the
-    default) calls the quick one when JAX's default backend is the CPU. With the persistent
-    cache on, a call goes through the traced program kept for its arguments (:mod:`._kept`)."""
+    default) calls the quick one when JAX's default backend is the CPU. With ``keep`` and the
+    persistent cache on, a call goes through the traced program kept for its arguments
+    (:mod:`._kept`)."""
 
-    def __init__(self, fn, options):
+    def __init__(self, fn, options, keep):
         functools.update_wrapper(self, fn)
         self.full = eqx.filter_jit(fn)
         self.quick = eqx.filter_jit(fn, compiler_options=options)
         name = f"{fn.__module__}.{fn.__qualname__}"
-        self.kept = {True: _kept.Store(fn, name, options), False: _kept.Store(fn, name, {})}
+        self.kept = {True: _kept.Store(fn, name, options), False: _kept.Store(fn, name, {})} if keep else None
 
     def __call__(self, *args, quick: bool = True, **kwargs):
         fast = quick and jax.default_backend() == "cpu"
         with gc_paused():
-            folder = programs_folder()
+            folder = programs_folder() if self.kept else None
             if folder is not None:
                 out = self.kept[fast].call(folder, args, kwargs)
                 if out is not _kept.MISSING:
@@ -180,10 +181,12 @@ def gc_paused():
             gc.enable()
 
 
-def jit(fn=None, *, options: dict = QUICK_COMPILE):
+def jit(fn=None, *, options: dict = QUICK_COMPILE, keep: bool = False):
     """``equinox.filter_jit(fn)``, compiled quickly on CPU (XLA ``options``) unless called with
     ``quick=False`` (for a call whose run time matters more than its compile time). As
-    ``@jit`` or ``@jit(options=LOOP_EMITTERS)``."""
+    ``@jit`` or ``@jit(options=LOOP_EMITTERS)``. ``keep``: its traced programs are kept across
+    processes (:mod:`._kept`), for a program whose tracing and lowering cost more than its
+    compile (exporting costs a little more the first time)."""
     if fn is None:
-        return functools.partial(jit, options=options)
-    return _Jit(fn, options)
+        return functools.partial(jit, options=options, keep=keep)
+    return _Jit(fn, options, keep)

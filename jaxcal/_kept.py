@@ -107,7 +107,8 @@ class Store:
 
     def __init__(self, fn, name: str, options: dict):
         self.fn, self.name, self.options = fn, name, options
-        self.loaded: dict[str, tuple] = {}
+        self.loaded: dict[str, tuple | None] = {}
+        self.keys: dict[tuple, str] = {}
 
     def call(self, folder: str, args, kwargs):
         """``fn(*args, **kwargs)`` through a kept program, or :data:`MISSING`."""
@@ -118,15 +119,18 @@ class Store:
         if any(isinstance(x, jax.core.Tracer) or not _single_device(x) for x in leaves):
             return MISSING
         fixed, fixed_def = jax.tree.flatten(static)
-        # by value (a pickle would differ with which equal objects happen to be shared); an
-        # object printed by its address has no stable key
-        spec = f"{self.name}|{sorted(self.options.items())}|{fixed_def}|{fixed!r}|{treedef}"
-        if " at 0x" in spec:
-            return MISSING
-        h = hashlib.sha256(_environment_key() + spec.encode())
-        for x in leaves:
-            h.update(f"{_spec(x)}".encode())
-        key = f"{self.name}-{h.hexdigest()[:40]}"
+        specs = tuple(_spec(x) for x in leaves)
+        try:  # a repeated call finds its key without printing its arguments again
+            memo = (fixed_def, tuple(fixed), treedef, specs)
+            key = self.keys.get(memo)
+        except TypeError:  # an unhashable static value
+            memo, key = None, None
+        if key is None:
+            key = self._key(fixed, fixed_def, treedef, specs)
+            if key is None:
+                return MISSING
+            if memo is not None:
+                self.keys[memo] = key
         if key not in self.loaded:  # a program export does not take is remembered as None
             self.loaded[key] = self._load(folder, key) or self._export(folder, key, static, treedef, leaves)
         if self.loaded[key] is None:
@@ -134,6 +138,14 @@ class Store:
         run, skeleton = self.loaded[key]
         out = run(*leaves)
         return jax.tree.map(lambda s: out[s.i] if isinstance(s, _Slot) else s, skeleton, is_leaf=_is_slot)
+
+    def _key(self, fixed, fixed_def, treedef, specs) -> str | None:
+        # by value (a pickle would differ with which equal objects happen to be shared); an
+        # object printed by its address has no stable key
+        spec = f"{self.name}|{sorted(self.options.items())}|{fixed_def}|{fixed!r}|{treedef}|{specs}"
+        if " at 0x" in spec:
+            return None
+        return f"{self.name}-{hashlib.sha256(_environment_key() + spec.encode()).hexdigest()[:40]}"
 
     def _runner(self, exported):
         def run(*xs):

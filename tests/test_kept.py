@@ -40,10 +40,10 @@ def _args(seed=0):
 def test_kept_program_matches_jit_and_a_new_store_does_not_trace(programs):
     m, x = _args()
     plain = eqx.filter_jit(_fn)(m, x, power=3)
-    first = _config.jit(_fn)(m, x, power=3)
+    first = _config.jit(_fn, keep=True)(m, x, power=3)
     assert len(list(programs.iterdir())) == 1 and len(TRACES) == 2  # plain jit, then the export
     # a new process: a fresh function object, the program loaded from its file
-    second = _config.jit(_fn)(m, x, power=3)
+    second = _config.jit(_fn, keep=True)(m, x, power=3)
     assert len(TRACES) == 2
     for out in (first, second):
         np.testing.assert_array_equal(out["y"], plain["y"])
@@ -53,20 +53,20 @@ def test_kept_program_matches_jit_and_a_new_store_does_not_trace(programs):
 
 def test_the_key_follows_static_values_shapes_and_source(programs, monkeypatch):
     m, x = _args()
-    f = _config.jit(_fn)
+    f = _config.jit(_fn, keep=True)
     f(m, x, power=3)
     f(m, x, power=2)  # another static value
     f(Scaled(np.ones((4, 4)), "k"), np.ones(4), power=3)  # other shapes
     f(Scaled(m.a, "j"), x, power=3)  # another static field
     assert len(list(programs.iterdir())) == 4
     monkeypatch.setattr(_kept, "_environment", b"another jaxcal source")
-    _config.jit(_fn)(m, x, power=3)
+    _config.jit(_fn, keep=True)(m, x, power=3)
     assert len(list(programs.iterdir())) == 5
 
 
 def test_traced_arguments_go_through_jit(programs):
     m, x = _args()
-    f = _config.jit(_fn)
+    f = _config.jit(_fn, keep=True)
     xs = np.stack([x, 2 * x])
     batched = jax.vmap(lambda xi: f(m, xi, power=3)["y"])(xs)
     np.testing.assert_allclose(batched[1], eqx.filter_jit(_fn)(m, xs[1], power=3)["y"], rtol=1e-14)
@@ -75,10 +75,10 @@ def test_traced_arguments_go_through_jit(programs):
 
 def test_a_damaged_file_is_traced_again_and_replaced(programs):
     m, x = _args()
-    expected = _config.jit(_fn)(m, x, power=3)["y"]
+    expected = _config.jit(_fn, keep=True)(m, x, power=3)["y"]
     (path,) = programs.iterdir()
     path.write_bytes(b"not a program")
-    again = _config.jit(_fn)(m, x, power=3)["y"]
+    again = _config.jit(_fn, keep=True)(m, x, power=3)["y"]
     np.testing.assert_array_equal(again, expected)
     assert path.read_bytes() != b"not a program"
 
@@ -86,5 +86,5 @@ def test_a_damaged_file_is_traced_again_and_replaced(programs):
 def test_off_with_the_cache_switch(programs, monkeypatch):
     monkeypatch.setenv(_config.CACHE_SWITCH, "0")
     m, x = _args()
-    _config.jit(_fn)(m, x, power=3)
+    _config.jit(_fn, keep=True)(m, x, power=3)
     assert _config.programs_folder() is None and not list(programs.iterdir())

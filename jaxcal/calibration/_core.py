@@ -92,7 +92,7 @@ def _member(cfg: Config, model: Model, q, target, pose_w, weights, prior, loss_s
     )
 
 
-@jit
+@jit(keep=True)
 def _members(cfg: Config, models, q, target, pose_w, weights, prior, loss_scale, norms0, x0):
     data_axis = None if cfg.shared_data else 0
     if pose_w.shape[0] == 1:  # one member: no batching transform to trace
@@ -240,7 +240,7 @@ def run_members(
     return out
 
 
-@jit
+@jit(keep=True)
 def _chain_poses(robot: Robot, q):
     """The chain's poses with an identity base, its tool included: what the closed-form frames
     (:mod:`._initial`) work from."""
@@ -344,7 +344,7 @@ def weights_of(layout: Layout, sigmas) -> np.ndarray:
     return np.repeat(1 / sigmas[:, :1], layout.rows, 1)
 
 
-@jit
+@jit(keep=True)
 def _nominal(model: Model, layout: Layout, q):
     pred = predict(model, q)
     pos = pred[..., :3, 3] if layout.n_points == 0 else pred[..., 0, :]
