@@ -121,7 +121,7 @@ class Store:
         fixed, fixed_def = jax.tree.flatten(static)
         specs = tuple(_spec(x) for x in leaves)
         try:  # a repeated call finds its key without printing its arguments again
-            memo = (fixed_def, tuple(fixed), treedef, specs)
+            memo = (fixed_def, tuple((type(v), v) for v in fixed), treedef, specs)  # 1 is not 1.0
             key = self.keys.get(memo)
         except TypeError:  # an unhashable static value
             memo, key = None, None

@@ -56,12 +56,13 @@ def test_the_key_follows_static_values_shapes_and_source(programs, monkeypatch):
     f = _config.jit(_fn, keep=True)
     f(m, x, power=3)
     f(m, x, power=2)  # another static value
+    f(m, x, power=3.0)  # equal, but another type
     f(Scaled(np.ones((4, 4)), "k"), np.ones(4), power=3)  # other shapes
     f(Scaled(m.a, "j"), x, power=3)  # another static field
-    assert len(list(programs.iterdir())) == 4
+    assert len(list(programs.iterdir())) == 5
     monkeypatch.setattr(_kept, "_environment", b"another jaxcal source")
     _config.jit(_fn, keep=True)(m, x, power=3)
-    assert len(list(programs.iterdir())) == 5
+    assert len(list(programs.iterdir())) == 6
 
 
 def test_traced_arguments_go_through_jit(programs):
