@@ -44,26 +44,29 @@ def _project_so3(M):
 def _kabsch(A, B, w):
     """Weighted rotation ``R`` with ``R a ~ b`` (vectors ``(..., N, 3)``, centred by the caller) and
     the singular values of the cross-covariance (to tell a degenerate alignment)."""
-    U, s, Vt = np.linalg.svd(np.einsum("...n,...ni,...nj->...ij", w, B, A))
+    U, s, Vt = np.linalg.svd(np.swapaxes(w[..., None] * B, -1, -2) @ A)
     return _proper(U, Vt), s
 
 
 def _register(P_from, P_to, w):
     """Weighted rigid transform ``(R, t)`` with ``R p_from + t ~ p_to``."""
     wn = w / np.sum(w, -1, keepdims=True)
-    ca, cb = np.einsum("...n,...ni->...i", wn, P_from), np.einsum("...n,...ni->...i", wn, P_to)
+    ca, cb = (wn[..., None, :] @ P_from)[..., 0, :], (wn[..., None, :] @ P_to)[..., 0, :]
     R, _ = _kabsch(P_from - ca[..., None, :], P_to - cb[..., None, :], w)
-    return R, cb - np.einsum("...ij,...j->...i", R, ca)
+    return R, cb - (R @ ca[..., None])[..., 0]
+
+
+def _solve_normal(N, rhs):
+    """The normal equations ``N x = rhs`` with a trace-relative ridge of 1e-12, so that a
+    direction the poses do not determine stays at 0 instead of making the solve fail."""
+    n = N.shape[-1]
+    ridge = 1e-12 * np.trace(N, axis1=-2, axis2=-1) / n
+    return np.linalg.solve(N + ridge[..., None, None] * np.eye(n), rhs[..., None])[..., 0]
 
 
 def _lstsq(A, b):
-    """Least squares by the normal equations with a trace-relative ridge of 1e-12, so that a
-    direction the poses do not determine stays at 0 instead of making the solve fail."""
-    N = np.einsum("...ri,...rj->...ij", A, A)
-    n = N.shape[-1]
-    ridge = 1e-12 * np.trace(N, axis1=-2, axis2=-1) / n
-    rhs = np.einsum("...ri,...r->...i", A, b)
-    return np.linalg.solve(N + ridge[..., None, None] * np.eye(n), rhs[..., None])[..., 0]
+    """Least squares through :func:`_solve_normal`."""
+    return _solve_normal(np.swapaxes(A, -1, -2) @ A, (b[..., None, :] @ A)[..., 0, :])
 
 
 def _transform(R, p):
@@ -142,27 +145,36 @@ def initial_frames(
     pts = np.zeros(lead + (M, 3))
 
     def model_points(pts):
-        P = np.einsum("...kij,...mj->...kmi", RF, pts) + pF[..., None, :]
+        P = np.swapaxes(RF @ np.swapaxes(pts, -1, -2)[..., None, :, :], -1, -2) + pF[..., None, :]
         return P.reshape(lead + (K * M, 3))
 
     for _ in range(iterations if (estimate_base and estimate_tool) else 1):
         if estimate_base:
             R_B, p_B = _register(model_points(pts), PM.reshape(lead + (K * M, 3)), ww)
         if estimate_tool:
-            # p_kj = R_B (R_Fk m_j + p_Fk) + p_B: linear in (m_1..m_M, p_B)
-            blocks = np.einsum("...ij,...kjl->...kil", R_B, RF)  # (..., K, 3, 3)
-            Am = np.eye(M)[:, None, :, None] * blocks[..., :, None, :, None, :]  # (..., K, M, 3, M, 3)
-            A = [Am.reshape(lead + (K, M, 3, 3 * M))]
-            if estimate_base:
-                A.append(np.broadcast_to(np.eye(3), lead + (K, M, 3, 3)))
-            A = np.concatenate(A, -1)
+            # p_kj = G_k m_j + R_B p_Fk + p_B with G_k = R_B R_Fk a rotation: linear in (m_1..m_M,
+            # p_B), normal equations built block by block (G_k^T G_k = I)
+            G = R_B[..., None, :, :] @ RF  # (..., K, 3, 3)
             rhs = (
-                PM
-                - np.einsum("...kj,...ij->...ki", pF, R_B)[..., None, :]
-                - (0.0 if estimate_base else p_B[..., None, None, :])
-            )
-            sw = np.sqrt(wkm)[..., None]
-            sol = _lstsq((A * sw[..., None]).reshape(lead + (3 * K * M, -1)), (rhs * sw).reshape(lead + (-1,)))
+                PM - (pF @ np.swapaxes(R_B, -1, -2))[..., None, :] - (0.0 if estimate_base else p_B[..., None, None, :])
+            )  # (..., K, M, 3)
+            Gt_rhs = (np.swapaxes(G, -1, -2)[..., :, None, :, :] @ rhs[..., None])[..., 0]  # (..., K, M, 3): G_k^T r_kj
+            n = 3 * M + (3 if estimate_base else 0)
+            N = np.zeros(lead + (n, n))
+            g = np.zeros(lead + (n,))
+            count = wkm.sum(-2)  # (..., M)
+            sums = np.swapaxes(wkm, -1, -2) @ G.reshape(lead + (K, 9))  # (..., M, 9): sum_k w G_k
+            for j in range(M):
+                N[..., 3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = count[..., j, None, None] * np.eye(3)
+                g[..., 3 * j : 3 * j + 3] = (wkm[..., j, None] * Gt_rhs[..., j, :]).sum(-2)
+                if estimate_base:
+                    C = sums[..., j, :].reshape(lead + (3, 3))
+                    N[..., 3 * j : 3 * j + 3, 3 * M :] = np.swapaxes(C, -1, -2)
+                    N[..., 3 * M :, 3 * j : 3 * j + 3] = C
+            if estimate_base:
+                N[..., 3 * M :, 3 * M :] = count.sum(-1)[..., None, None] * np.eye(3)
+                g[..., 3 * M :] = (wkm[..., None] * rhs).sum((-3, -2))
+            sol = _solve_normal(N, g)
             pts = sol[..., : 3 * M].reshape(lead + (M, 3))
             if estimate_base:
                 p_B = sol[..., 3 * M :]
