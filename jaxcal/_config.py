@@ -35,13 +35,20 @@ import gc
 import os
 from pathlib import Path
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
-import numpy as np
+_collecting = gc.isenabled()
+gc.disable()
+try:  # JAX's modules: a million objects alive for the whole process, frozen rather than scanned
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
 
-from . import _kept
-from .errors import DataError, PrecisionError
+    from . import _kept
+    from .errors import DataError, PrecisionError
+finally:
+    gc.freeze()
+    if _collecting:
+        gc.enable()
 
 jax.config.update("jax_enable_x64", True)
 
@@ -165,6 +172,16 @@ class _Jit:
                 if out is not _kept.MISSING:
                     return out
             return (self.quick if fast else self.full)(*args, **kwargs)
+
+    def prepare(self, *args, quick: bool = True, **kwargs) -> bool:
+        """Start loading or tracing, and compiling, the kept program that a call with arguments of
+        these shapes and static values (their values do not matter) will run, in a background
+        thread (:meth:`jaxcal._kept.Store.prepare`). False where nothing was started: not a kept
+        function, the cache off, or the program already there."""
+        folder = programs_folder() if self.kept else None
+        if folder is None:
+            return False
+        return self.kept[quick and jax.default_backend() == "cpu"].prepare(folder, args, kwargs)
 
 
 @contextlib.contextmanager

@@ -7,7 +7,8 @@ lowered program itself (``jax.export`` serialisation), found by a key made of ev
 decides it: the function, the compile options, the static part of the arguments (by value), the
 shapes and dtypes of the arrays, the source of the installed jaxcal, the versions of the
 libraries that trace it and the JAX settings that change lowering. A new process then loads it
-and only looks the executable up.
+and only looks the executable up. :meth:`Store.prepare` does that, and the compile, in a
+background thread while the caller computes what the program will be called with.
 
 Used by :func:`jaxcal._config.jit` when the persistent cache is on; any case it cannot serve
 (traced arguments, arrays spread over several devices, static arguments known only by their
@@ -20,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import importlib.metadata
 import pickle
+import threading
 from pathlib import Path
 
 import equinox as eqx
@@ -101,6 +103,28 @@ def _single_device(leaf) -> bool:
     return not isinstance(leaf, jax.Array) or len(leaf.sharding.device_set) == 1
 
 
+class _Background:
+    """A function run in a thread of its own; :meth:`result` waits for it. Not a daemon: a
+    process that exits meanwhile waits for the compile rather than stop it halfway."""
+
+    def __init__(self, fn):
+        self.out, self.error = None, None
+        self.thread = threading.Thread(target=self._run, args=(fn,), name="jaxcal-prepare")
+        self.thread.start()
+
+    def _run(self, fn):
+        try:
+            self.out = fn()
+        except BaseException as e:  # handed to the caller that waits for it
+            self.error = e
+
+    def result(self):
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+        return self.out
+
+
 class Store:
     """The programs of one jitted function (``name``) compiled with ``options``: loaded or
     exported once per argument structure in a process, then called directly."""
@@ -109,15 +133,61 @@ class Store:
         self.fn, self.name, self.options = fn, name, options
         self.loaded: dict[str, tuple | None] = {}
         self.keys: dict[tuple, str] = {}
+        self.pending: dict[str, _Background] = {}
 
     def call(self, folder: str, args, kwargs):
         """``fn(*args, **kwargs)`` through a kept program, or :data:`MISSING`."""
-        if not _serialisable() or _environment_key() is None:
+        found = self._find(args, kwargs)
+        if found is None:
             return MISSING
+        key, static, treedef, leaves = found
+        if key in self.pending:  # prepared in the background: wait for it rather than trace again
+            try:
+                self.loaded[key] = self.pending.pop(key).result()
+            except Exception:  # traced afresh below
+                pass
+        if key not in self.loaded:  # a program export does not take is remembered as None
+            self.loaded[key] = self._entry(folder, key, static, treedef, leaves)
+        if self.loaded[key] is None:
+            return MISSING
+        run, skeleton = self.loaded[key]
+        out = run(*leaves)
+        return jax.tree.map(lambda s: out[s.i] if isinstance(s, _Slot) else s, skeleton, is_leaf=_is_slot)
+
+    def prepare(self, folder: str, args, kwargs) -> bool:
+        """Load or trace, and compile, the program a later :meth:`call` with arguments of these
+        shapes and static values will run, in a background thread: the compile (which releases
+        Python's lock) then overlaps the caller's own work. False when there is nothing to do."""
+        found = self._find(args, kwargs)
+        if found is None or found[0] in self.loaded or found[0] in self.pending:
+            return False
+        key, static, treedef, leaves = found
+        specs = [_spec(x) for x in leaves]
+        entry = lambda: self._compiled(self._entry(folder, key, static, treedef, leaves), specs)  # noqa: E731
+        self.pending[key] = _Background(entry)
+        return True
+
+    @staticmethod
+    def _compiled(entry, specs):
+        if entry is not None:
+            try:  # jit keeps what it compiles ahead of time for the same arguments
+                entry[0].lower(*specs).compile()
+            except Exception:  # the call itself will compile it (and say what is wrong)
+                pass
+        return entry
+
+    def _entry(self, folder: str, key: str, static, treedef, leaves):
+        return self._load(folder, key) or self._export(folder, key, static, treedef, leaves)
+
+    def _find(self, args, kwargs):
+        """``(key, static part, array structure, arrays)`` of a call, or None when no kept
+        program can serve it."""
+        if not _serialisable() or _environment_key() is None:
+            return None
         dynamic, static = eqx.partition((args, kwargs), eqx.is_array)
         leaves, treedef = jax.tree.flatten(dynamic)
         if any(isinstance(x, jax.core.Tracer) or not _single_device(x) for x in leaves):
-            return MISSING
+            return None
         fixed, fixed_def = jax.tree.flatten(static)
         specs = tuple(_spec(x) for x in leaves)
         try:  # a repeated call finds its key without printing its arguments again
@@ -128,16 +198,10 @@ class Store:
         if key is None:
             key = self._key(fixed, fixed_def, treedef, specs)
             if key is None:
-                return MISSING
+                return None
             if memo is not None:
                 self.keys[memo] = key
-        if key not in self.loaded:  # a program export does not take is remembered as None
-            self.loaded[key] = self._load(folder, key) or self._export(folder, key, static, treedef, leaves)
-        if self.loaded[key] is None:
-            return MISSING
-        run, skeleton = self.loaded[key]
-        out = run(*leaves)
-        return jax.tree.map(lambda s: out[s.i] if isinstance(s, _Slot) else s, skeleton, is_leaf=_is_slot)
+        return key, static, treedef, leaves
 
     def _key(self, fixed, fixed_def, treedef, specs) -> str | None:
         # by value (a pickle would differ with which equal objects happen to be shared); an

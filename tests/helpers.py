@@ -152,3 +152,24 @@ def ur5_tracker(n_robots: int = 160):
     data = jaxcal.Measurements(q, sim.measured[0, :, None, :3, 3])
     res = jaxcal.calibrate_data(ur5, data, folds=UR5_TRACKER["folds"], params=UR5_TRACKER["params"], sigma_pos_mm=s)
     return ur5, sim, data, res
+
+
+def solve_keys(monkeypatch) -> dict:
+    """Record the keys of the calibration solve's programs as they are prepared in the background
+    (``jaxcal._config.jit(...).prepare``) and as they are called: ``{"prepared": [...],
+    "called": [...]}``. A prepared key that no call uses is a compile wasted."""
+    from jaxcal.calibration import _core
+
+    store = _core._members.kept[True]
+    keys = {"prepared": [], "called": []}
+
+    def spy(name, method):
+        def wrapped(folder, args, kwargs):
+            keys[name].append(store._find(args, kwargs)[0])
+            return method(folder, args, kwargs)
+
+        return wrapped
+
+    monkeypatch.setattr(store, "prepare", spy("prepared", store.prepare))
+    monkeypatch.setattr(store, "call", spy("called", store.call))
+    return keys

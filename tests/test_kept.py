@@ -89,3 +89,41 @@ def test_off_with_the_cache_switch(programs, monkeypatch):
     m, x = _args()
     _config.jit(_fn, keep=True)(m, x, power=3)
     assert _config.programs_folder() is None and not list(programs.iterdir())
+
+
+def test_a_prepared_program_is_traced_once_and_gives_what_jit_gives(programs):
+    m, x = _args()
+    plain = eqx.filter_jit(_fn)(m, x, power=3)
+    TRACES.clear()
+    f = _config.jit(_fn, keep=True)
+    # only shapes and static values matter to prepare: zeros stand in for the data
+    assert f.prepare(Scaled(np.zeros((3, 3)), "k"), np.zeros(3), power=3)
+    assert not f.prepare(Scaled(np.zeros((3, 3)), "k"), np.zeros(3), power=3)  # already under way
+    out = f(m, x, power=3)
+    assert len(TRACES) == 1 and len(list(programs.iterdir())) == 1
+    np.testing.assert_array_equal(out["y"], plain["y"])
+    np.testing.assert_array_equal(out["model"].a, plain["model"].a)
+    assert out["model"].kind == "k!" and out["n"] == 3
+    # another static value is another program: prepared for one, the call traces its own
+    f.prepare(Scaled(np.zeros((3, 3)), "k"), np.zeros(3), power=2)
+    f(m, x, power=4)
+    assert len(TRACES) == 3
+
+
+def test_a_failed_preparation_leaves_the_call_to_jit(programs, monkeypatch):
+    m, x = _args()
+
+    def broken(*a):
+        raise RuntimeError("the background thread failed")
+
+    monkeypatch.setattr(_kept.Store, "_compiled", staticmethod(broken))
+    f = _config.jit(_fn, keep=True)
+    assert f.prepare(m, x, power=3)
+    np.testing.assert_array_equal(f(m, x, power=3)["y"], eqx.filter_jit(_fn)(m, x, power=3)["y"])
+
+
+def test_nothing_is_prepared_with_the_cache_off(programs, monkeypatch):
+    monkeypatch.setenv(_config.CACHE_SWITCH, "0")
+    m, x = _args()
+    assert not _config.jit(_fn, keep=True).prepare(m, x, power=3)
+    assert not _config.jit(_fn).prepare(m, x, power=3)  # not a kept function

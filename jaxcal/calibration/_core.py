@@ -166,6 +166,52 @@ def chunk_size(n_members: int, n_poses: int, layout: Layout, memory_mb: float) -
     return int(min(cap, 2 ** int(np.ceil(np.log2(max(n_members, 1))))))
 
 
+def _plan(cfg: Config, q, target, pose_w, weights, prior, loss_scale, J0, x0, chunk, memory_mb, devices):
+    """How :func:`run_members` calls the solve: ``(members per call, device mesh or None, quick
+    compile, (q, target, pose weights, weights, prior, loss scales, column norms, starts) with
+    the poses padded)``."""
+    B, K = int(pose_w.shape[0]), int(pose_w.shape[1])
+    ls = np.full(B, np.nan) if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))
+    Kp = pose_bucket(K, fine=B * K >= FINE_BUCKET)
+    mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
+    D = mesh.size if mesh is not None else 1
+    per = chunk_size(-(-B // D), Kp, cfg.layout, memory_mb / D) if chunk is None else chunk
+    c = per * D
+    n0 = column_norms(J0, weights, pose_w, prior)
+    x0 = np.zeros(np.shape(prior)) if x0 is None else np.asarray(x0)
+    axis = 0 if cfg.shared_data else 1
+    q, target = pad_poses(q, Kp, axis), pad_poses(target, Kp, axis)
+    pose_w = np.concatenate([np.asarray(pose_w, float), np.zeros((B, Kp - K))], 1)
+    quick = -(-B // c) * c * Kp <= QUICK_WORK
+    return c, mesh, quick, (q, target, pose_w, weights, prior, ls, n0, x0)
+
+
+def prepare_members(
+    cfg: Config,
+    models: Model,
+    q,
+    target,
+    pose_w,
+    *,
+    chunk: int | None = None,
+    memory_mb: float = 1024.0,
+    devices=None,
+) -> bool:
+    """Start compiling, in the background, the solve that :func:`run_members` runs for these
+    members (``models`` and ``pose_w`` with their member axis, ``q``/``target`` as there; only
+    their shapes and the models' structure matter), so that it compiles while the caller finds
+    the start and the identifiable set. False where nothing was started (the program is there
+    already, the cache is off, or the members are spread over devices)."""
+    B, K = np.shape(pose_w)
+    lay = cfg.layout
+    weights, prior, J0 = np.ones((B, lay.rows)), np.ones((B, lay.size)), np.zeros((K, lay.rows, lay.size))
+    c, mesh, quick, padded = _plan(cfg, q, target, pose_w, weights, prior, None, J0, None, chunk, memory_mb, devices)
+    if mesh is not None:
+        return False
+    args = _chunk_args(cfg, models, *padded, np.minimum(np.arange(c), B - 1))
+    return _members.prepare(cfg, *args, quick=quick)
+
+
 def _chunk_args(cfg: Config, models, q, target, pose_w, weights, prior, ls, n0, x0, idx):
     m_, pw, w, p, l_, n_, s_, *data = take(
         [models, pose_w, weights, prior, ls, n0, x0] + ([] if cfg.shared_data else [q, target]), idx
@@ -208,24 +254,12 @@ def run_members(
     ``progress(done, total, label)`` is called after each chunk. Returns NumPy arrays with the
     member axis first.
     """
-    B = int(pose_w.shape[0])
-    K = int(pose_w.shape[1])
-    ls = np.full(B, np.nan) if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))
-    Kp = pose_bucket(K, fine=B * K >= FINE_BUCKET)
-    mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
-    D = mesh.size if mesh is not None else 1
-    per = chunk_size(-(-B // D), Kp, cfg.layout, memory_mb / D) if chunk is None else chunk
-    c = per * D
-    n0 = column_norms(J0, weights, pose_w, prior)
-    x0 = np.zeros(np.shape(prior)) if x0 is None else np.asarray(x0)
-    axis = 0 if cfg.shared_data else 1
-    q, target = pad_poses(q, Kp, axis), pad_poses(target, Kp, axis)
-    pose_w = np.concatenate([np.asarray(pose_w, float), np.zeros((B, Kp - K))], 1)
-    quick = -(-B // c) * c * Kp <= QUICK_WORK
+    B, K = int(pose_w.shape[0]), int(pose_w.shape[1])
+    plan = (cfg, q, target, pose_w, weights, prior, loss_scale, J0, x0, chunk, memory_mb, devices)
+    c, mesh, quick, padded = _plan(*plan)
     outs = []
     for start in range(0, B, c):
-        idx = np.minimum(np.arange(start, start + c), B - 1)
-        args = _chunk_args(cfg, models, q, target, pose_w, weights, prior, ls, n0, x0, idx)
+        args = _chunk_args(cfg, models, *padded, np.minimum(np.arange(start, start + c), B - 1))
         if mesh is None:
             outs.append(jax.tree.map(np.asarray, _members(cfg, *args, quick=quick)))
         else:  # every member array split over the devices; data shared by all members on each

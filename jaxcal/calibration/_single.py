@@ -289,14 +289,16 @@ def calibrate(
     wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
     masks = np.ones((1, K))
+    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
+    nominal = core.broadcast_model(nominal_model(robot, layout), 1)
+    core.prepare_members(cfg, nominal, q, target, masks, memory_mb=opts.memory_mb)  # compiles meanwhile
 
     def start(masks):
         if not layout.frames:
-            return core.broadcast_model(nominal_model(robot, layout), 1)
+            return nominal
         return core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
 
     ref = start(masks)
-    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
     check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
@@ -423,14 +425,16 @@ def calibrate_batch(
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
     check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
     masks = np.ones((R, K))
+    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
+    nominal = core.broadcast_model(nominal_model(robot, layout), R)
+    core.prepare_members(cfg, nominal, q, target, masks, memory_mb=opts.memory_mb, devices=devs)  # compiles meanwhile
 
     def start(masks):
         if not layout.frames:
-            return core.broadcast_model(nominal_model(robot, layout), R)
+            return nominal
         return core.start_models(robot.stripped(), layout, q, target, masks, shared=False)
 
     ref = start(masks)
-    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
     J0 = core.analyse(core.member(ref, 0), layout, q[0])[0]
     if ident is None:
         ident = core.identify(J0, layout)

@@ -129,6 +129,17 @@ def _candidates(robot: Robot, opts: Options, cameras, compliance: bool) -> tuple
     return cands, dataclasses.replace(flexible, camera=cameras[-1])
 
 
+def _solve(robot: Robot, layout: Layout, opts: Options, q, target, n_sets: int) -> tuple[core.Config, int]:
+    """The solve every fit of the workflow runs (its configuration and members per call, for
+    ``n_sets`` training sets at most), its compile started in the background meanwhile
+    (:func:`._core.prepare_members`; once per layout)."""
+    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
+    chunk = core.chunk_size(n_sets, len(q), layout, opts.memory_mb)
+    nominal = core.broadcast_model(nominal_model(robot, layout), 1)
+    core.prepare_members(cfg, nominal, q, target, np.ones((1, len(q))), chunk=chunk, memory_mb=opts.memory_mb)
+    return cfg, chunk
+
+
 def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     """Stage 1 (module docstring)."""
     q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
@@ -141,6 +152,9 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
         check_target_in_front(target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows)
     K, F = len(q), opts.folds
     fid = fold_ids(K, F, opts.seed)
+    everything = np.ones(K, bool)
+    held = np.concatenate([np.stack([fid == o for o in range(F)]), selection.range_end_held(q, everything)])
+    _solve(robot, layout, opts, q, target, len(held) + 1)
     union = set().union(*(c.dh for c in candidates))
     wanted = list(layout.frames) + list(layout.cameras) + sorted(union)
     needed = core.generic_rank(nominal_model(robot, layout), layout, K, wanted)
@@ -158,13 +172,10 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
             f"folds or more poses",
             option="folds",
         )
-    everything = np.ones(K, bool)
-    held = np.concatenate([np.stack([fid == o for o in range(F)]), selection.range_end_held(q, everything)])
+    cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     ref = core.start_models(robot.stripped(), layout, q, target, everything[None], shared=True)
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
-    cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
-    chunk = core.chunk_size(len(held) + 1, K, layout, opts.memory_mb)
     run = dict(J0=J0, chunk=chunk, memory_mb=opts.memory_mb, progress=progress)
     nested = (len(candidates) > 1 or opts.params.strip() == "auto") and K <= opts.nested_max_poses
     return _Problem(
