@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# A jaxcal command in a fresh process with no compilation cache (XDG_CACHE_HOME and
-# JAX_COMPILATION_CACHE_DIR point at a fresh empty folder each run), an earlier revision and the
-# working tree alternately, so their times compare on the same machine state; then the working
+# A jaxcal command in a fresh process with no compilation cache (XDG_CACHE_HOME, under which
+# jaxcal keeps its compiled and traced programs, points at a fresh empty folder each run; JAX's
+# own cache folder is unset: a user's own JAX cache turns jaxcal's kept programs off), an earlier
+# revision and the working tree alternately, so their times compare on the same machine state; then the working
 # tree again with the cache its cold run filled. Each line ends with the value at KEY (a dotted
 # path into the command's --json output), which should not change.
 # Usage (repository root, venv active):
@@ -29,7 +30,7 @@ done
 run() {  # label, tree, cache folder
   local cache="$3"
   # from the tree's own folder: `python -c` puts the working directory ahead of PYTHONPATH
-  (cd "$2" && XDG_CACHE_HOME=$cache JAX_COMPILATION_CACHE_DIR=$cache/jax PYTHONPATH=$2 /usr/bin/time -f "%e %U %S" \
+  (cd "$2" && env -u JAX_COMPILATION_CACHE_DIR XDG_CACHE_HOME=$cache PYTHONPATH=$2 /usr/bin/time -f "%e %U %S" \
     -o "$tmp/time" python -c "from jaxcal.cli import main; main()" "${args[@]}" --json "$tmp/out.json" > /dev/null 2>&1)
   read -r wall user sys < "$tmp/time"
   value=$(python -c "

@@ -16,9 +16,11 @@ up (``JAX_COMPILATION_CACHE_DIR``, ``jax.config``) is used as it is. With jaxcal
 :func:`jit` also keeps the traced programs of the calibration's solver beside it (:mod:`jaxcal._kept`,
 :func:`programs_folder`), so a second process does not trace them either.
 
-**Exit.** The objects still alive when the interpreter exits are frozen (:func:`gc.freeze`), so
-that its last garbage collections do not scan them all (``benchmarks/bench_vs_pybotics.py``
-times whole processes).
+**Import and exit.** JAX is imported with Python's cyclic garbage collector paused, and the
+objects its modules made are then frozen (:func:`gc.freeze`): they live as long as the process,
+and each full collection during the import would scan them all again. The objects still alive
+when the interpreter exits are frozen too, so that its last collections do not scan them
+(``benchmarks/bench_vs_pybotics.py`` times whole processes).
 
 **Quick compiles.** A calibration compiles a few programs and runs each a few times on small
 arrays: XLA's optimisations cost seconds and save milliseconds. :func:`jit` compiles such a
@@ -174,10 +176,10 @@ class _Jit:
             return (self.quick if fast else self.full)(*args, **kwargs)
 
     def prepare(self, *args, quick: bool = True, **kwargs) -> bool:
-        """Start loading or tracing, and compiling, the kept program that a call with arguments of
-        these shapes and static values (their values do not matter) will run, in a background
-        thread (:meth:`jaxcal._kept.Store.prepare`). False where nothing was started: not a kept
-        function, the cache off, or the program already there."""
+        """Load or trace now the kept program that a call with arguments of these shapes and
+        static values (their values do not matter) will run, and start its compile in a
+        background thread (:meth:`jaxcal._kept.Store.prepare`). False where nothing was started:
+        not a kept function, the cache off, or the program already there."""
         folder = programs_folder() if self.kept else None
         if folder is None:
             return False

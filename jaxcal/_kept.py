@@ -7,8 +7,9 @@ lowered program itself (``jax.export`` serialisation), found by a key made of ev
 decides it: the function, the compile options, the static part of the arguments (by value), the
 shapes and dtypes of the arrays, the source of the installed jaxcal, the versions of the
 libraries that trace it and the JAX settings that change lowering. A new process then loads it
-and only looks the executable up. :meth:`Store.prepare` does that, and the compile, in a
-background thread while the caller computes what the program will be called with.
+and only looks the executable up. :meth:`Store.prepare` does that before the call, from stand-in
+arguments of the right shapes, and starts the compile in a background thread, which runs while
+the caller computes what the program will be called with.
 
 Used by :func:`jaxcal._config.jit` when the persistent cache is on; any case it cannot serve
 (traced arguments, arrays spread over several devices, static arguments known only by their
@@ -104,8 +105,9 @@ def _single_device(leaf) -> bool:
 
 
 class _Background:
-    """A function run in a thread of its own; :meth:`result` waits for it. Not a daemon: a
-    process that exits meanwhile waits for the compile rather than stop it halfway."""
+    """A function run in a thread of its own (an XLA compile, which releases Python's lock);
+    :meth:`result` waits for it. Not a daemon: a process that exits meanwhile waits for the
+    compile rather than stop it halfway."""
 
     def __init__(self, fn):
         self.out, self.error = None, None
@@ -155,23 +157,27 @@ class Store:
         return jax.tree.map(lambda s: out[s.i] if isinstance(s, _Slot) else s, skeleton, is_leaf=_is_slot)
 
     def prepare(self, folder: str, args, kwargs) -> bool:
-        """Load or trace, and compile, the program a later :meth:`call` with arguments of these
-        shapes and static values will run, in a background thread: the compile (which releases
-        Python's lock) then overlaps the caller's own work. False when there is nothing to do."""
+        """Load or trace the program a later :meth:`call` with arguments of these shapes and
+        static values will run, and start its compile in a background thread: the compile
+        releases Python's lock, so it overlaps the caller's own work (tracing, which holds the
+        lock, stays in the caller's thread). False when there is nothing to do."""
         found = self._find(args, kwargs)
         if found is None or found[0] in self.loaded or found[0] in self.pending:
             return False
         key, static, treedef, leaves = found
-        specs = [_spec(x) for x in leaves]
-        entry = lambda: self._compiled(self._entry(folder, key, static, treedef, leaves), specs)  # noqa: E731
-        self.pending[key] = _Background(entry)
+        entry = self._entry(folder, key, static, treedef, leaves)
+        try:
+            lowered = entry[0].lower(*map(_spec, leaves)) if entry is not None else None
+        except Exception:  # the call itself will compile it (and say what is wrong)
+            lowered = None
+        self.pending[key] = _Background(lambda: self._compiled(entry, lowered))
         return True
 
     @staticmethod
-    def _compiled(entry, specs):
-        if entry is not None:
+    def _compiled(entry, lowered):
+        if lowered is not None:
             try:  # jit keeps what it compiles ahead of time for the same arguments
-                entry[0].lower(*specs).compile()
+                lowered.compile()
             except Exception:  # the call itself will compile it (and say what is wrong)
                 pass
         return entry

@@ -385,6 +385,12 @@ def _nominal(model: Model, layout: Layout, q):
     return jacobian(model, layout, q), pos
 
 
+def prepare_analysis(model: Model, layout: Layout, q) -> bool:
+    """Start compiling :func:`analyse`'s program for a model of this structure and poses of this
+    shape in the background (:func:`prepare_members`)."""
+    return _nominal.prepare(model, layout, pad_poses(q, pose_bucket(np.shape(q)[0]), 0))
+
+
 def analyse(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray]:
     """``(J (K, rows, m), tool positions (K, 3))`` of the model at the poses ``q``: the Jacobian
     of the identifiability analysis and the column scaling, the positions of the unit check."""

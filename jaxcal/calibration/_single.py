@@ -291,7 +291,10 @@ def calibrate(
     masks = np.ones((1, K))
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
     nominal = core.broadcast_model(nominal_model(robot, layout), 1)
-    core.prepare_members(cfg, nominal, q, target, masks, memory_mb=opts.memory_mb)  # compiles meanwhile
+    # the solve and the analysis compile in the background while the start is found (the solve,
+    # the longer compile, first)
+    core.prepare_members(cfg, nominal, q, target, masks, memory_mb=opts.memory_mb)
+    core.prepare_analysis(core.member(nominal, 0), layout, q)
 
     def start(masks):
         if not layout.frames:
@@ -427,7 +430,8 @@ def calibrate_batch(
     masks = np.ones((R, K))
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
     nominal = core.broadcast_model(nominal_model(robot, layout), R)
-    core.prepare_members(cfg, nominal, q, target, masks, memory_mb=opts.memory_mb, devices=devs)  # compiles meanwhile
+    core.prepare_members(cfg, nominal, q, target, masks, memory_mb=opts.memory_mb, devices=devs)
+    core.prepare_analysis(core.member(nominal, 0), layout, q[0])
 
     def start(masks):
         if not layout.frames:

@@ -131,12 +131,13 @@ def _candidates(robot: Robot, opts: Options, cameras, compliance: bool) -> tuple
 
 def _solve(robot: Robot, layout: Layout, opts: Options, q, target, n_sets: int) -> tuple[core.Config, int]:
     """The solve every fit of the workflow runs (its configuration and members per call, for
-    ``n_sets`` training sets at most), its compile started in the background meanwhile
-    (:func:`._core.prepare_members`; once per layout)."""
+    ``n_sets`` training sets at most), its compile and the analysis' started in the background
+    meanwhile (:func:`._core.prepare_members`; once per layout)."""
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
     chunk = core.chunk_size(n_sets, len(q), layout, opts.memory_mb)
     nominal = core.broadcast_model(nominal_model(robot, layout), 1)
     core.prepare_members(cfg, nominal, q, target, np.ones((1, len(q))), chunk=chunk, memory_mb=opts.memory_mb)
+    core.prepare_analysis(core.member(nominal, 0), layout, q)
     return cfg, chunk
 
 
