@@ -66,6 +66,16 @@ def test_an_unwritable_cache_folder_means_no_cache(jax_cache_settings, monkeypat
     assert jax.config.jax_compilation_cache_dir is None
 
 
+def test_import_loads_only_what_every_use_needs():
+    """Plots, URDF parsing, the command line, statistics and the solver library load on first
+    use (a process that loads its kept programs never traces a solve)."""
+    lazy = ("matplotlib", "yourdfpy", "trimesh", "rich", "typer", "scipy", "optimistix", "lineax")
+    code = f"import sys, jaxcal; print([m for m in {lazy!r} if m in sys.modules])"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert p.stdout.strip() == "[]"
+
+
 _CHILD = """
 import json, logging
 seen = {"hit": [], "miss": [], "quick": []}
@@ -93,6 +103,8 @@ for v in seen.values(): v.clear()
 res = jaxcal.calibrate(robot, sim.q[0], sim.measured[0, :, :3, 3], estimate_base=False)
 seen["x"] = np.asarray(res.x).tolist()
 seen["traced"] = len(traced)
+import sys
+seen["solver_library"] = "optimistix" in sys.modules  # needed only to trace the solve
 print(json.dumps(seen))
 """
 
@@ -129,6 +141,7 @@ def test_a_second_process_compiles_nothing_it_has_seen(tmp_path):
         "_nominal",
     }
     assert first["traced"] and not second["traced"]
+    assert first["solver_library"] and not second["solver_library"]
 
 
 def test_quick_compile_options_are_known_and_change_no_result():

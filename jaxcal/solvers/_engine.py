@@ -54,9 +54,7 @@ import math
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import lineax as lx
 import numpy as np
-import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int
 
 from ..model import Layout, Model, apply, errors, filled, observed, residual_and_jacobian_soa
@@ -188,6 +186,9 @@ class Solution(eqx.Module):
 
 
 def _solver(method: str, rtol: float, atol: float):
+    import lineax as lx  # imported while a solve is traced: a process that loads kept programs never needs them
+    import optimistix as optx
+
     if method == "gn":  # the free set is full rank (the base set) and its columns are scaled: the
         # normal equations are well conditioned, and several times cheaper than QR on tall systems
         return optx.GaussNewton(rtol=rtol, atol=atol, linear_solver=lx.Normal(lx.Cholesky()))
@@ -225,6 +226,8 @@ def least_squares(
         y, args_ = primals
         r, J = rj(y, args_)
         return r, (tangents[0] @ J if transposed else J @ tangents[0])
+
+    import optimistix as optx  # (see _solver)
 
     sol = optx.least_squares(fn, _solver(method, rtol, atol), y0, args=args, max_steps=max_steps, throw=False)
     ok = (sol.result == optx.RESULTS.successful) & jnp.all(jnp.isfinite(sol.value))
@@ -271,6 +274,9 @@ def gauss_newton(normal, z0: Float[Array, " p"], args, *, max_steps: int = 50, r
     def f_jvp(primals, tangents):  # L^T / c stands for f's Jacobian: the Gauss–Newton model
         f_z, L = whitened(*primals)
         return f_z, L.T @ tangents[0] / COLUMN_NORM
+
+    import lineax as lx  # (see _solver)
+    import optimistix as optx
 
     solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=lx.Triangular())
     tags = frozenset({lx.upper_triangular_tag})
