@@ -274,11 +274,13 @@ def run_members(
     return out
 
 
-@jit(keep=True)
-def _chain_poses(robot: Robot, q):
+def _chain(robot: Robot, q):
     """The chain's poses with an identity base, its tool included: what the closed-form frames
     (:mod:`._initial`) work from."""
     return fk(eqx.tree_at(lambda r: r.base, robot, jnp.eye(4)), q)
+
+
+_chain_poses = jit(_chain, keep=True)
 
 
 def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool) -> Model:
@@ -288,8 +290,10 @@ def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool
     S, K = masks.shape
     axis = 0 if shared else 1
     robot = carrying(robot, layout)
-    F = np.asarray(_chain_poses(robot, pad_poses(q, pose_bucket(K), axis)))
-    F = F[:K] if shared else F[:, :K]
+    if shared:  # the analysis program of the nominal model has them (one program fewer to compile)
+        F = _analysed(jax.tree.map(np.asarray, nominal_model(robot, layout)), layout, q)[2]
+    else:
+        F = np.asarray(_chain_poses(robot, pad_poses(q, pose_bucket(K), axis)))[:, :K]
     B, X, pts = initial_frames(
         F,
         robot.base,
@@ -382,7 +386,7 @@ def weights_of(layout: Layout, sigmas) -> np.ndarray:
 def _nominal(model: Model, layout: Layout, q):
     pred = predict(model, q)
     pos = pred[..., :3, 3] if layout.n_points == 0 else pred[..., 0, :]
-    return jacobian(model, layout, q), pos
+    return jacobian(model, layout, q), pos, _chain(model.robot, q)
 
 
 def prepare_analysis(model: Model, layout: Layout, q) -> bool:
@@ -394,9 +398,14 @@ def prepare_analysis(model: Model, layout: Layout, q) -> bool:
 def analyse(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray]:
     """``(J (K, rows, m), tool positions (K, 3))`` of the model at the poses ``q``: the Jacobian
     of the identifiability analysis and the column scaling, the positions of the unit check."""
+    return _analysed(model, layout, q)[:2]
+
+
+def _analysed(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`analyse`'s ``(J, positions)`` and the chain's poses ``(K, 4, 4)`` with an identity
+    base (:func:`_chain`)."""
     K = np.shape(q)[0]
-    J, pos = _nominal(model, layout, pad_poses(q, pose_bucket(K), 0))
-    return np.asarray(J)[:K], np.asarray(pos)[:K]
+    return tuple(np.asarray(a)[:K] for a in _nominal(model, layout, pad_poses(q, pose_bucket(K), 0)))
 
 
 def identify(J, layout: Layout, *, rtol: float = 1e-8) -> Identifiability:
