@@ -154,13 +154,14 @@ def ur5_tracker(n_robots: int = 160):
     return ur5, sim, data, res
 
 
-def solve_keys(monkeypatch) -> dict:
-    """Record the keys of the calibration solve's programs as they are prepared in the background
+def solve_keys(monkeypatch, program: str = "_members") -> dict:
+    """Record the keys of one of the calibration's kept programs (``jaxcal.calibration._core``'s
+    ``_members``, the solve, or ``_nominal``, the analysis) as they are prepared in the background
     (``jaxcal._config.jit(...).prepare``) and as they are called: ``{"prepared": [...],
     "called": [...]}``. A prepared key that no call uses is a compile wasted."""
     from jaxcal.calibration import _core
 
-    store = _core._members.kept[True]
+    store = getattr(_core, program).kept[True]
     keys = {"prepared": [], "called": []}
 
     def spy(name, method):

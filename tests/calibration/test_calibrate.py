@@ -192,12 +192,15 @@ def test_base_keeps_its_gauge_and_offsets_stay_small():
     [(False, dict()), (False, dict(estimate_base=True, estimate_tool=True, position_only=True)), (True, dict())],
 )
 def test_the_solve_compiled_in_the_background_is_the_one_calibrate_runs(monkeypatch, batch, kw):
-    """calibrate starts compiling its solve before it has a start (jaxcal._config.jit.prepare),
-    from stand-in arguments: their key must be the real calls', or the compile is wasted."""
-    keys = solve_keys(monkeypatch)
+    """calibrate starts compiling its solve and its analysis before it has a start
+    (jaxcal._config.jit.prepare), from stand-in arguments: their keys must be the real calls', or
+    the compile is wasted."""
+    keys, analysis = (solve_keys(monkeypatch, name) for name in ("_members", "_nominal"))
     ur5 = jaxcal.preset("ur5")
     sim = simulate(ur5, n_robots=3 if batch else 1, n_poses=30, seed=3, sigma_pos=0.01, sigma_rot=1e-5)
     res = calibrate_batch(ur5, sim.q, sim.measured, **kw) if batch else calibrate(ur5, sim.q[0], sim.measured[0], **kw)
     assert np.all(res.converged)
     # the fits themselves (the plausibility check that may follow is a batch of its own)
     assert len(keys["prepared"]) == 1 and keys["called"][:2] == keys["prepared"] * 2
+    # the analysis too (a single data set's start takes its chain poses from it)
+    assert len(analysis["prepared"]) == 1 and analysis["prepared"][0] in analysis["called"]
