@@ -19,10 +19,10 @@ instead. Files are written atomically.
 
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import importlib.metadata
 import pickle
-import threading
 from pathlib import Path
 
 import equinox as eqx
@@ -37,6 +37,7 @@ MISSING = object()
 _LIBRARIES = ("jax", "jaxlib", "equinox", "optimistix", "lineax", "numpy")
 _CONFIG = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion")
 _environment: bytes | None = None
+_pool: concurrent.futures.ThreadPoolExecutor | None = None
 _usable: bool | None = None
 
 
@@ -104,27 +105,14 @@ def _single_device(leaf) -> bool:
     return not isinstance(leaf, jax.Array) or len(leaf.sharding.device_set) == 1
 
 
-class _Background:
-    """A function run in a thread of its own (an XLA compile, which releases Python's lock);
-    :meth:`result` waits for it. Not a daemon: a process that exits meanwhile waits for the
+def _compiler() -> concurrent.futures.ThreadPoolExecutor:
+    """The threads XLA compiles prepared programs in (the compile releases Python's lock), made on
+    first use. Their threads are joined at exit: a process that ends meanwhile waits for a
     compile rather than stop it halfway."""
-
-    def __init__(self, fn):
-        self.out, self.error = None, None
-        self.thread = threading.Thread(target=self._run, args=(fn,), name="jaxcal-prepare")
-        self.thread.start()
-
-    def _run(self, fn):
-        try:
-            self.out = fn()
-        except BaseException as e:  # handed to the caller that waits for it
-            self.error = e
-
-    def result(self):
-        self.thread.join()
-        if self.error is not None:
-            raise self.error
-        return self.out
+    global _pool
+    if _pool is None:
+        _pool = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="jaxcal-compile")
+    return _pool
 
 
 class Store:
@@ -135,7 +123,7 @@ class Store:
         self.fn, self.name, self.options = fn, name, options
         self.loaded: dict[str, tuple | None] = {}
         self.keys: dict[tuple, str] = {}
-        self.pending: dict[str, _Background] = {}
+        self.pending: dict[str, concurrent.futures.Future] = {}
 
     def call(self, folder: str, args, kwargs):
         """``fn(*args, **kwargs)`` through a kept program, or :data:`MISSING`."""
@@ -170,7 +158,7 @@ class Store:
             lowered = entry[0].lower(*map(_spec, leaves)) if entry is not None else None
         except Exception:  # the call itself will compile it (and say what is wrong)
             lowered = None
-        self.pending[key] = _Background(lambda: self._compiled(entry, lowered))
+        self.pending[key] = _compiler().submit(self._compiled, entry, lowered)
         return True
 
     @staticmethod
