@@ -22,6 +22,7 @@ from __future__ import annotations
 import concurrent.futures
 import hashlib
 import importlib.metadata
+import os
 import pickle
 from pathlib import Path
 
@@ -38,6 +39,7 @@ _LIBRARIES = ("jax", "jaxlib", "equinox", "optimistix", "lineax", "numpy")
 _CONFIG = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion")
 _environment: bytes | None = None
 _pool: concurrent.futures.ThreadPoolExecutor | None = None
+_forks = 0
 _usable: bool | None = None
 
 
@@ -115,6 +117,17 @@ def _compiler() -> concurrent.futures.ThreadPoolExecutor:
     return _pool
 
 
+def _forget_pool() -> None:
+    """In a forked child the pool's threads are gone: it makes its own on first use, and does not
+    wait for the compiles the parent had under way."""
+    global _pool, _forks
+    _pool = None
+    _forks += 1
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
 class Store:
     """The programs of one jitted function (``name``) compiled with ``options``: loaded or
     exported once per argument structure in a process, then called directly."""
@@ -123,7 +136,7 @@ class Store:
         self.fn, self.name, self.options = fn, name, options
         self.loaded: dict[str, tuple | None] = {}
         self.keys: dict[tuple, str] = {}
-        self.pending: dict[str, concurrent.futures.Future] = {}
+        self.pending: dict[str, tuple[int, concurrent.futures.Future]] = {}
 
     def call(self, folder: str, args, kwargs):
         """``fn(*args, **kwargs)`` through a kept program, or :data:`MISSING`."""
@@ -132,8 +145,10 @@ class Store:
             return MISSING
         key, static, treedef, leaves = found
         if key in self.pending:  # prepared in the background: wait for it rather than trace again
+            forks, compiled = self.pending.pop(key)
             try:
-                self.loaded[key] = self.pending.pop(key).result()
+                if forks == _forks:  # (not a compile a parent process had under way)
+                    self.loaded[key] = compiled.result()
             except Exception:  # traced afresh below
                 pass
         if key not in self.loaded:  # a program export does not take is remembered as None
@@ -158,7 +173,7 @@ class Store:
             lowered = entry[0].lower(*map(_spec, leaves)) if entry is not None else None
         except Exception:  # the call itself will compile it (and say what is wrong)
             lowered = None
-        self.pending[key] = _compiler().submit(self._compiled, entry, lowered)
+        self.pending[key] = (_forks, _compiler().submit(self._compiled, entry, lowered))
         return True
 
     @staticmethod

@@ -1,6 +1,9 @@
 """Traced programs kept across processes (jaxcal._kept): a kept program gives what jit gives, a
 new store loads it without tracing, and whatever it cannot serve goes through plain jit."""
 
+import concurrent.futures
+import types
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -127,3 +130,20 @@ def test_nothing_is_prepared_with_the_cache_off(programs, monkeypatch):
     m, x = _args()
     assert not _config.jit(_fn, keep=True).prepare(m, x, power=3)
     assert not _config.jit(_fn).prepare(m, x, power=3)  # not a kept function
+
+
+def test_a_compile_under_way_in_a_parent_process_is_not_waited_for_after_a_fork(programs, monkeypatch):
+    waited = []
+
+    class Orphan(concurrent.futures.Future):  # its thread stayed in the parent: it would never end
+        def result(self, timeout=None):
+            waited.append(1)
+            return None
+
+    monkeypatch.setattr(_kept, "_compiler", lambda: types.SimpleNamespace(submit=lambda *a: Orphan()))
+    m, x = _args()
+    f = _config.jit(_fn, keep=True)
+    assert f.prepare(m, x, power=3)
+    _kept._forget_pool()  # what os.fork runs in the child
+    np.testing.assert_array_equal(f(m, x, power=3)["y"], eqx.filter_jit(_fn)(m, x, power=3)["y"])
+    assert not waited
