@@ -132,7 +132,7 @@ def _candidates(robot: Robot, opts: Options, cameras, compliance: bool) -> tuple
 def _solve(robot: Robot, layout: Layout, opts: Options, q, target, n_sets: int) -> tuple[core.Config, int]:
     """The solve every fit of the workflow runs (its configuration and members per call, for
     ``n_sets`` training sets at most), its compile and the analysis' started in the background
-    meanwhile (:func:`._core.prepare_members`; once per layout)."""
+    meanwhile (:func:`._core.prepare_members`)."""
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=True)
     chunk = core.chunk_size(n_sets, len(q), layout, opts.memory_mb)
     nominal = core.broadcast_model(nominal_model(robot, layout), 1)
@@ -155,7 +155,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     fid = fold_ids(K, F, opts.seed)
     everything = np.ones(K, bool)
     held = np.concatenate([np.stack([fid == o for o in range(F)]), selection.range_end_held(q, everything)])
-    _solve(robot, layout, opts, q, target, len(held) + 1)
+    cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     union = set().union(*(c.dh for c in candidates))
     wanted = list(layout.frames) + list(layout.cameras) + sorted(union)
     needed = core.generic_rank(nominal_model(robot, layout), layout, K, wanted)
@@ -166,6 +166,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
         candidates = [c for c in candidates if not c.compliance]
         detector = dataclasses.replace(detector, compliance=False)
         layout = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=False)
+        cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     if n_train * layout.rows < needed:
         raise DataError(
             f"too few poses for {F}-fold cross-validation: training sets of {n_train} poses x "
@@ -173,7 +174,6 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
             f"folds or more poses",
             option="folds",
         )
-    cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     ref = core.start_models(robot.stripped(), layout, q, target, everything[None], shared=True)
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
