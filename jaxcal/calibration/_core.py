@@ -492,8 +492,8 @@ def condition_number(normal, active) -> float:
 
 def fit_statistics(J0, weights, pose_w, norms, *, loss: str, loss_scale, rows: int, seen=None) -> dict:
     """What the standard errors and outlier report of one fit need, from its per-pose weighted
-    residual norms and the Jacobian ``J0 (K, rows, m)`` at its reference (first-order close to
-    the one at the solution: the fit moves the parameters by the calibration's small errors):
+    residual norms and the Jacobian ``J0 (K, rows, m)`` at its solution (not at its start: a
+    parameter the data do not determine can look determined at the nominal robot):
     the robust ``scale``, the weighted normal matrix ``normal``, ``rss`` and ``n_rows``. ``seen``
     ``(K, rows)``: the observed rows (:func:`jaxcal.model.observed`; default all)."""
     norms, pose_w = np.asarray(norms), np.asarray(pose_w)

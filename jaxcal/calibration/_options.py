@@ -98,7 +98,8 @@ class Options:
     - ``max_residual_mm`` (None: 1 % of the robot's reach), ``max_rotation_deg`` (2): the
       calibrated position and rotation RMS.
     - ``max_length_change_mm`` (None: 5 % of the reach), ``max_angle_change_deg`` (20): the
-      largest change of a DH length and angle.
+      largest change of a kinematic length and angle (DH or joint frames).
+    - ``max_camera_change`` (0.1): the largest camera unknown (dimensionless).
     - ``strict`` (False): raise :class:`jaxcal.ImplausibleFitError` instead of marking.
 
     **Resources**
@@ -131,6 +132,7 @@ class Options:
     max_rotation_deg: float = 2.0
     max_length_change_mm: float | None = None
     max_angle_change_deg: float = 20.0
+    max_camera_change: float = 0.1
     strict: bool = False
     memory_mb: float = 1024.0
 
@@ -176,7 +178,15 @@ class Options:
         v = self.max_outlier_fraction
         if not _number(v) or not 0 < v <= 1:
             raise DataError(f"max_outlier_fraction must be in (0, 1], got {v!r}", option="max_outlier_fraction")
-        for name in ("rtol", "atol", "memory_mb", "max_rotation_deg", "max_angle_change_deg", "outlier_sigmas"):
+        for name in (
+            "rtol",
+            "atol",
+            "memory_mb",
+            "max_rotation_deg",
+            "max_angle_change_deg",
+            "max_camera_change",
+            "outlier_sigmas",
+        ):
             v = getattr(self, name)
             if not _number(v) or not math.isfinite(v) or v <= 0:
                 raise DataError(f"{name} must be a finite positive number, got {v!r}", option=name)

@@ -5,9 +5,14 @@ what a geometric calibration produces (:func:`findings`). The thresholds, all op
 
 - ``max_residual_mm`` (default 1 % of the robot's reach): the calibrated position RMS;
 - ``max_rotation_deg`` (2 deg): the calibrated rotation RMS, for poses;
-- ``max_length_change_mm`` (5 % of the reach): the largest change of a DH length;
-- ``max_angle_change_deg`` (20 deg): the largest change of a DH angle (offsets are first put in
-  (-180, 180]).
+- ``max_length_change_mm`` (5 % of the reach): the largest change of a kinematic length (a DH
+  length, a joint origin's shift, a prismatic joint's offset);
+- ``max_angle_change_deg`` (20 deg): the largest change of a kinematic angle (a DH angle, a
+  joint's offset, a joint origin's turn; offsets are first put in (-180, 180]);
+- ``max_camera_change`` (0.1): the largest camera unknown (:mod:`jaxcal.camera`; dimensionless:
+  0.1 is a camera whose reported positions are off by 10 %).
+
+A fit whose residual or parameters are not finite (a diverged solve) is never plausible.
 
 Most such fits come from a mistake in the data file, and the likely ones can be tested: the data
 are read again as they would be without that mistake (:data:`MISTAKES`: two position columns
@@ -52,6 +57,7 @@ class Thresholds:
     rotation_deg: float
     length_mm: float
     angle_rad: float
+    camera: float = 0.1
 
     @classmethod
     def of(cls, robot: Robot, opts) -> "Thresholds":
@@ -61,6 +67,7 @@ class Thresholds:
             rotation_deg=opts.max_rotation_deg,
             length_mm=opts.max_length_change_mm if opts.max_length_change_mm is not None else 0.05 * reach,
             angle_rad=np.radians(opts.max_angle_change_deg),
+            camera=opts.max_camera_change,
         )
 
 
@@ -69,26 +76,32 @@ def wrap_angle(a):
     return np.pi - np.mod(np.pi - np.asarray(a), 2 * np.pi)
 
 
-def findings(stats: dict, x, layout: Layout, limits: Thresholds, *, free=None) -> list[str]:
+def findings(stats: dict, x, layout: Layout, limits: Thresholds, *, free=None, se=None) -> list[str]:
     """What makes a fit implausible as a calibration, each with its evidence (empty: plausible).
     ``stats``: residual statistics of the fit; ``x``: its parameters relative to the nominal
-    robot (angles already wrapped)."""
+    robot (angles already wrapped); ``se``: their standard errors at the solution, where given.
+    A parameter whose standard error alone exceeds its limit is not determined by the data: the
+    value written would be arbitrary."""
     out = []
-    if stats["pos_rms_mm"] > limits.residual_mm:
+    x = np.asarray(x, dtype=np.float64)
+    pos, rot = stats["pos_rms_mm"], stats.get("rot_rms_deg")
+    if not np.isfinite(pos) or (rot is not None and not np.isfinite(rot)) or not np.all(np.isfinite(x)):
+        return ["the fit diverged: its residual or parameters are not finite numbers"]
+    if pos > limits.residual_mm:
         out.append(
-            f"the position residual is {stats['pos_rms_mm']:.4g} mm RMS after calibration, more than "
+            f"the position residual is {pos:.4g} mm RMS after calibration, more than "
             f"{limits.residual_mm:.3g} mm (max_residual_mm)"
         )
-    if stats.get("rot_rms_deg") is not None and stats["rot_rms_deg"] > limits.rotation_deg:
+    if rot is not None and rot > limits.rotation_deg:
         out.append(
-            f"the rotation residual is {stats['rot_rms_deg']:.3g} deg RMS after calibration, more than "
+            f"the rotation residual is {rot:.3g} deg RMS after calibration, more than "
             f"{limits.rotation_deg:.3g} deg (max_rotation_deg)"
         )
-    names = layout.names()
-    x = np.asarray(x)
-    kin = [(i, n) for i, n in enumerate(names[: layout.n_kin]) if free is None or i in free]
-    lengths = [(abs(x[i]), n) for i, n in kin if n.startswith(("d", "a")) and not n.startswith("alpha")]
-    angles = [(abs(x[i]), n) for i, n in kin if n.startswith(("theta", "alpha"))]
+    names, units = layout.names(), layout.units()
+    kin = [i for i in range(layout.n_kin) if free is None or i in free]
+    # by unit, so that DH tables and URDF joint frames are held to the same limits
+    lengths = [(abs(x[i]), names[i]) for i in kin if units[i] == "mm"]
+    angles = [(abs(x[i]), names[i]) for i in kin if units[i] == "rad"]
     if lengths and max(lengths)[0] > limits.length_mm:
         v, n = max(lengths)
         out.append(f"{n} changes by {v:.4g} mm, more than {limits.length_mm:.3g} mm (max_length_change_mm)")
@@ -98,7 +111,47 @@ def findings(stats: dict, x, layout: Layout, limits: Thresholds, *, free=None) -
             f"{n} changes by {np.degrees(v):.3g} deg, more than {np.degrees(limits.angle_rad):.3g} deg "
             f"(max_angle_change_deg)"
         )
+    if se is not None:
+        out += _undetermined(np.asarray(se, dtype=np.float64), layout, limits, free)
+    cams = [(abs(x[i]), names[i]) for i in layout.cameras if free is None or i in free]
+    if cams and max(cams)[0] > limits.camera:
+        v, n = max(cams)
+        out.append(
+            f"{n} is {x[names.index(n)]:.3g}, beyond +-{limits.camera:.3g} (max_camera_change): a camera whose "
+            f"reported positions are off by {100 * v:.0f} %; such a value usually means the camera model is not "
+            f"identifiable from these poses (for example all at one distance from the target): try a smaller "
+            f"camera model"
+        )
     return out
+
+
+def _undetermined(se, layout: Layout, limits: Thresholds, free) -> list[str]:
+    """The estimated parameters whose standard error is beyond the limit of their unit (frames
+    included: a frame the data do not fix is as arbitrary as a DH error)."""
+    names, units = layout.names(), layout.units()
+    limit = {"mm": limits.length_mm, "rad": limits.angle_rad, "1": limits.camera}
+    bad = [
+        (se[i] / limit[units[i]], i)
+        for i in range(layout.size)
+        if (free is None or i in free) and units[i] in limit and not se[i] <= limit[units[i]]
+    ]
+    if not bad:
+        return []
+
+    def shown(i):
+        value = (
+            f"{np.degrees(se[i]):.3g} deg"
+            if units[i] == "rad"
+            else f"{se[i]:.3g}" + (" mm" if units[i] == "mm" else "")
+        )
+        return f"{names[i]} ({value})"
+
+    listed = ", ".join(shown(i) for _, i in sorted(bad, reverse=True)[:4])
+    return [
+        f"the data do not determine {listed}: standard errors beyond the plausibility limits (a parameter "
+        f"not separable from others on these poses, so its value is arbitrary; more varied poses or a "
+        f"smaller model fix it)"
+    ]
 
 
 def _variants(robot: Robot, q, target, n_points: int):

@@ -182,8 +182,9 @@ def _final(p, fr, final, fits) -> _Final:
         cam = np.asarray(full.camera_params)[: camera_size(cand.camera)]
         model = Model(full.robot, full.points, cam, camera=cand.camera)
     w = core.weights_of(layout, fr.sig[[-1]])[0]
+    J_fin = core.analyse(core.member(fits["model"], O), layout, p.q)[0]
     st = core.fit_statistics(
-        p.run["J0"], w, p.valid.astype(float), fin["norms"][0], loss=p.opts.loss, loss_scale=p.opts.loss_scale,
+        J_fin, w, p.valid.astype(float), fin["norms"][0], loss=p.opts.loss, loss_scale=p.opts.loss_scale,
         rows=layout.rows, seen=observed(p.target),
     )  # fmt: skip
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], final.prior)
@@ -298,7 +299,8 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
     )
     pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
     many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
-    why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many)
+    se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
+    why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se)
     h = _heldout(fits, fr, p)
     rep = {
         "robot": robot.name,

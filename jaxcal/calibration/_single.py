@@ -213,13 +213,24 @@ def estimated(prior) -> tuple[int, ...]:
 
 
 def judge(
-    robot: Robot, q, target, n_points: int, layout: Layout, opts: Options, stats: dict, x, free, extra: str = ""
+    robot: Robot,
+    q,
+    target,
+    n_points: int,
+    layout: Layout,
+    opts: Options,
+    stats: dict,
+    x,
+    free,
+    extra: str = "",
+    *,
+    se=None,
 ) -> str:
     """Empty when the fit is plausible as a calibration; else why not and the likely input
     mistake (:mod:`._plausibility`). ``extra``: a further finding (too many outliers,
     :func:`._outliers.too_many`). Raises :class:`jaxcal.ImplausibleFitError` with ``strict``."""
     limits = plausibility.Thresholds.of(robot, opts)
-    found = plausibility.findings(stats, x, layout, limits, free=free) + ([extra] if extra else [])
+    found = plausibility.findings(stats, x, layout, limits, free=free, se=se) + ([extra] if extra else [])
     if not found:
         return ""
     before, ranked = plausibility.diagnose(robot, q, target, n_points, layout, limits, memory_mb=opts.memory_mb)
@@ -343,7 +354,7 @@ def calibrate(
     fitted = ~flags if not opts.keep_outliers else np.ones(K, bool)
     model = core.described(core.wrapped(core.member(b["model"], 0), robot), robot)
     st = core.fit_statistics(
-        J0,
+        core.analyse(core.member(b["model"], 0), layout, q)[0],
         weights[0],
         fitted.astype(float),
         b["norms"][0],
@@ -358,7 +369,7 @@ def calibrate(
     after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
     many = outliers.too_many(flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction)
-    why = judge(robot, q, target, n_points, layout, opts, after, x, estimated(prior), many)
+    why = judge(robot, q, target, n_points, layout, opts, after, x, estimated(prior), many, se=se)
     return CalibrationResult(
         model=model,
         nominal=robot,

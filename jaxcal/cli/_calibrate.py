@@ -77,9 +77,14 @@ def calibrate(
     ),
     max_rotation_deg: float = typer.Option(_D.max_rotation_deg, help="plausibility: largest rotation RMS"),
     max_length_change_mm: float = typer.Option(
-        None, help="plausibility: largest DH length change (default: 5 % of the reach)"
+        None, help="plausibility: largest change of a kinematic length (default: 5 % of the reach)"
     ),
-    max_angle_change_deg: float = typer.Option(_D.max_angle_change_deg, help="plausibility: largest DH angle change"),
+    max_angle_change_deg: float = typer.Option(
+        _D.max_angle_change_deg, help="plausibility: largest change of a kinematic angle"
+    ),
+    max_camera_change: float = typer.Option(
+        _D.max_camera_change, help="plausibility: largest camera unknown (0.1: positions off by 10 %)"
+    ),
     json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
     out_robot: Path = typer.Option(
         None, help="write the calibrated robot here (TOML; one measured point becomes the tool)"
@@ -151,6 +156,7 @@ def calibrate(
         max_rotation_deg=max_rotation_deg,
         max_length_change_mm=max_length_change_mm,
         max_angle_change_deg=max_angle_change_deg,
+        max_camera_change=max_camera_change,
     )
     with progress("calibrating") as bar:
         res = calibrate_data(nominal, meas, opts, progress=bar)

@@ -1,0 +1,128 @@
+"""A fit that is not a calibration is refused, whatever the robot's description: DH tables and
+URDF joint frames are held to the same limits, a diverged fit is never plausible, and a parameter
+the data do not determine (a camera's depth scale from poses all at one distance from the target)
+is named rather than written."""
+
+import numpy as np
+import pytest
+from helpers import dh_fk
+from scipy.spatial.transform import Rotation
+
+import jaxcal
+from jaxcal.calibration._plausibility import Thresholds, findings
+from jaxcal.model import Layout
+
+LIMITS = Thresholds(residual_mm=10.0, rotation_deg=2.0, length_mm=30.0, angle_rad=np.radians(20.0), camera=0.1)
+FIT = {"pos_rms_mm": 0.1, "rot_rms_deg": 0.01}
+
+
+def _layouts():
+    tiago = jaxcal.load_robot("jaxcal/data/tiago_mocap/tiago_arm.urdf")
+    return {
+        "joint frames": (Layout.of(tiago, base=True, tool=True, n_points=0), "x3", "rx4"),
+        "dh": (Layout.of(jaxcal.preset("ur5"), base=True, tool=True, n_points=0), "a3", "alpha4"),
+    }
+
+
+@pytest.mark.parametrize("kind", ["joint frames", "dh"])
+def test_lengths_and_angles_held_to_the_same_limits(kind):
+    layout, length, angle = _layouts()[kind]
+    names = layout.names()
+    x = np.zeros(layout.size)
+    x[names.index(length)] = 29.0
+    x[names.index(angle)] = np.radians(19.0)
+    assert findings(FIT, x, layout, LIMITS) == []
+    x[names.index(length)] = -31.0
+    x[names.index(angle)] = np.radians(21.0)
+    found = " ".join(findings(FIT, x, layout, LIMITS))
+    assert f"{length} changes by 31 mm" in found and "max_length_change_mm" in found
+    assert f"{angle} changes by 21 deg" in found and "max_angle_change_deg" in found
+    # a parameter that is not estimated is not judged
+    assert findings(FIT, x, layout, LIMITS, free=[names.index("offset2" if kind == "joint frames" else "d2")]) == []
+
+
+def test_a_diverged_fit_is_never_plausible():
+    layout, _, _ = _layouts()["dh"]
+    x = np.zeros(layout.size)
+    for stats, params in (({"pos_rms_mm": np.nan, "rot_rms_deg": 0.01}, x), (FIT, np.r_[np.nan, x[1:]])):
+        assert findings(stats, params, layout, LIMITS) == [
+            "the fit diverged: its residual or parameters are not finite numbers"
+        ]
+
+
+def test_camera_unknowns_and_undetermined_parameters():
+    layout = Layout.of(jaxcal.preset("panda"), base=True, tool=True, n_points=0, camera="linear")
+    names = layout.names()
+    x = np.zeros(layout.size)
+    x[names.index("camera_A_xz")] = 0.09
+    se = np.full(layout.size, 1e-3)
+    assert findings(FIT, x, layout, LIMITS, se=se) == []
+    x[names.index("camera_A_xz")] = -0.2
+    assert "camera_A_xz is -0.2, beyond +-0.1 (max_camera_change)" in " ".join(findings(FIT, x, layout, LIMITS))
+    x[:] = 0.0
+    se[names.index("tool_z")] = 31.0  # mm, beyond the 30 mm length limit
+    se[names.index("camera_depth_scale")] = np.nan
+    (found,) = findings(FIT, x, layout, LIMITS, se=se)
+    assert "do not determine" in found and "tool_z (31 mm)" in found and "camera_depth_scale (nan)" in found
+    assert "alpha" not in found
+
+
+def _one_distance_poses(robot, dh, B, X, n, depth, rng):
+    """``n`` configurations whose camera (``B A(q) X``) sees the target origin at exactly ``depth``
+    mm along its optical axis: random joints 2..n, joint 1 found by bisection."""
+    lo, hi = np.asarray(robot.q_limits).T
+
+    def depth_of(q):
+        T = dh_fk(dh, q, convention=robot.convention, base=B, tool=X)
+        return -np.einsum("ki,ki->k", T[:, :3, 2], T[:, :3, 3])
+
+    grid = np.linspace(lo[0], hi[0], 41)
+    rest = rng.uniform(lo[1:], hi[1:], (4 * n, len(lo) - 1))
+    z = depth_of(np.c_[np.tile(grid, len(rest)), np.repeat(rest, len(grid), 0)]).reshape(len(rest), -1) - depth
+    cross = np.sign(z[:, :-1]) != np.sign(z[:, 1:])
+    ok = np.flatnonzero(cross.any(1))[:n]
+    assert len(ok) == n
+    first = cross[ok].argmax(1)
+    a, b, za = grid[first], grid[first + 1], z[ok, first]
+    for _ in range(50):
+        m = 0.5 * (a + b)
+        zm = depth_of(np.c_[m, rest[ok]]) - depth
+        same = np.sign(zm) == np.sign(za)
+        a, za, b = np.where(same, m, a), np.where(same, zm, za), np.where(same, b, m)
+    return np.c_[0.5 * (a + b), rest[ok]]
+
+
+def test_a_camera_depth_scale_the_poses_cannot_determine_is_refused():
+    """Hand-eye poses at one distance from the target: the depth scale trades exactly with the tool
+    along the optical axis. Judged at the nominal robot it looks determined (its depths differ);
+    at the solution it is not, and the fit that estimates it is refused naming it, while the plain
+    model is plausible and finds the tool."""
+    rng = np.random.default_rng(3)
+    robot = jaxcal.preset("panda")
+    dh = (
+        np.asarray(robot.dh)
+        + np.c_[rng.normal(0, 2e-3, 7), rng.normal(0, 0.5, 7), rng.normal(0, 0.5, 7), rng.normal(0, 2e-3, 7)]
+    )
+    B, X = np.eye(4), np.eye(4)
+    B[:3, :3] = Rotation.from_euler("xyz", [-0.1, 0.61, -0.02], degrees=True).as_matrix()
+    B[:3, 3] = [-656.0, 589.0, 7.2]
+    X[:3, :3] = Rotation.from_euler("xyz", [0.5, -0.9, 88.2], degrees=True).as_matrix()
+    X[:3, 3] = [91.2, -11.6, 142.7]
+    q = _one_distance_poses(robot, dh, B, X, 40, 400.0, rng)
+    T = dh_fk(dh, q, convention=robot.convention, base=B, tool=X)
+    assert np.ptp(-np.einsum("ki,ki->k", T[:, :3, 2], T[:, :3, 3])) < 1e-6
+    T[:, :3, 3] += rng.normal(0, 0.05, (len(q), 3))
+    T[:, :3, :3] = Rotation.from_rotvec(rng.normal(0, 2e-4, (len(q), 3))).as_matrix() @ T[:, :3, :3]
+    meas = jaxcal.Measurements(q=q, measured=T)
+
+    plain = jaxcal.calibrate_data(robot, meas, params="all", folds=3)
+    assert plain.report["plausible"], plain.report["implausible"]
+    assert np.linalg.norm(np.asarray(plain.robot.tool)[:3, 3] - X[:3, 3]) < 2.0
+
+    depth = jaxcal.calibrate_data(robot, meas, params="all", folds=3, camera="depth")
+    assert not depth.report["plausible"]
+    assert "do not determine" in depth.report["implausible"]
+    assert "camera_depth_scale" in depth.report["implausible"]
+    assert depth.report["camera_parameters"]["camera_depth_scale"]["std_error"] > 0.1
+    single = jaxcal.calibrate(robot, q, T, camera="depth")
+    assert not single.plausible and "camera_depth_scale" in single.implausible
