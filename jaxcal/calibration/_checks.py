@@ -135,7 +135,7 @@ def check_units(robot: Robot, q, target, n_points: int, *, batched: bool, model_
             )
             raise DataError(
                 f"measured{where}: positions spread {b:.4g} mm around their centroid, the nominal "
-                f"model's {a:.4g} mm at the same joint values ({ratio:.3g}x): lengths look like {guess} "
+                f"model's {a:.4g} mm at the same joint values ({ratio:.3g}x): lengths look like {guess}"
                 f"; the robot's lengths are in {lu}; read the data with{fix}",
                 option="length_unit",
             )

@@ -10,6 +10,8 @@ from .._config import jit
 from ..errors import DataError
 from ..model import Model, predict
 from ..robot import Robot
+from ._checks import check_angles, check_units
+from ._plausibility import RESIDUAL_SHARE, variants
 
 _predict = jit(predict)  # one program, not one per operation
 
@@ -18,6 +20,8 @@ REPEAT_RAD = 1e-2
 joint within :data:`REPEAT_MM`) repeats that posture."""
 REPEAT_MM = 1.0
 GROUPS = ("repeated", "new within training ranges", "out of training ranges")
+ROTATION_DEG = 2.0
+"""Rotation RMS beyond which errors are far beyond a calibration's (as ``max_rotation_deg``)."""
 OUTSIDE_WARNING = 0.10
 """Share of postures outside the training ranges beyond which :func:`evaluate` warns."""
 
@@ -56,6 +60,49 @@ def outside(robot: Robot, q, ranges: dict) -> np.ndarray:
     return out
 
 
+def _positions(pred, n_points: int):
+    """The first measured point's (or the tool's) predicted positions ``(K, 3)``."""
+    return pred[:, 0] if n_points else pred[:, :3, 3]
+
+
+def _rms(model: Model, q, target, n_points: int) -> tuple[float, float]:
+    """Position RMS (mm) and rotation RMS (deg; 0 for points) of the model's errors."""
+    pred = np.asarray(_predict(model, q))
+    if n_points:
+        return float(np.sqrt(np.nanmean(np.sum((target - pred) ** 2, -1)))), 0.0
+    pos = float(np.sqrt(np.mean(np.sum((target[:, :3, 3] - pred[:, :3, 3]) ** 2, -1))))
+    dR = np.einsum("kij,klj->kil", target[:, :3, :3], pred[:, :3, :3])
+    rot = np.arccos(np.clip((np.trace(dR, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0))
+    return pos, float(np.degrees(np.sqrt(np.mean(rot**2))))
+
+
+def _far(model: Model, meas) -> list[str]:
+    """A warning when the errors are far beyond a calibration's (:data:`RESIDUAL_SHARE` of the
+    reach in position, :data:`ROTATION_DEG` in rotation), naming the input mistake that would
+    explain them if one does (the mistakes :func:`._plausibility.variants` tries, each predicted
+    with the model as it is)."""
+    limit = RESIDUAL_SHARE * model.robot.reach()
+    q, M = np.asarray(meas.q), meas.n_points
+    pos, rot = _rms(model, q, meas.measured, M)
+    if pos <= limit and rot <= ROTATION_DEG:
+        return []
+    tried = {m: _rms(model, qv, tv, M) for m, (qv, tv) in variants(model.robot, q, meas.measured, M).items()}
+    best = min(tried, key=lambda m: max(tried[m][0] / limit, tried[m][1] / ROTATION_DEG))
+    bp, br = tried[best]
+    why = (
+        f"read as if the file had {best}, it gives {bp:.3g} mm" + ("" if M else f", {br:.3g} deg")
+        + ": check the file for that mistake"
+        if bp <= limit and br <= ROTATION_DEG
+        else "no common input mistake explains it (a measurement frame that moved since the calibration, "
+        "or another robot's data?)"
+    )  # fmt: skip
+    size = f"{pos:.4g} mm" + ("" if M else f", {rot:.3g} deg") + " RMS"
+    return [
+        f"the errors ({size}) are far beyond a calibration's ({limit:.3g} mm, {100 * RESIDUAL_SHARE:g} % of the "
+        f"reach" + ("" if M else f", {ROTATION_DEG:g} deg") + f"); {why}"
+    ]
+
+
 def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -> dict:
     """Errors of ``model`` on the measurements ``meas`` (:class:`jaxcal.Measurements`), nothing
     fitted: JSON-ready, lengths in mm, angles in degrees.
@@ -72,7 +119,11 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     * ``outside_training_ranges`` (given ``ranges``, joint name -> ``(lowest, highest)`` mm and
       rad, as a calibrated model file records them, or the ``training`` data's): how many poses
       have a joint outside them, and ``warnings`` when more than :data:`OUTSIDE_WARNING` do: the
-      model was not fitted there and extrapolates.
+      model was not fitted there and extrapolates; and when the errors are far beyond a
+      calibration's, with the input mistake that would explain them if one does.
+
+    Joint values that look like degrees, and positions whose spread is not the model's (another
+    length unit), are refused (:class:`jaxcal.DataError` naming the option), as by calibrate.
 
     A robot file without points measures its tool frame's origin: it evaluates one point.
     """
@@ -83,7 +134,10 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
         have = "poses" if M == 0 else f"{M} point(s) per pose"
         want = "poses" if model.n_points == 0 else f"{model.n_points} point(s)"
         raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}", option="data")
-    pred = np.asarray(_predict(model, np.asarray(meas.q)))
+    q = np.asarray(meas.q)
+    check_angles(model.robot, q)
+    pred = np.asarray(_predict(model, q))
+    check_units(model.robot, q, meas.measured, M, batched=False, model_positions=_positions(pred, M))
     if M:
         pos = np.linalg.norm(meas.measured - pred, axis=-1)  # (K, M)
         rot = None
@@ -108,7 +162,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             n: (float(lo), float(hi))
             for n, lo, hi in zip(model.robot.joint_names, training.q.min(0), training.q.max(0))
         }
-    out["warnings"] = []
+    out["warnings"] = _far(model, meas)
     if ranges is not None:
         away = outside(model.robot, meas.q, ranges)
         share = float(away.mean()) if len(away) else 0.0

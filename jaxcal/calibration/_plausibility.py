@@ -49,6 +49,10 @@ MISTAKES = (
 """The input mistakes :func:`diagnose` tests, besides two adjacent joint columns swapped."""
 
 
+RESIDUAL_SHARE = 0.01
+"""Default ``max_residual_mm``: this share of the robot's reach."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Thresholds:
     """Plausibility limits (module docstring), resolved for one robot."""
@@ -63,7 +67,7 @@ class Thresholds:
     def of(cls, robot: Robot, opts) -> "Thresholds":
         reach = robot.reach()
         return cls(
-            residual_mm=opts.max_residual_mm if opts.max_residual_mm is not None else 0.01 * reach,
+            residual_mm=opts.max_residual_mm if opts.max_residual_mm is not None else RESIDUAL_SHARE * reach,
             rotation_deg=opts.max_rotation_deg,
             length_mm=opts.max_length_change_mm if opts.max_length_change_mm is not None else 0.05 * reach,
             angle_rad=np.radians(opts.max_angle_change_deg),
@@ -154,7 +158,7 @@ def _undetermined(se, layout: Layout, limits: Thresholds, free) -> list[str]:
     ]
 
 
-def _variants(robot: Robot, q, target, n_points: int):
+def variants(robot: Robot, q, target, n_points: int):
     """``{name: (q, target)}``: the data read again without each mistake of :data:`MISTAKES`."""
     out = {}
     pos = (lambda t: t[..., :3, 3]) if n_points == 0 else (lambda t: t)
@@ -203,10 +207,10 @@ def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thr
     deg or None)`` of the data as given; ``ranked`` ``[(mistake, position RMS, rotation RMS),
     ...]`` with each correction, best first (by :func:`badness`).
     """
-    variants = {"as given": (q, target), **_variants(robot, q, target, n_points)}
-    names = list(variants)
-    Q = np.stack([v[0] for v in variants.values()])
-    T = np.stack([v[1] for v in variants.values()])
+    tried = {"as given": (q, target), **variants(robot, q, target, n_points)}
+    names = list(tried)
+    Q = np.stack([v[0] for v in tried.values()])
+    T = np.stack([v[1] for v in tried.values()])
     R, K = Q.shape[:2]
     lay = dataclasses.replace(layout, camera="none")
     kin = robot.stripped()

@@ -98,3 +98,38 @@ def test_postures_outside_the_training_ranges_are_counted_and_warned(rng):
     assert want.mean() > 0.1 and "outside the ranges the model was fitted on" in rep["warnings"][0]
     inside = evaluate(Model(ur5), Measurements(q * 0.5, dh_fk(dh, q * 0.5)), ranges=ranges)
     assert inside["outside_training_ranges"]["poses"] == 0 and inside["warnings"] == []
+
+
+def test_a_misread_file_is_refused_or_named():
+    """The true arm scored on its own poses, read with the usual mistakes: another length unit or
+    degrees are refused naming the option (as calibrate refuses them); a swapped axis or a
+    quaternion in x, y, z, w order is scored, with a warning naming the mistake that explains it."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(13)
+    ur5, dh = _truth(rng)
+    true = Model(ur5.replace(dh=dh))
+    q = rng.uniform(-np.pi, np.pi, (30, 6))
+    T = dh_fk(dh, q)
+    T[:, :3, 3] += rng.normal(0, 0.05, (30, 3))
+    assert evaluate(true, Measurements(q, T))["warnings"] == []
+    with pytest.raises(DataError, match="metres read as millimetres") as e:
+        metres = T.copy()
+        metres[:, :3, 3] /= 1000.0
+        evaluate(true, Measurements(q, metres))
+    assert e.value.option == "length_unit"
+    with pytest.raises(DataError, match="look like degrees") as e:
+        evaluate(true, Measurements(np.degrees(q), T))
+    assert e.value.option == "angle_unit"
+    swapped = T.copy()
+    swapped[:, :3, 3] = T[:, :3, 3][:, [1, 0, 2]]
+    (w,) = evaluate(true, Measurements(q, swapped))["warnings"]
+    assert "far beyond a calibration's" in w and "swapped x, y, it gives 0.0" in w
+    xyzw = T.copy()  # written x, y, z, w, read as w, x, y, z: (w, x, y, z) taken from (x, y, z, w)
+    xyzw[:, :3, :3] = Rotation.from_quat(Rotation.from_matrix(T[:, :3, :3]).as_quat()[:, [1, 2, 3, 0]]).as_matrix()
+    (w,) = evaluate(true, Measurements(q, xyzw))["warnings"]
+    assert "quaternion written x, y, z, w" in w
+    moved = T.copy()  # the tracker moved since the calibration: no mistake explains it
+    moved[:, :3, 3] += [300.0, 0.0, 0.0]
+    (w,) = evaluate(true, Measurements(q, moved))["warnings"]
+    assert "no common input mistake explains it" in w
