@@ -202,6 +202,29 @@ def _names(cols) -> str:
     return ", ".join(repr(c) for c in cols)
 
 
+def _header_read(header) -> str:
+    """What the header was read as, for a file whose columns were not found: names are matched
+    exactly (case and all), and a header read as one field shows a delimiter not understood."""
+    shown = _names(header[:10]) + (f", ... ({len(header)} columns)" if len(header) > 10 else "")
+    return f"the header was read as {shown} (names are matched exactly; columns separated by ',', ';' or tab)"
+
+
+def _records(lines: list[str]) -> list[tuple[int, list[str]]]:
+    """``(line number, fields)`` of the non-blank lines. Spreadsheet exports are read as written:
+    leading ``#`` comment lines and Excel's ``sep=;`` line are skipped, and the delimiter is the
+    header's (a comma, else a semicolon or a tab)."""
+    start, delimiter = 0, None
+    while start < len(lines) and (not lines[start].strip() or lines[start].lstrip().startswith("#")):
+        start += 1
+    if start < len(lines) and lines[start].strip().lower().startswith("sep=") and len(lines[start].strip()) == 5:
+        delimiter, start = lines[start].strip()[4], start + 1
+    if delimiter is None and start < len(lines):
+        head = lines[start]
+        delimiter = next((d for d in (",", ";", "\t") if d in head), ",")
+    reader = csv.reader(lines[start:], delimiter=delimiter or ",")
+    return [(start + reader.line_num, [v.strip() for v in rec]) for rec in reader if rec]
+
+
 def read_table(path, expected: str):
     """``(source name, header, records)`` of a CSV, records as ``(line, fields)`` with blank lines
     skipped; :class:`DataError` if the file is missing, unreadable or empty (``expected`` says
@@ -209,8 +232,8 @@ def read_table(path, expected: str):
     path = Path(path)
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            records = [(reader.line_num, [s.strip() for s in rec]) for rec in reader if rec]
+            lines = f.read().splitlines()
+        records = _records(lines)
     except FileNotFoundError:
         raise DataError(f"measurement file not found: {path}") from None
     except (OSError, UnicodeDecodeError, csv.Error) as e:
@@ -253,7 +276,7 @@ def joint_columns(header, robot: Robot, src: str, *, required: bool = True) -> l
     expected = f"expected q1..q{n} or the joint names {_names(robot.joint_names)}"
     if not numbered:
         if required:
-            raise DataError(f"{src}: no joint columns; {expected}")
+            raise DataError(f"{src}: no joint columns; {expected}; {_header_read(header)}")
         return None
     idx = [j for j, _ in numbered]
     if idx != list(range(1, n + 1)):
@@ -298,7 +321,7 @@ def measurement_columns(header, src: str, *, required: bool = True):
         points = [[numbered[j][a] for a in "xyz"] for j in range(1, M + 1)]
     else:
         if required:
-            raise DataError(f"{src}: missing column(s) 'x', 'y', 'z'; {expected}")
+            raise DataError(f"{src}: missing column(s) 'x', 'y', 'z'; {expected}; {_header_read(header)}")
         points = []
     if quat and len(quat) < 4:
         absent = [c for c in QUAT_COLUMNS if c not in header]
@@ -331,7 +354,8 @@ def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray,
             try:
                 v = float(text) if text else math.nan
             except ValueError:
-                raise DataError(f"{where}, column {name!r}: not a number: {text!r}") from None
+                comma = " (a decimal comma? write decimals with a point)" if re.fullmatch(r"[-+]?\d*,\d+", text) else ""
+                raise DataError(f"{where}, column {name!r}: not a number: {text!r}{comma}") from None
             if math.isinf(v):
                 raise DataError(f"{where}, column {name!r}: value {text!r} is not finite")
             out.append(v)

@@ -206,6 +206,16 @@ PY = {
         r"targets\[1\]: rotation",
     ),
     "compensate damping negative": (lambda: compensate(ROBOT, M[:2], Q[:2], damping=-1.0), DataError, "damping"),
+    "calibrate a point never seen": (
+        lambda: calibrate(ROBOT, Q, np.stack([M[:, :3, 3], np.full((len(Q), 3), np.nan)], 1)),
+        DataError,
+        r"point\(s\) 2 not seen at any pose \(all NaN, empty in the file\); leave them out",
+    ),
+    "calibrate_data one posture": (
+        lambda: jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(np.tile(Q[:1], (20, 1)), np.tile(M[:1], (20, 1, 1)))),
+        DataError,
+        r"no joint moves over the 20 poses: every row is the same posture \(rows 1\.\.20\)",
+    ),
 }
 
 

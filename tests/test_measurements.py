@@ -278,6 +278,14 @@ BAD = {
         r"row 2 \(line 3\): 9 fields, but the header has 10 columns",
     ),
     "too many fields": (HEADER7 + "\n" + GOOD_ROW + ",1,2,3,4\n", r"row 1 \(line 2\): 11 fields"),
+    "header not matched": (
+        "Q1,Q2,Q3,Q4,Q5,Q6,Q7,X,Y,Z\n" + GOOD_ROW + ",1,2,3\n",
+        r"no joint columns; expected q1\.\.q7 .*; the header was read as 'Q1', 'Q2', .*names are matched exactly",
+    ),
+    "decimal comma": (
+        HEADER7.replace(",", ";") + "\n" + GOOD_ROW.replace(",", ";").replace(".", ",") + ";1;2;3\n",
+        r"row 1 \(line 2\), column 'q1': not a number: '0,1' \(a decimal comma\? write decimals with a point\)",
+    ),
     "non-unit quaternion": (
         HEADER7 + ",qw,qx,qy,qz\n" + GOOD_ROW + ",1,2,3,1,0,0,0\n" + GOOD_ROW + ",1,2,3,0.5,0.5,0.5,0.4\n",
         r"row 2 \(line 3\): quaternion \(qw, qx, qy, qz\) has norm 0\.953939, not 1 "
@@ -323,3 +331,30 @@ def test_near_unit_quaternion_normalised_and_columns_any_order(tmp_path, panda):
 def test_measurements_shape_check():
     with pytest.raises(DataError, match="inconsistent shapes"):
         Measurements(q=np.zeros((3, 2)), measured=np.zeros((2, 4, 4)), source="s", rows=np.arange(3))
+
+
+@pytest.mark.parametrize(
+    "dialect",
+    ["semicolons", "tabs", "excel sep line", "comment lines first", "crlf"],
+)
+def test_spreadsheet_exports_read_as_the_plain_file(tmp_path, panda, dialect):
+    """The same table as a European spreadsheet (semicolons), a tab-separated export, a file whose
+    first line is Excel's ``sep=;``, one that opens with ``#`` comment lines, or Windows line ends:
+    the same measurements, and line numbers that still point into the file."""
+    plain = HEADER7 + "\n" + _spread_rows(4)
+    text = {
+        "semicolons": plain.replace(",", ";"),
+        "tabs": plain.replace(",", "\t"),
+        "excel sep line": "sep=;\n" + plain.replace(",", ";"),
+        "comment lines first": "# exported by a tracker\n# units: mm, rad\n" + plain,
+        "crlf": plain.replace("\n", "\r\n"),
+    }[dialect]
+    want = read_measurements(_csv(tmp_path, plain, "plain.csv"), panda)
+    got = read_measurements(_csv(tmp_path, text), panda)
+    assert_array_equal(got.q, want.q)
+    assert_array_equal(got.measured, want.measured)
+    bad = text.splitlines()
+    bad[-1] = bad[-1].replace("330.0", "abc")
+    skipped = len(text.splitlines()) - len(plain.splitlines())
+    with pytest.raises(DataError, match=rf"row 4 \(line {5 + skipped}\), column 'z': not a number: 'abc'"):
+        read_measurements(_csv(tmp_path, "\n".join(bad) + "\n", "bad.csv"), panda)

@@ -48,6 +48,13 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             idx = tuple(int(i) for i in np.argwhere(bad)[0])
             what = "; a point not measured is NaN in all three coordinates" if kind != "poses" and name != "q" else ""
             raise DataError(f"{name}: non-finite value at index {idx}{what}", option=name)
+    if kind == "points" and lost.all(-2).any():  # a marker never measured: every fit would be singular
+        j = [int(i) + 1 for i in np.flatnonzero(lost.all(-2).reshape(-1, lost.shape[-1]).any(0))]
+        raise DataError(
+            f"measured: point(s) {', '.join(map(str, j))} not seen at any pose (all NaN, empty in the file); "
+            f"leave them out (choose the measured points with --points / Measurements.select_points)",
+            option="points",
+        )
     if lost.all(-1).any():
         idx = tuple(int(i) for i in np.argwhere(lost.all(-1))[0])
         raise DataError(

@@ -246,8 +246,8 @@ def score_error(lin: Linear, rule: Rule, free, prior) -> tuple[float, float]:
     errors it averages, by the delta method."""
     x = solve(rule.A, rule.b, np.atleast_2d(free), np.atleast_2d(prior))
     F = rule.held.shape[0]
-    parts = [np.concatenate(_squares(lin, rule, x, r), 1)[0] for r in (range(rule.n_kfold), range(rule.n_kfold, F))]
-    parts = [p for p in parts if p.size]
+    parts = [_squares(lin, rule, x, r) for r in (range(rule.n_kfold), range(rule.n_kfold, F))]
+    parts = [p for p in (np.concatenate(sq, 1)[0] for sq in parts if sq) if p.size]
     w = 1.0 / len(parts)
     ms = w * sum(p.mean() for p in parts)
     var = w**2 * sum(p.var(ddof=1) / p.size if p.size > 1 else 0.0 for p in parts)

@@ -46,7 +46,7 @@ from ._checks import as_target, check_units
 from ._options import Options, make_options
 from ._param_sets import Candidate, parse_params
 from ._report import DataCalibration, report_of
-from ._single import check_enough_poses, make_layout, nominal_model, prior_of
+from ._single import check_enough_poses, make_layout, nominal_model, prior_of, still_joint_notes
 
 DETECTION_PRIOR_MM = 1.0
 """The prior of the flexible model that outliers are found with (all parameters)."""
@@ -145,6 +145,12 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     """Stage 1 (module docstring)."""
     q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
     rows = np.arange(1, len(q) + 1) if getattr(data, "rows", None) is None else np.asarray(data.rows)
+    if len(still_joint_notes(robot, q)) == robot.n_joints:
+        raise DataError(
+            f"no joint moves over the {len(q)} poses: every row is the same posture (rows {rows[0]}..{rows[-1]}), "
+            f"from which neither the robot nor its frames can be calibrated; measure it in varied postures",
+            option="data",
+        )
     cameras = CAMERA_MODELS if opts.camera == "auto" else (opts.camera,)
     compliance = _compliant(robot, q, opts)
     candidates, detector = _candidates(robot, opts, cameras, compliance)
