@@ -237,6 +237,7 @@ def run_members(
     progress=None,
     label: str = "fitting",
     devices=None,
+    fallback: bool = False,
 ) -> dict:
     """Fit every member (leading axis of ``models``, ``pose_w``, ``weights``, ``prior``; and of
     ``q``/``target`` unless ``cfg.shared_data``) in chunks of one compiled, vmapped solve.
@@ -251,8 +252,10 @@ def run_members(
     ``memory_mb`` whatever the member count. ``devices`` (from
     :func:`jaxcal.sharding.select_devices`; default: the default device) share each chunk's
     members, ``chunk`` members per device.
-    ``progress(done, total, label)`` is called after each chunk. Returns NumPy arrays with the
-    member axis first.
+    ``progress(done, total, label)`` is called after each chunk. ``fallback``: the members that
+    Gauss–Newton did not converge (or left non-finite) are fitted again by Levenberg–Marquardt,
+    whose damping holds a step on a nearly degenerate model where a full Gauss–Newton step
+    diverges; ``retried`` says which. Returns NumPy arrays with the member axis first.
     """
     B, K = int(pose_w.shape[0]), int(pose_w.shape[1])
     plan = (cfg, q, target, pose_w, weights, prior, loss_scale, J0, x0, chunk, memory_mb, devices)
@@ -271,6 +274,25 @@ def run_members(
     out = jax.tree.map(lambda *a: np.concatenate(a)[:B], *outs)
     for k in ("pos_err", "rot_err", "norms", "pos_norms", "rot_norms"):  # the padding poses out again
         out[k] = out[k][:, :K]
+    out["retried"] = np.zeros(B, bool)
+    bad = ~np.asarray(out["converged"], bool) | ~np.all(np.isfinite(out["x"]), -1)
+    if fallback and cfg.method == "gn" and bad.any():
+        idx = np.flatnonzero(bad)
+        ls = None if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))[idx]
+        data = (q, target) if cfg.shared_data else take([q, target], idx)
+        again = run_members(
+            dataclasses.replace(cfg, method="lm"), take(models, idx), *data, take(pose_w, idx), take(weights, idx),
+            take(prior, idx), ls, J0=J0, x0=None if x0 is None else take(x0, idx), memory_mb=memory_mb,
+            label=label + " (Levenberg-Marquardt)", devices=devices,
+        )  # fmt: skip
+        again["retried"] = np.ones(len(idx), bool)
+
+        def merged(a, b):
+            a = np.array(a)
+            a[idx] = b
+            return a
+
+        out = jax.tree.map(merged, out, again)
     return out
 
 

@@ -223,6 +223,7 @@ def _figures(p, fr, fits, fin: dict, h: dict) -> dict:
         "frames_only_extrapolation_rms_mm": _rms(h["fo_ends"]),
         "cv_fits_converged": int(np.sum(fits["converged"][: len(p.held)]) + np.sum(fr.fit["converged"])),
         "cv_fits": int(len(p.held) + len(fr.sig)),
+        "lm_refits": int(np.sum(fits["retried"]) + np.sum(fr.fit["retried"])),
     }
 
 

@@ -317,7 +317,7 @@ def calibrate(
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
     ident = core.identify(J0, layout)
-    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress)
+    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
 
     def stages(ref, masks):  # frames only (its residual gives the noise weights), then the set

@@ -70,10 +70,16 @@ def _parse(path: Path):
             load_meshes=False,
             load_collision_meshes=False,
         )
+    except KeyError as e:  # a required attribute missing: yourdfpy looks it up by name
+        raise RobotFileError(f"{path}: not a readable URDF: a required attribute {e} is missing") from None
     except Exception as e:  # yourdfpy raises lxml and its own errors: one message naming the file
         raise RobotFileError(f"{path}: not a readable URDF: {e}") from None
     if urdf.robot is None or not urdf.robot.joints:
         raise RobotFileError(f"{path}: the URDF has no joints")
+    names = [j.name for j in urdf.robot.joints]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # a corrected origin written back by name would land on the wrong joint
+        raise RobotFileError(f"{path}: joint name(s) {', '.join(map(repr, twice))} used twice; URDF names are unique")
     return urdf.robot
 
 
@@ -209,6 +215,11 @@ def _movable(j, source: str) -> np.ndarray:
     n = np.linalg.norm(axis)
     if not (np.isfinite(n) and n > 0):
         raise RobotFileError(f"{source}: joint {j.name!r} has axis {axis.tolist()}; a movable joint needs a direction")
+    if j.type == "prismatic" and abs(n - 1.0) > 1e-6:  # readers differ on whether it moves q or |axis| q
+        raise RobotFileError(
+            f"{source}: prismatic joint {j.name!r} has axis {axis.tolist()} of length {n:.6g}; URDF axes are unit "
+            f"vectors, and readers differ on how far such a joint moves; write the unit axis"
+        )
     return axis / n
 
 
@@ -244,8 +255,15 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         lim = j.limit
         if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None:
             limits.append([-np.pi, np.pi] if kind == "R" else [-1000.0, 1000.0])
-        elif not lim.lower <= lim.upper:
-            raise RobotFileError(f"{source}: joint {j.name!r} has limits lower {lim.lower} > upper {lim.upper}")
+        elif not lim.lower < lim.upper:
+            raise RobotFileError(
+                f"{source}: joint {j.name!r} has limits lower {lim.lower} "
+                + (
+                    "= upper: it cannot move; if the file means no limit, make it continuous or give its range"
+                    if lim.lower == lim.upper
+                    else f"> upper {lim.upper}"
+                )
+            )
         else:
             limits.append([lim.lower * scale, lim.upper * scale])
         types.append(kind)
@@ -358,6 +376,7 @@ def urdf_text(
         for i, nm in enumerate(robot.joint_names):
             j = by_name[nm]
             j.origin = _m(_mm(j.origin) @ _folded(robot, i))
+            j.axis = np.asarray(robot.axes)[i]  # unit, as read: every reader then turns it the same way
         base_link, tip_link = _chain(doc, str(template), base_link, tip_link)[1:]
         # the nominal tool is the template's fixed joints after the last movable one
         nominal_tool = _tool_of(doc, robot.joint_names[-1], tip_link)

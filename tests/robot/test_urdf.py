@@ -205,6 +205,25 @@ BAD = {
         '<limit lower="1" upper="-1" effort="1" velocity="1"/></joint></robot>',
         "joint 'j' has limits lower 1.0 > upper -1.0",
     ),
+    "limits equal": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
+        '<limit lower="0" upper="0" effort="1" velocity="1"/></joint></robot>',
+        "joint 'j' has limits lower 0.0 = upper: it cannot move",
+    ),
+    "a joint name used twice": (
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="j" type="continuous"><parent link="a"/><child link="b"/></joint>'
+        '<joint name="j" type="continuous"><parent link="b"/><child link="c"/></joint></robot>',
+        "joint name(s) 'j' used twice; URDF names are unique",
+    ),
+    "prismatic axis not unit": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="lift" type="prismatic"><parent link="a"/><child link="b"/><axis xyz="0 0 2"/>'
+        '<limit lower="0" upper="0.3" effort="1" velocity="1"/></joint></robot>',
+        "prismatic joint 'lift' has axis [0.0, 0.0, 2.0] of length 2; URDF axes are unit vectors",
+    ),
+    "robot without a name": ("<robot></robot>", "not a readable URDF: a required attribute 'name' is missing"),
 }
 
 
