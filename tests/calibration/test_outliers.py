@@ -172,3 +172,23 @@ def test_lost_points_weigh_nothing():
     partial[5, 1, 0] = np.nan
     with pytest.raises(jaxcal.DataError, match=r"index \(5, 1, 0\); a point not measured is NaN in all three"):
         calibrate(robot, sim.q[0], partial, **kw)
+
+
+def test_a_marker_written_as_zero_is_named_and_the_rest_found_as_without_it():
+    """A motion-capture export that writes a lost marker as 0, 0, 0 (row 5 of the bundled TIAGo
+    data, hundreds of mm off): it inflates the frames-only noise weights the detection runs with,
+    so the detection runs again from the fit without it. The outliers are then those of the
+    file without row 5, and row 5, and the model is that file's."""
+    from jaxcal.measurements import tiago_paths
+
+    urdf, csv = tiago_paths()
+    robot = jaxcal.load_robot(urdf)
+    clean = jaxcal.read_measurements(csv, robot)
+    zeroed = np.array(clean.measured)
+    zeroed[4, 1] = 0.0  # row 5, point 2
+    bad = jaxcal.Measurements(clean.q, zeroed, rows=clean.rows)
+    kw = dict(nested_max_poses=0, params="all", ridge_mm=3.0, compliance="no")
+    b = jaxcal.calibrate_data(robot, bad, **kw).report
+    without = jaxcal.calibrate_data(robot, clean.subset(np.arange(len(clean.q)) != 4), **kw).report
+    assert sorted(o["row"] for o in b["outliers"]) == sorted([o["row"] for o in without["outliers"]] + [5])
+    assert b["train_rms_mm"] == pytest.approx(without["train_rms_mm"], rel=1e-6)
