@@ -110,6 +110,12 @@ def positions_of(target, n_points: int):
     return target[..., :3, 3] if n_points == 0 else target[..., 0, :]
 
 
+RADIANS_AS_DEGREES_SPAN = np.radians(20.0)
+"""Revolute joints that all span less than this (rad), with positions that spread unlike the
+model's: angles in radians read as degrees (limits of +-pi then span 6.3 deg, +-2 pi 12.6 deg).
+It only names the likely cause: such data are refused either way."""
+
+
 def check_units(robot: Robot, q, target, n_points: int, *, batched: bool, model_positions) -> None:
     """Refuse a length-unit mismatch: the spread of the measured points (RMS distance to their
     centroid, independent of the unknown measurement frame) must be within 3x of the nominal
@@ -129,10 +135,20 @@ def check_units(robot: Robot, q, target, n_points: int, *, batched: bool, model_
 
     s_mod, s_mea = spread(np.asarray(P_mod)), spread(P_mea)
     lu = robot.units[0]
+    revolute = np.array([t == "R" for t in robot.joint_types])
     for i, (a, b) in enumerate(zip(s_mod, s_mea)):
         if a > 1.0 and not (a / 3.0 <= b <= 3.0 * a):
             where = f" (data set {i})" if batched else ""
             ratio = b / a
+            span = float(np.ptp(Q[i][:, revolute], axis=0).max()) if revolute.any() else np.inf
+            if 0.01 <= ratio <= 100 and span < RADIANS_AS_DEGREES_SPAN:  # the arm barely moves: angles misread
+                raise DataError(
+                    f"measured{where}: positions spread {b:.4g} mm around their centroid, the nominal model's "
+                    f"{a:.4g} mm at the same joint values, whose revolute joints span at most "
+                    f"{np.degrees(span):.3g} deg: joint angles look like radians read as degrees; the robot's "
+                    f'angles are in {robot.units[1]}; read the data with angle_unit="rad"',
+                    option="angle_unit",
+                )
             guess, fix = (
                 ("metres read as millimetres", ' length_unit="m"')
                 if ratio < 0.01

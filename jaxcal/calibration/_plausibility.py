@@ -17,7 +17,7 @@ A fit whose residual or parameters are not finite (a diverged solve) is never pl
 Most such fits come from a mistake in the data file, and the likely ones can be tested: the data
 are read again as they would be without that mistake (:data:`MISTAKES`: two position columns
 swapped, a mirrored axis, a quaternion written x, y, z, w, two joint columns swapped, the joint
-order reversed, degrees read as radians, metres read as millimetres or the reverse), and the
+order reversed, degrees read as radians or the reverse, metres read as millimetres or the reverse), and the
 frames-only fit (nominal DH, base and tool estimated, all in one batch) is repeated on each. A
 mistake whose correction brings that residual down to a calibration's size is named, with the
 residual before and after (:func:`diagnose`).
@@ -43,6 +43,7 @@ MISTAKES = (
     "quaternion written x, y, z, w",
     "joints reversed",
     "degrees read as radians",
+    "radians read as degrees",
     "metres read as millimetres",
     "millimetres read as metres",
 )
@@ -194,6 +195,7 @@ def variants(robot: Robot, q, target, n_points: int):
     out["joints reversed"] = (q[:, ::-1], target)
     rev = np.array([t == "R" for t in robot.joint_types])
     out["degrees read as radians"] = (np.where(rev, np.radians(q), q), target)
+    out["radians read as degrees"] = (np.where(rev, np.degrees(q), q), target)
     out["metres read as millimetres"] = (q, with_pos(lambda p: p * 1000.0))
     out["millimetres read as metres"] = (q, with_pos(lambda p: p / 1000.0))
     del pos

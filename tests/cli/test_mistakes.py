@@ -121,6 +121,14 @@ def test_degrees_in_a_radians_file_refused(tmp_path, monkeypatch, capsys, truth)
     assert not out_robot.exists() and not report.exists()
 
 
+def test_radians_read_as_degrees_named(tmp_path, monkeypatch, capsys, truth):
+    """A file in radians read with --angle-unit deg: every joint barely moves, the positions spread
+    unlike the model's, and the message names the unit."""
+    code, out, err, out_robot, report = _run(tmp_path, monkeypatch, capsys, _csv(truth), "--angle-unit", "deg")
+    assert code == 2 and "radians read as degrees" in err and "--angle-unit rad" in err, err
+    assert not out_robot.exists() and not report.exists()
+
+
 def test_metres_with_a_mm_robot_refused(tmp_path, monkeypatch, capsys, truth):
     poses = truth["poses"].copy()
     poses[:, :3, 3] /= 1000.0
