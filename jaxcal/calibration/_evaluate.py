@@ -65,15 +65,20 @@ def _positions(pred, n_points: int):
     return pred[:, 0] if n_points else pred[:, :3, 3]
 
 
+def _errors(pred, target, n_points: int):
+    """``(position error norms (K, M) mm, rotation errors (K,) deg or None for points)`` of the
+    predictions ``pred`` of ``target``."""
+    if n_points:
+        return np.linalg.norm(target - pred, axis=-1), None
+    dR = np.einsum("kij,klj->kil", target[:, :3, :3], pred[:, :3, :3])
+    rot = np.degrees(np.arccos(np.clip((np.trace(dR, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)))
+    return np.linalg.norm(target[:, :3, 3] - pred[:, :3, 3], axis=-1)[:, None], rot
+
+
 def _rms(model: Model, q, target, n_points: int) -> tuple[float, float]:
     """Position RMS (mm) and rotation RMS (deg; 0 for points) of the model's errors."""
-    pred = np.asarray(_predict(model, q))
-    if n_points:
-        return float(np.sqrt(np.nanmean(np.sum((target - pred) ** 2, -1)))), 0.0
-    pos = float(np.sqrt(np.mean(np.sum((target[:, :3, 3] - pred[:, :3, 3]) ** 2, -1))))
-    dR = np.einsum("kij,klj->kil", target[:, :3, :3], pred[:, :3, :3])
-    rot = np.arccos(np.clip((np.trace(dR, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0))
-    return pos, float(np.degrees(np.sqrt(np.mean(rot**2))))
+    pos, rot = _errors(np.asarray(_predict(model, q)), target, n_points)
+    return float(np.sqrt(np.nanmean(pos**2))), 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
 
 
 def _far(model: Model, meas) -> list[str]:
@@ -138,13 +143,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     check_angles(model.robot, q)
     pred = np.asarray(_predict(model, q))
     check_units(model.robot, q, meas.measured, M, batched=False, model_positions=_positions(pred, M))
-    if M:
-        pos = np.linalg.norm(meas.measured - pred, axis=-1)  # (K, M)
-        rot = None
-    else:
-        pos = np.linalg.norm(meas.measured[:, :3, 3] - pred[:, :3, 3], axis=-1)[:, None]
-        dR = np.einsum("kij,klj->kil", meas.measured[:, :3, :3], pred[:, :3, :3])
-        rot = np.degrees(np.arccos(np.clip((np.trace(dR, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)))
+    pos, rot = _errors(pred, meas.measured, M)  # (K, M) mm, (K,) deg
     out = {"poses_evaluated": len(meas), "source": meas.source}
     out.update({f"position_{k}": v for k, v in _stats(pos).items()})
     out["points"] = [_stats(pos[:, j]) for j in range(pos.shape[1])]
