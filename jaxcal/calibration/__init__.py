@@ -3,6 +3,7 @@
 (:func:`calibrate_data`, behind ``jaxcal calibrate``), all on the one engine."""
 
 from ._accuracy import position_std as position_std
+from ._core import kin_order as kin_order
 from ._core import nominal_model as nominal_model
 from ._evaluate import evaluate as evaluate
 from ._options import GAUGE as GAUGE

@@ -24,7 +24,7 @@ from ..identifiability import Identifiability, analyze
 from ..kinematics import fk
 from ..lie import so3_log
 from ..model import Layout, Model, apply, errors, jacobian, observed, predict
-from ..robot import Robot
+from ..robot import JOINT_FRAME_NAMES, Robot
 from ..sharding import distribute, gather, member_mesh, sharded
 from ..solvers import PIN, fit, robust_scale, robust_weights
 from ._initial import initial_frames
@@ -430,13 +430,31 @@ def _analysed(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray, 
     return tuple(np.asarray(a)[:K] for a in _nominal(model, layout, pad_poses(q, pose_bucket(K), 0)))
 
 
-def identify(J, layout: Layout, *, rtol: float = 1e-8) -> Identifiability:
+def identify(J, layout: Layout, robot: Robot | None = None, *, rtol: float = 1e-8) -> Identifiability:
     """Identifiability of every parameter of ``layout`` from the Jacobian ``J`` (:func:`analyse`),
-    the frames offered first (they keep what they can absorb), then the DH errors and the joint
-    compliances, then the camera."""
+    the frames offered first (they keep what they can absorb), then the DH errors or joint frames
+    (in :func:`kin_order` of ``robot``) and the joint compliances, then the camera."""
     frames, cams = list(layout.frames), list(layout.cameras)
-    kin = list(range(layout.n_kin)) + list(layout.compliances)
+    kin = kin_order(robot, layout) + list(layout.compliances)
     return analyze(np.asarray(J).reshape(-1, layout.size), layout.names(), rtol=rtol, priority=frames + kin + cams)
+
+
+def kin_order(robot: Robot | None, layout: Layout) -> list[int]:
+    """The kinematic parameters in the order the base set takes them. For a joint frame, the
+    origin's turns least aligned with the joint's axis ``a`` come first (and a prismatic joint's
+    shifts likewise): to first order the offset is the turn ``sum_k a_k r_k`` (the shift
+    ``sum_k a_k t_k``), so the one most aligned with the axis is the offset's twin and is the one
+    left out, whatever the axis' direction, and what is kept stays well conditioned (a z axis
+    leaves ``rz`` out, an x axis ``rx``)."""
+    if robot is None or robot.convention != "joint":
+        return list(range(layout.n_kin))
+    out, axes, p = [], np.abs(np.asarray(robot.axes)), len(JOINT_FRAME_NAMES)
+    for j, kind in enumerate(robot.joint_types):
+        b = p * j
+        shifts = sorted(range(3), key=lambda k: axes[j, k]) if kind == "P" else range(3)
+        turns = sorted(range(3), key=lambda k: axes[j, k])
+        out += [b] + [b + 1 + k for k in shifts] + [b + 4 + k for k in turns]
+    return out
 
 
 def generic_rank(model: Model, layout: Layout, n_poses: int, columns) -> int:

@@ -262,7 +262,7 @@ def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: in
     q = np.asarray(check_q(robot, as_f64(q, "q")))
     if q.ndim != 2:
         raise DataError(f"q must have shape (K, {robot.n_joints}), got {q.shape}", option="q")
-    return core.identify(core.analyse(nominal_model(robot, layout), layout, q)[0], layout)
+    return core.identify(core.analyse(nominal_model(robot, layout), layout, q)[0], layout, robot)
 
 
 def calibrate(
@@ -316,7 +316,7 @@ def calibrate(
     check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
-    ident = core.identify(J0, layout)
+    ident = core.identify(J0, layout, robot)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
 
@@ -452,7 +452,7 @@ def calibrate_batch(
     ref = start(masks)
     J0 = core.analyse(core.member(ref, 0), layout, q[0])[0]
     if ident is None:
-        ident = core.identify(J0, layout)
+        ident = core.identify(J0, layout, robot)
     prior = np.repeat(prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))[None], R, 0)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
@@ -522,7 +522,7 @@ def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
     nonfinite = ~np.all(np.isfinite(x), axis=-1)
     x[nonfinite] = 0.0
     ok[nonfinite] = False
-    ident = core.identify(core.analyse(Model(robot.stripped()), layout, q[0])[0], layout)
+    ident = core.identify(core.analyse(Model(robot.stripped()), layout, q[0])[0], layout, robot)
     R, K = q.shape[:2]
     return BatchResult(
         x=x,

@@ -192,7 +192,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     nested = (len(candidates) > 1 or opts.params.strip() == "auto") and K <= opts.nested_max_poses
     return _Problem(
         robot, opts, data, q, target, n_points, rows, layout, candidates, detector,
-        core.identify(J0, layout), cfg, run, held, F, everything, nested,
+        core.identify(J0, layout, robot), cfg, run, held, F, everything, nested,
     )  # fmt: skip
 
 

@@ -33,7 +33,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import as_f64, jit
-from ..calibration import Options, lever, make_layout, nominal_model, parse_params
+from ..calibration import Options, kin_order, lever, make_layout, nominal_model, parse_params
 from ..errors import DataError
 from ..identifiability import analyze
 from ..kinematics import check_q
@@ -325,7 +325,7 @@ def design_problem(
     # the identifiable set as calibrate finds it: frames offered first, then DH and compliances,
     # then camera
     frames, cams, comps = list(layout.frames), list(layout.cameras), list(layout.compliances)
-    ident = analyze(J, layout.names(), priority=frames + list(range(layout.n_kin)) + comps + cams)
+    ident = analyze(J, layout.names(), priority=frames + kin_order(robot, layout) + comps + cams)
     spec = "all" if opts.params == "auto" else opts.params
     cand = parse_params(spec, robot, opts.ridge_mm, compliance=opts.compliance == "yes")[0]
     estimated = set(frames + cams + list(cand.dh) + (comps if cand.compliance else []))
