@@ -98,7 +98,7 @@ class Options:
     - ``max_residual_mm`` (None: 1 % of the robot's reach), ``max_rotation_deg`` (2): the
       calibrated position and rotation RMS.
     - ``max_length_change_mm`` (None: 5 % of the reach), ``max_angle_change_deg`` (20): the
-      largest change of a kinematic length and angle (DH or joint frames).
+      largest change of a DH length and angle, and of any standard error.
     - ``max_camera_change`` (0.1): the largest camera unknown (dimensionless).
     - ``strict`` (False): raise :class:`jaxcal.ImplausibleFitError` instead of marking.
 
