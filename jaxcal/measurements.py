@@ -261,8 +261,9 @@ def joint_columns(header, robot: Robot, src: str, *, required: bool = True) -> l
     default = tuple(f"q{j}" for j in range(1, n + 1))
     named = [] if tuple(robot.joint_names) == default else [c for c in robot.joint_names if c in header]
     numbered = sorted((int(m.group(1)), c) for c in header if (m := _JOINT_RE.fullmatch(c)))
-    if named and len(named) == n and not (numbered and named != [c for _, c in numbered]):
-        return list(robot.joint_names)
+    in_numbers = {c for _, c in numbered}
+    if named and len(named) == n and (not numbered or in_numbers <= set(named)):
+        return list(robot.joint_names)  # names that look numbered (q2, q1, ...) are still the names
     if named and numbered and [c for _, c in numbered] != named:
         raise DataError(
             f"{src}: joint columns both numbered ({_names(c for _, c in numbered)}) and named "

@@ -147,6 +147,16 @@ def test_joint_columns_by_name_and_other_columns_listed(tmp_path, panda):
     assert m.ignored == ("stamp", "note")
 
 
+def test_joint_names_that_look_numbered_are_names(tmp_path, panda):
+    """A URDF whose joints are named q0..q6, or q2, q1, ...: the columns are the joints' names, in
+    the robot's order, not the numbering."""
+    for names in ([f"q{j}" for j in range(7)], ["q2", "q1", "q3", "q4", "q5", "q6", "q7"]):
+        robot = panda.replace(joint_names=names)
+        text = ",".join(reversed(names)) + ",x,y,z\n" + "0.7,0.6,0.5,-1,0.3,0.2,0.1,1,2,3\n"
+        m = read_measurements(_csv(tmp_path, text), robot)
+        assert_allclose(m.q[0], [0.1, 0.2, 0.3, -1, 0.5, 0.6, 0.7])
+
+
 def test_several_points_per_pose(tmp_path, panda):
     text = "q1,q2,q3,q4,q5,q6,q7,x1,y1,z1,x2,y2,z2\n" + GOOD_ROW + ",1,2,3,4,5,6\n"
     m = read_measurements(_csv(tmp_path, text), panda)
