@@ -41,6 +41,11 @@ ROBUST_ROUNDS = 3
 """Cauchy-reweighted refits before the first exclusion."""
 MAX_ROUNDS = 5
 """Most exclusion rounds (each a refit) before the excluded set is taken as it is."""
+REDETECT_SIGMA = 0.5
+"""When leaving the outliers out brings the frames-only noise below this share of what it was,
+gross outliers (a lost marker written as 0, 0, 0; swapped labels) set the weights and pulled the
+reference the detection ran with: the caller detects again over every pose from the fit without
+them."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -341,8 +341,15 @@ def calibrate(
     )
     det = outliers.found(b, refit, masks, target, opts)
     if det.flags.any() and not opts.keep_outliers:  # the whole fit again without them: start, frames, set
-        kept = masks * ~det.flags
+        first, kept = sig, masks * ~det.flags
         a, sig, weights, b = stages(start(kept), kept)
+        if sig[0] < outliers.REDETECT_SIGMA * first[0]:  # gross outliers set the weights: once more
+            refit = lambda w, x0: core.run_members(  # noqa: E731
+                cfg, a["model"], q, target, w, weights, prior[None], opts.loss_scale, x0=x0, **run, label="outliers"
+            )
+            det = outliers.found(refit(masks, b["x"]), refit, masks, target, opts)
+            kept = masks * ~det.flags
+            a, sig, weights, b = stages(start(kept), kept)
         found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
         det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     if not np.all(np.isfinite(b["x"][0])):

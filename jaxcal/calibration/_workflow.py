@@ -14,7 +14,8 @@ on the tool) with ``B0, X0`` from the closed-form guess of each training set
    deg) on every training set and on all poses; its residual gives the noise weights.
 3. **Outliers** (:func:`_outliers_found`): poses far beyond the noise of a flexible model fitted
    on all poses (:mod:`._outliers`) are left out of everything that follows; found again from
-   the fit without them when they had inflated the noise weights (:data:`REDETECT_SIGMA`).
+   the fit without them when they had inflated the noise weights
+   (:data:`._outliers.REDETECT_SIGMA`).
 4. **Selection** (:mod:`._selection`): on the problem linearised at the frames-only fit, every
    candidate is scored by held-out error on K-fold and range-end folds, the best (a simpler one
    within 1 % winning) is chosen, and its parameters pruned while the score holds.
@@ -51,10 +52,6 @@ from ._single import check_enough_poses, make_layout, nominal_model, prior_of, s
 
 DETECTION_PRIOR_MM = 1.0
 """The prior of the flexible model that outliers are found with (all parameters)."""
-REDETECT_SIGMA = 0.5
-"""When leaving the outliers out brings the frames-only noise below this share of what it was,
-gross outliers (a lost marker written as 0, 0, 0; swapped labels) set the weights and pulled the
-reference the detection ran with: it runs again over every pose from the fit without them."""
 
 
 def fold_ids(n_poses: int, k: int, seed: int) -> np.ndarray:
@@ -319,7 +316,7 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     if det.flags.any() and not opts.keep_outliers:  # everything again without them
         first, p = fr, dataclasses.replace(p, valid=~det.flags[0])
         fr = _frames(p)
-        if fr.sig[-1, 0] < REDETECT_SIGMA * first.sig[-1, 0]:  # gross outliers set the weights: once more
+        if fr.sig[-1, 0] < outliers.REDETECT_SIGMA * first.sig[-1, 0]:  # gross outliers set the weights: once more
             det = _outliers_found(dataclasses.replace(p, valid=np.ones(len(p.q), bool)), fr)
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)

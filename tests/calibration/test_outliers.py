@@ -176,9 +176,10 @@ def test_lost_points_weigh_nothing():
 
 def test_a_marker_written_as_zero_is_named_and_the_rest_found_as_without_it():
     """A motion-capture export that writes a lost marker as 0, 0, 0 (row 5 of the bundled TIAGo
-    data, hundreds of mm off): it inflates the frames-only noise weights the detection runs with,
-    so the detection runs again from the fit without it. The outliers are then those of the
-    file without row 5, and row 5, and the model is that file's."""
+    data, hundreds of mm off), in calibrate_data and in calibrate: it inflates the frames-only
+    noise weights the detection runs with, so the detection runs again from the fit without it.
+    The outliers are then those of the file without row 5, and row 5, and the model is that
+    file's."""
     from jaxcal.measurements import tiago_paths
 
     urdf, csv = tiago_paths()
@@ -192,3 +193,12 @@ def test_a_marker_written_as_zero_is_named_and_the_rest_found_as_without_it():
     without = jaxcal.calibrate_data(robot, clean.subset(np.arange(len(clean.q)) != 4), **kw).report
     assert sorted(o["row"] for o in b["outliers"]) == sorted([o["row"] for o in without["outliers"]] + [5])
     assert b["train_rms_mm"] == pytest.approx(without["train_rms_mm"], rel=1e-6)
+    # the same in a single fit
+    kw = dict(params="all", ridge_mm=3.0)
+    one, ref = (
+        calibrate(robot, clean.q, zeroed, **kw),
+        calibrate(robot, np.delete(clean.q, 4, 0), np.delete(zeroed, 4, 0), **kw),
+    )
+    assert one.outliers == tuple(sorted([4] + [i + (i >= 4) for i in ref.outliers]))
+    # calibrate's prior scales (levers) come from every pose, the zeroed one included: close, not equal
+    assert one.after["pos_rms_mm"] == pytest.approx(ref.after["pos_rms_mm"], rel=1e-3)
