@@ -530,17 +530,17 @@ def condition_number(normal, active) -> float:
     return float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
 
 
-def fit_statistics(J0, weights, pose_w, norms, *, loss: str, loss_scale, rows: int, seen=None) -> dict:
+def fit_statistics(J, weights, pose_w, norms, *, loss: str, loss_scale, rows: int, seen=None) -> dict:
     """What the standard errors and outlier report of one fit need, from its per-pose weighted
-    residual norms and the Jacobian ``J0 (K, rows, m)`` at its solution (not at its start: a
+    residual norms and the Jacobian ``J (K, rows, m)`` at its solution (not at its start: a
     parameter the data do not determine can look determined at the nominal robot):
     the robust ``scale``, the weighted normal matrix ``normal``, ``rss`` and ``n_rows``. ``seen``
     ``(K, rows)``: the observed rows (:func:`jaxcal.model.observed`; default all)."""
     norms, pose_w = np.asarray(norms), np.asarray(pose_w)
-    seen = np.ones(np.shape(J0)[:2], bool) if seen is None else np.asarray(seen)
+    seen = np.ones(np.shape(J)[:2], bool) if seen is None else np.asarray(seen)
     scale = float(loss_scale) if loss_scale is not None else float(robust_scale(norms, rows, pose_w))
     w = pose_w * (robust_weights(norms, scale, rows, loss) if loss != "l2" else 1.0)
-    Jw = np.asarray(J0) * (np.asarray(weights)[None, :] * seen)[:, :, None]
+    Jw = np.asarray(J) * (np.asarray(weights)[None, :] * seen)[:, :, None]
     return {
         "scale": scale,
         "normal": np.einsum("k,kri,krj->ij", w, Jw, Jw),

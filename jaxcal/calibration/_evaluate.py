@@ -81,14 +81,13 @@ def _rms(model: Model, q, target, n_points: int) -> tuple[float, float]:
     return float(np.sqrt(np.nanmean(pos**2))), 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
 
 
-def _far(model: Model, meas) -> list[str]:
+def _far(model: Model, meas, pos, rot) -> list[str]:
     """A warning when the errors are far beyond a calibration's (:data:`RESIDUAL_SHARE` of the
     reach in position, :data:`ROTATION_DEG` in rotation), naming the input mistake that would
     explain them if one does (the mistakes :func:`._plausibility.variants` tries, each predicted
-    with the model as it is)."""
+    with the model as it is; ``pos``, ``rot`` the RMS errors of the data as given)."""
     limit = RESIDUAL_SHARE * model.robot.reach()
     q, M = np.asarray(meas.q), meas.n_points
-    pos, rot = _rms(model, q, meas.measured, M)
     if pos <= limit and rot <= ROTATION_DEG:
         return []
     tried = {m: _rms(model, qv, tv, M) for m, (qv, tv) in variants(model.robot, q, meas.measured, M).items()}
@@ -161,7 +160,8 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             n: (float(lo), float(hi))
             for n, lo, hi in zip(model.robot.joint_names, training.q.min(0), training.q.max(0))
         }
-    out["warnings"] = _far(model, meas)
+    rot_rms = 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
+    out["warnings"] = _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
     if ranges is not None:
         away = outside(model.robot, meas.q, ranges)
         share = float(away.mean()) if len(away) else 0.0
