@@ -336,17 +336,17 @@ def calibrate(
         return a, sig, w, b
 
     a, sig, weights, b = stages(ref, masks)
-    refit = lambda w, x0: core.run_members(  # noqa: E731
-        cfg, a["model"], q, target, w, weights, prior[None], opts.loss_scale, x0=x0, **run, label="outliers"
-    )
+
+    def refit(w, x0):  # from the current stage's frames-only model and weights
+        return core.run_members(
+            cfg, a["model"], q, target, w, weights, prior[None], opts.loss_scale, x0=x0, **run, label="outliers"
+        )
+
     det = outliers.found(b, refit, masks, target, opts)
     if det.flags.any() and not opts.keep_outliers:  # the whole fit again without them: start, frames, set
         first, kept = sig, masks * ~det.flags
         a, sig, weights, b = stages(start(kept), kept)
         if sig[0] < outliers.REDETECT_SIGMA * first[0]:  # gross outliers set the weights: once more
-            refit = lambda w, x0: core.run_members(  # noqa: E731
-                cfg, a["model"], q, target, w, weights, prior[None], opts.loss_scale, x0=x0, **run, label="outliers"
-            )
             det = outliers.found(refit(masks, b["x"]), refit, masks, target, opts)
             kept = masks * ~det.flags
             a, sig, weights, b = stages(start(kept), kept)
