@@ -41,6 +41,17 @@ ROBUST_ROUNDS = 3
 """Cauchy-reweighted refits before the first exclusion."""
 MAX_ROUNDS = 5
 """Most exclusion rounds (each a refit) before the excluded set is taken as it is."""
+REWEIGHT_SHARE = 0.5
+"""The detector is fitted with the frames-only residual as its noise weights. Where the robot's
+own errors make most of that residual (a simulated or laser-tracked arm whose nominal model is
+millimetres off, measured to hundredths), the prior holds the detector's parameters more than
+the data would, and the noise it finds stays far above the measurements': outliers of a few
+millimetres pass. When the noise found is below this share of the weights,
+:func:`jaxcal.calibrate_data` detects again with that noise as the weights, and keeps the new
+detection only if its noise falls below this share again (the prior was what held the fit; on
+real arms whose residual is not geometric it barely moves, and the first detection stands); at
+most :data:`REWEIGHTS` times."""
+REWEIGHTS = 2
 REDETECT_SIGMA = 0.5
 """When leaving the outliers out brings the frames-only noise below this share of what it was,
 gross outliers (a lost marker written as 0, 0, 0; swapped labels) set the weights and pulled the
@@ -64,6 +75,9 @@ class Detection:
     """The fits (:func:`jaxcal.calibration._core.run_members`'s output) without the outliers."""
     rounds: int = 0
     """Refits done (0: nothing was flagged)."""
+    noise: Float[np.ndarray, "B 2"] | None = None
+    """:attr:`scale` in mm and rad: the robust noise the threshold was measured in (set by the
+    caller that knows the fit's sigmas)."""
 
 
 def standardised(fit: dict, dof_pos, weights, *, poses: bool, loss_scale=None) -> tuple[np.ndarray, np.ndarray]:

@@ -244,19 +244,36 @@ def _frames(p: _Problem) -> _Frames:
 
 
 def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
-    """Stage 3 (module docstring): the detector fitted on all poses, then :func:`._outliers.detect`."""
+    """Stage 3 (module docstring): the detector fitted on all poses, then :func:`._outliers.detect`;
+    again with the noise it found as the weights while the prior held the fit
+    (:data:`._outliers.REWEIGHT_SHARE`)."""
     lev = selection.lever(core.analyse(fr.member(-1), p.layout, p.q)[0], p.n_points)
     prior = prior_of(p.layout, p.ident, p.detector, lever=lev)[None]
-    weights = core.weights_of(p.layout, fr.sig[[-1]])
     ref = core.take(fr.fit["model"], [len(fr.sig) - 1])
     mask = p.valid[None].astype(float)
 
-    def refit(w, x0=None):
-        return core.run_members(
-            p.cfg, ref, p.q, p.target, w, weights, prior, p.opts.loss_scale, x0=x0, **p.run, label="outliers"
-        )
+    def detected(sig):
+        weights = core.weights_of(p.layout, sig)
 
-    return outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts)
+        def refit(w, x0=None):
+            return core.run_members(
+                p.cfg, ref, p.q, p.target, w, weights, prior, p.opts.loss_scale, x0=x0, **p.run, label="outliers"
+            )
+
+        det = outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts)
+        return dataclasses.replace(det, noise=det.scale * sig)  # mm, rad: the weights of this detection
+
+    sig = fr.sig[[-1]]
+    det = detected(sig)
+    given = p.opts.sigma_pos_mm is not None or p.opts.sigma_rot_rad is not None
+    for _ in range(0 if given else outliers.REWEIGHTS):
+        if not det.noise[0, 0] < outliers.REWEIGHT_SHARE * sig[0, 0]:
+            break
+        again = detected(det.noise)
+        if not again.noise[0, 0] < outliers.REWEIGHT_SHARE * det.noise[0, 0]:
+            break  # the prior was not what kept the residual up: the first detection stands
+        sig, det = det.noise, again
+    return det
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -202,3 +202,20 @@ def test_a_marker_written_as_zero_is_named_and_the_rest_found_as_without_it():
     assert one.outliers == tuple(sorted([4] + [i + (i >= 4) for i in ref.outliers]))
     # calibrate's prior scales (levers) come from every pose, the zeroed one included: close, not equal
     assert one.after["pos_rms_mm"] == pytest.approx(ref.after["pos_rms_mm"], rel=1e-3)
+
+
+def test_outliers_of_a_millimetre_are_found_when_the_robots_errors_dominate_the_start():
+    """A simulated UR5 millimetres off its nominal table, measured to 0.02 mm: the frames-only
+    residual the detector's weights start from is the robot's errors, under which the default
+    detector's prior held it at ~0.4 mm and a 1.5 mm outlier passed. Detected again with the
+    noise it found as weights, the outlier is named and the noise reported is the simulated one."""
+    robot = jaxcal.preset("ur5")
+    sim = simulate(robot, n_poses=K, n_val=1, seed=3, sigma_pos=NOISE, base=True, tool=True)
+    points = np.array(sim.measured[0][:, :3, 3])
+    points[17] += 1.5 * np.array([0.6, -0.8, 0.0])  # row 18
+    data = jaxcal.Measurements(sim.q[0], points[:, None])
+    kw = dict(nested_max_poses=0, compliance="no")
+    rep = jaxcal.calibrate_data(robot, data, **kw).report
+    assert [o["row"] for o in rep["outliers"]] == [18]
+    assert 0.5 * NOISE < rep["outlier_detection"]["noise_pos_mm"] < 2 * NOISE
+    assert rep["outliers"][0]["sigmas"] > 10 * rep["outlier_detection"]["threshold_sigmas"]
