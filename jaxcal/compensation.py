@@ -28,7 +28,7 @@ import numpy as np
 from ._config import as_f64
 from .error_model import point_jacobian, pose_error
 from .errors import DataError
-from .kinematics import fk
+from .kinematics import deflected, fk
 from .lie import so3_right_jacobian_inv
 from .measurements import (
     ANGLE_UNITS,
@@ -84,10 +84,13 @@ def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight, damping, max
     cols = jnp.asarray([p * i + (1 if dh and t == "P" else 0) for i, t in enumerate(robot.joint_types)])
     w = jnp.asarray([1.0, 1.0, 1.0] + [rot_weight] * 3)[:rows]
     sd = jnp.sqrt(damping)
+    rigid = eqx.tree_at(lambda r: r.compliance, robot, None, is_leaf=lambda x: x is None)
 
     def rj(q, args):
-        T_target, q_start = args
-        P, W, T = point_jacobian(robot, q[None], jnp.zeros((1, 3)))
+        T_target, q_start, sd = args
+        # a compliant arm reaches its deflected values: the columns there (the moments' own
+        # derivative is second order, as in the identification Jacobian)
+        P, W, T = point_jacobian(rigid, deflected(robot, q[None]), jnp.zeros((1, 3)))
         e = pose_error(T_target, T[0])
         Jp, Jw = P[0, 0][:, cols], W[0][:, cols]
         rot = so3_right_jacobian_inv(e[3:]) @ Jw
@@ -96,9 +99,14 @@ def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight, damping, max
         return r, jnp.concatenate([J, sd * jnp.eye(n)])
 
     def one(T, q_start):
-        q, ok, steps = least_squares(
-            rj, q_start, (T, q_start), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10
+        q, _, steps = least_squares(
+            rj, q_start, (T, q_start, sd), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10
         )
+        # the pull leaves a residual of about damping x the move (mm for a prismatic joint's tens
+        # of mm): once more, pulled toward that solution instead (the bias is then damping x the
+        # last small move; a redundant arm stays where the first solve put it)
+        q, ok, more = least_squares(rj, q, (T, q, sd), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10)
+        steps = steps + more
         rev = jnp.asarray([t == "R" for t in robot.joint_types])
         q = jnp.where(rev, q_start + _wrap(q - q_start), q)  # the branch of the starting command
         e = pose_error(T, fk(robot, q))

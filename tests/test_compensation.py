@@ -6,7 +6,7 @@ import pytest
 from helpers import dh_fk, random_transform
 from numpy.testing import assert_allclose
 
-from jaxcal import DataError, Measurements, calibrate_data, fk, preset
+from jaxcal import DataError, Measurements, calibrate_data, fk, load_robot, preset
 from jaxcal.compensation import compensate, compensate_targets, read_targets
 from jaxcal.error_model import perturb
 from jaxcal.simulation import simulate
@@ -137,3 +137,34 @@ def test_nominal_commands_are_moved_into_the_calibrated_frame(rng, tmp_path):
     want = dh_fk(np.asarray(nominal.dh), q, tool=np.asarray(nominal.tool))
     got = np.linalg.inv(B) @ dh_fk(np.asarray(cal.dh), res.q, base=B, tool=np.asarray(cal.tool))
     assert np.abs(got[:, :3, 3] - want[:, :3, 3]).max() < 1e-5
+
+
+def test_a_compliant_arm_and_a_long_prismatic_move_are_reached(rng, tmp_path):
+    """A compliant arm reaches its deflected joint values: the targets it makes itself from known
+    commands give those commands back. A prismatic joint moved by 80 mm is reached too (the pull
+    toward the start would otherwise leave ~damping x 80 mm)."""
+    r = preset("paper-6r")
+    r = eqx.tree_at(lambda x: x.compliance, r, np.full(6, 2e-6), is_leaf=lambda v: v is None)
+    q_true = np.asarray(simulate(r, n_poses=12, seed=4).q[0])
+    res = compensate(r, np.asarray(fk(r, q_true)), q_true + rng.normal(scale=0.005, size=q_true.shape))
+    assert res.converged.all() and res.pos_residual_mm.max() < 1e-6
+    assert_allclose(res.q, q_true, atol=1e-8)  # the nearest root: the commands themselves
+
+    (tmp_path / "rrpr.toml").write_text(
+        'name = "rrpr"\nconvention = "sdh"\n'
+        + "".join(
+            f'[[joints]]\ntheta = 0.0\nd = {d}\na = {a}\nalpha = {al}\ntype = "{t}"\nlimits = [{lo}, {hi}]\n'
+            for d, a, al, t, lo, hi in (
+                (400.0, 350.0, 0.0, "R", -2.6, 2.6),
+                (0.0, 300.0, np.pi, "R", -2.4, 2.4),
+                (50.0, 0.0, 0.0, "P", 0.0, 200.0),
+                (0.0, 0.0, 0.0, "R", -6.0, 6.0),
+            )
+        )
+    )
+    s = load_robot(tmp_path / "rrpr.toml")
+    q_true = np.array([[0.3, -0.8, 150.0, 1.0], [-1.2, 1.5, 120.0, -0.5]])
+    start = q_true + np.array([0.01, -0.01, -80.0, 0.02])
+    res = compensate(s, np.asarray(fk(s, q_true)), start, position_only=True)
+    assert res.converged.all() and res.pos_residual_mm.max() < 1e-6
+    assert_allclose(res.q[:, 2], q_true[:, 2], atol=1e-6)

@@ -20,6 +20,10 @@ def compensate(
     out: Path = typer.Option(None, help="write the compensated joint commands here (CSV)"),
     length_unit: str = typer.Option(None, help="m | mm (default: the robot file's)"),
     angle_unit: str = typer.Option(None, help="rad | deg (default: the robot file's); also the unit written to --out"),
+    point: int = typer.Option(
+        None,
+        help="a model with measured points (--out-model): the point to bring to the targets (default: its only one)",
+    ),
 ):
     """Joint commands that make the calibrated model reach the targets (damped Newton IK), on
     the branch of the nominal commands and checked against the joint limits."""
@@ -32,7 +36,7 @@ def compensate(
 
     if out is not None:
         check_writable(out, "out")
-    cal = load_robot_arg(calibrated)
+    cal = _compensated_robot(calibrated, point)
     nom = None
     if nominal is not None:  # a nominal URDF: the chain the calibrated URDF records
         chain = calibrated_chain(calibrated)
@@ -53,7 +57,11 @@ def compensate(
         f"reached: {n_ok}/{len(res.q)} (max {int(res.steps.max())} steps); within the joint limits: {n_in}/{len(res.q)}"
     )
     if tg.q is not None:
-        console.print(f"largest joint correction: {np.degrees(np.abs(res.q - tg.q).max()):.4g} deg")
+        moved = np.abs(res.q - tg.q)
+        rev = np.array([t == "R" for t in cal.joint_types])
+        parts = [f"{np.degrees(moved[:, rev].max()):.4g} deg"] if rev.any() else []
+        parts += [f"{moved[:, ~rev].max():.4g} mm"] if (~rev).any() else []
+        console.print(f"largest joint correction: {', '.join(parts)}")
     bad = np.flatnonzero(~res.ok)
     for k in bad[:10]:
         why = "not reached" if not res.converged[k] else "outside the joint limits"
@@ -77,3 +85,34 @@ def compensate(
     if bad.size:
         console.print(f"[yellow]warning:[/yellow] {bad.size} target(s) not reached or outside the joint limits")
         raise typer.Exit(1)
+
+
+def _compensated_robot(calibrated: str, point: int | None):
+    """The robot whose tool is what the targets are for: a model's measured point (the one the
+    data determined; its tool frame is only where the points hang), else the robot's tool."""
+    import numpy as np
+
+    from ..errors import DataError
+    from ..model import Model, load_model, measured_robot
+    from ..robot import PRESETS
+
+    if calibrated in PRESETS:
+        model = Model(load_robot_arg(calibrated))
+    else:
+        model = load_model(calibrated)
+    M = model.n_points
+    if M == 0:
+        if point is not None:
+            raise DataError(
+                f"{calibrated} has no measured points; --point applies to a model with them", option="point"
+            )
+        return model.robot
+    if point is None and M > 1:
+        raise DataError(
+            f"{calibrated} measures {M} points: choose the one the targets are for with --point 1..{M}", option="point"
+        )
+    j = 1 if point is None else point
+    if not 1 <= j <= M:
+        raise DataError(f"--point {j}: {calibrated} measures points 1..{M}", option="point")
+    console.print(f"compensating measured point {j} of {M} (the targets are where it should go)", highlight=False)
+    return measured_robot(Model(model.robot, np.asarray(model.points)[[j - 1]]))

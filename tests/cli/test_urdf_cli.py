@@ -96,3 +96,39 @@ def test_output_kind_is_checked_before_the_fit(monkeypatch, capsys, split):
     assert code == 2 and "--out-model: a URDF robot is written as URDF (.urdf); nothing was computed" in err
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", d / "train.csv", "--out-model", d / "x.urdf")
     assert code == 2 and "a DH robot as TOML" in err
+
+
+def test_compensate_brings_the_measured_point_to_the_targets(monkeypatch, capsys, split, tmp_path):
+    """A model calibrated on one marker: `compensate` brings that marker (the link
+    jaxcal_point1, as yourdfpy reads the written URDF) to the targets, not the tool frame the
+    points hang from; a model of four markers asks which one."""
+    import yourdfpy
+
+    d = split
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--params", "frames", "--folds", "3",
+        "--points", "2", "--out-model", tmp_path / "p2.urdf",
+    )  # fmt: skip
+    assert code in (0, None), err
+    data = read_measurements(d / "test.csv", load_model(tmp_path / "p2.urdf").robot).select_points([2])
+    targets = np.asarray(data.measured)[:, 0] / 1000.0  # m, as the file
+    header = "torso_lift_joint," + ",".join(f"arm_{i}_joint" for i in range(1, 8)) + ",x,y,z"
+    q_file = np.asarray(data.q).copy()
+    q_file[:, 0] /= 1000.0  # the torso in metres
+    rows = [",".join(repr(float(v)) for v in np.r_[qk, t]) for qk, t in zip(q_file, targets)]
+    (tmp_path / "targets.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "compensate", tmp_path / "p2.urdf", tmp_path / "targets.csv", "--out", tmp_path / "q.csv"
+    )
+    assert "compensating measured point 1 of 1" in out
+    got = np.loadtxt(tmp_path / "q.csv", delimiter=",", skiprows=1)
+    urdf = yourdfpy.URDF.load(str(tmp_path / "p2.urdf"), load_meshes=False)
+    names = header.split(",")[:8]
+    for qk, t, reached in zip(got[:, :8], targets, got[:, -2]):
+        urdf.update_cfg(dict(zip(names, qk)))
+        T = urdf.get_transform("jaxcal_point1", "jaxcal_measurement_frame")
+        assert reached == 1 and np.linalg.norm(T[:3, 3] - t) * 1000 < 1e-6
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--params", "frames",
+                             "--folds", "3", "--out-model", tmp_path / "p4.urdf")  # fmt: skip
+    code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "p4.urdf", tmp_path / "targets.csv")
+    assert code == 2 and "--point 1..4" in err
