@@ -178,6 +178,12 @@ def calibrate(
             training_ranges=res.training_ranges,
         )  # fmt: skip
         console.print(f"calibrated robot written to {out_robot}")
+        if res.model.n_points > 1:
+            console.print(
+                f"  it holds the robot, its tool frame where the {res.model.n_points} measured points hang: "
+                f"--out-model CAL.toml also keeps the points (what evaluate needs)",
+                highlight=False,
+            )
     # a URDF robot's --out-robot is its model too: the points are links of the written URDF
     for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
         if path is None:
@@ -202,14 +208,40 @@ def calibrate(
 
 def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:
     """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
+    import equinox as eqx
+    import numpy as np
+
+    from ..calibration import evaluate
     from ..export import save_dh_table, save_report, save_ur_kinematics
+    from ..lie import matrix_to_rpy
+    from ..model import Model
 
     if out_ur_kinematics is not None:
         robot = res.robot.replace(name=f"{res.nominal.name}-calibrated")
         base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment)
         console.print(f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):")
         for what, T in (("base (measurement frame -> base)", base), ("tool (tool0 -> TCP)", tool)):
-            console.print(f"  {what}: xyz {', '.join(f'{v:.4f}' for v in T[:3, 3])} mm", highlight=False)
+            xyz = ", ".join(f"{v:.4f}" for v in T[:3, 3])
+            rpy = ", ".join(f"{v + 0.0:.6f}" for v in np.asarray(matrix_to_rpy(np.asarray(T)[:3, :3])))
+            console.print(f"  {what}: xyz {xyz} mm, rpy {rpy} rad", highlight=False)
+        compliance = res.model.robot.compliance
+        if compliance is not None and np.any(np.asarray(compliance) != 0):  # the controller's model is rigid
+            rigid = eqx.tree_at(lambda r: r.compliance, res.model.robot, None, is_leaf=lambda v: v is None)
+            m = res.model
+            with_c = evaluate(m, meas)["position_rms_mm"]
+            without = evaluate(Model(rigid, m.points, m.camera_params, camera=m.camera), meas)["position_rms_mm"]
+            console.print(
+                f"[yellow]warning:[/yellow] the model has joint compliances, which a UR kinematics file cannot hold: "
+                f"the file's rigid geometry errs {without:.3g} mm RMS on the data, the model with them {with_c:.3g} mm "
+                f"(every pose); --compliance no fits the best rigid model",
+                highlight=False,
+            )
+        if res.model.n_points > 1:
+            console.print(
+                f"  the {res.model.n_points} measured points are not in it either (tool0 is the TCP there): "
+                f"--out-model CAL.toml keeps them",
+                highlight=False,
+            )
     if out_dh is not None:
         save_dh_table(res, out_dh)
         console.print(f"DH table written to {out_dh}")

@@ -44,7 +44,10 @@ def check_ur(robot: Robot, option: str | None = None) -> None:
     joints, the arms a UR kinematics file describes."""
     why = ""
     if robot.convention == "joint":
-        why = "it is described by joint frames (a URDF), not a DH table"
+        why = (
+            "it is described by joint frames (a URDF, or a UR kinematics file whose origins are not in DH form, "
+            "as factory calibrations are), not a DH table"
+        )
     elif robot.n_joints != 6:
         why = f"it has {robot.n_joints} joints, not 6"
     elif "P" in robot.joint_types:

@@ -49,6 +49,15 @@ def test_ur_kinematics_reproduce_the_calibrated_model(tmp_path, monkeypatch, cap
     np.testing.assert_allclose(ends[:, :3, 3], np.asarray(jaxcal.fk(cal, q))[:, :3, 3], atol=1e-6)
     out = " ".join(out.split())  # as rich wrapped it
     assert "not in it" in out and "base (measurement frame -> base)" in out and "tool (tool0 -> TCP)" in out
+    # the base as printed, rotation included, is the calibrated one (roll, pitch, yaw about fixed x, y, z)
+    from scipy.spatial.transform import Rotation
+
+    said = out.split("base (measurement frame -> base): xyz ")[1].split(" rad")[0]
+    xyz, rpy = (np.array(part.split(", "), float) for part in said.split(" mm, rpy "))
+    np.testing.assert_allclose(xyz, np.asarray(cal.base)[:3, 3], atol=1e-4)
+    R = Rotation.from_euler("xyz", rpy).as_matrix()
+    np.testing.assert_allclose(R, np.asarray(cal.base)[:3, :3], atol=2e-6)
+    assert np.abs(rpy).max() > 1e-4  # a turned base: the rotation matters
     text = (tmp_path / "cal.yaml").read_text()
     assert "# not in this file" in text and "heldout_rms_mm" in text
     # the DH table holds the calibrated table of the robot file
@@ -83,7 +92,7 @@ def _no_fit(*a, **kw):
     "robot, flag, msg",
     [
         ("panda", "--out-ur-kinematics", "needs a six-joint revolute DH robot in UR's convention; 'panda' is not"),
-        ("tiago", "--out-ur-kinematics", "described by joint frames (a URDF), not a DH table"),
+        ("tiago", "--out-ur-kinematics", "described by joint frames (a URDF, or a UR kinematics file whose"),
         ("tiago", "--out-dh", "is described by joint frames (a URDF), not a DH table"),
     ],
 )

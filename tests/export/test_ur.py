@@ -107,7 +107,7 @@ def test_a_factory_style_file_reads_as_joint_frames(tmp_path, rng):
     [
         (preset("panda"), "it has 7 joints, not 6"),
         (preset("ur5").replace(joint_types=("R", "R", "P", "R", "R", "R")), "joint 3 is prismatic"),
-        (jaxcal.to_joint(preset("ur5")), "described by joint frames (a URDF), not a DH table"),
+        (jaxcal.to_joint(preset("ur5")), "described by joint frames (a URDF, or a UR kinematics file whose origins"),
     ],
 )
 def test_other_robots_refused(tmp_path, robot, why):
