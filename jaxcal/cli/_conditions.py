@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-REGION_HELP = "box the measured point(s) must stay in: xmin,ymin,zmin,xmax,ymax,zmax (mm, robot base frame)"
+REGION_HELP = (
+    "box the measured point(s) must stay in: xmin,ymin,zmin,xmax,ymax,zmax (mm, the frame the robot file's "
+    "base is given in: its measurement frame)"
+)
 VIEW_HELP = (
     "a camera's view cone the measured point(s) must stay in: X,Y,Z,DX,DY,DZ,HALF_ANGLE[,NEAR,FAR] "
-    "(camera position and viewing direction in mm, robot base frame; half-angle in deg; range along "
-    "the axis in mm)"
+    "(camera position and viewing direction in mm, the frame the robot file's base is given in; half-angle "
+    "in deg; range along the axis in mm)"
 )
 SPREAD_HELP = "smallest joint-space distance between two poses (rad)"
 

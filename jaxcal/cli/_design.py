@@ -67,6 +67,7 @@ def design(
     chosen from a pool; compared with random poses of the same count."""
     from .._io import check_writable, write_atomic
     from ..design import design_problem, optimal_poses, select_poses, write_poses
+    from ..errors import DataError
 
     check_writable(out, "out")
     if json_out is not None:
@@ -103,6 +104,12 @@ def design(
     if params_from is not None:
         console.print(f"parameters of {params_from}: {', '.join(result.base_names)}", highlight=False, markup=False)
     console.print(result.report(), highlight=False, markup=False, soft_wrap=True)
+    if not result.feasible:  # poses that leave the region, the view or the spread are not a design
+        raise DataError(
+            "no start met the region, the view and the minimum spread together; nothing was written (more --starts, "
+            "a larger region or a smaller --min-spread)",
+            option="region",
+        )
     write_poses(out, result.q, r)
     console.print(f"wrote {out}")
     if json_out is not None:

@@ -31,6 +31,16 @@ def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.n
     values = parse_rows(records, header, cols, src)[0]
     q = values * _scales(robot, length_unit, angle_unit)
     check_q(robot, q)
+    lim = np.asarray(robot.q_limits)
+    bad = (q < lim[:, 0]) | (q > lim[:, 1])
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        raise DataError(
+            f"{src}: row {k + 1} (line {records[k][0]}), column '{cols[j]}': {values[k, j]:.6g} is outside the "
+            f"joint limits [{lim[j, 0] / _scales(robot, length_unit, angle_unit)[j]:.6g}, "
+            f"{lim[j, 1] / _scales(robot, length_unit, angle_unit)[j]:.6g}] ({int(bad.any(1).sum())} such row(s))",
+            option="q",
+        )
     return q
 
 

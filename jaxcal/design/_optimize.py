@@ -165,6 +165,7 @@ def optimal_poses(
     n_poses = count("n_poses", n_poses, 1)
     starts, seed, n_random = count("starts", starts, 1), count("seed", seed, 0), count("n_random", n_random, 1)
     cons = constraints(min_spread, region, view)
+    start_given = start_pool is not None
     if start_pool is None:
         start_pool = POOL_STARTS if cons.has_region and q0 is None else 0
     start_pool = count("start_pool", start_pool, 0)
@@ -181,11 +182,23 @@ def optimal_poses(
             option="n_poses",
         )
     rng = np.random.default_rng([seed, 2])
+    pool_asked = start_pool
     if q0 is None and start_pool:
         where = constraints(0.0, region, view)  # the exchange keeps the spread among the chosen
-        pools = random_feasible(problem, where, (starts, start_pool), rng)
-        q0 = np.stack([pools[s][exchange(problem, cons, pools[s], n_poses, 10 * n_poses)[0]] for s in range(starts)])
-    elif q0 is None:
+        try:
+            pools = random_feasible(problem, where, (starts, start_pool), rng)
+        except DataError:
+            if start_given:
+                raise
+            pools = None  # a region too tight for the default pool may still hold the poses asked for
+        if pools is not None:
+            picked = [
+                exchange(problem, cons, pools[s], n_poses, 10 * n_poses, option="min_spread")[0] for s in range(starts)
+            ]
+            q0 = np.stack([pools[s][i] for s, i in enumerate(picked)])
+        else:
+            pool_asked = 0
+    if q0 is None and not pool_asked:
         q0 = random_feasible(problem, cons, (starts, n_poses), rng)
     else:
         q0 = np.asarray(q0, dtype=np.float64)

@@ -129,10 +129,11 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
     return out[0], out[2]
 
 
-def exchange(problem: DesignProblem, cons, pool: np.ndarray, n_poses: int, max_swaps: int):
+def exchange(problem: DesignProblem, cons, pool: np.ndarray, n_poses: int, max_swaps: int, *, option: str = "pool"):
     """Pool rows of the best ``n_poses`` by greedy start and Fedorov exchange, among the pool
     poses in the region and view and never two closer than the spread: ``(indices, swaps,
-    usable candidates)``. Raises :class:`jaxcal.DataError` when too few are usable."""
+    usable candidates)``. Raises :class:`jaxcal.DataError` when too few are usable (said of
+    ``option``: the pool given, or the constraints a pool drawn for them could not meet)."""
     allowed = np.ones(len(pool), bool)
     if cons.has_region:
         allowed = in_region(cons, positions(problem, pool))
@@ -141,10 +142,11 @@ def exchange(problem: DesignProblem, cons, pool: np.ndarray, n_poses: int, max_s
     L = jnp.asarray(pose_blocks(problem, pool))
     start = np.asarray(_greedy(problem, L, jnp.asarray(allowed), jnp.asarray(close), n_poses))
     if np.any(start < 0):
+        what = "pool" if option == "pool" else f"{len(pool)} random configurations in the region and view"
         raise DataError(
-            f"pool: only {int(np.sum(start >= 0))} poses satisfy the region, the view and the minimum spread together, "
-            f"fewer than the {n_poses} asked for",
-            option="pool",
+            f"{option}: only {int(np.sum(start >= 0))} of {what} satisfy the region, the view and the minimum "
+            f"spread together, fewer than the {n_poses} asked for",
+            option=option,
         )
     chosen, swaps = _exchange(problem, L, jnp.asarray(start), jnp.asarray(allowed), jnp.asarray(close), max_swaps)
     return np.asarray(chosen), int(swaps), int(allowed.sum())

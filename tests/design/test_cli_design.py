@@ -3,6 +3,7 @@ simulated calibration lands near the design's predicted validation RMS."""
 
 import json
 
+import numpy as np
 import pytest
 from helpers import run_cli
 
@@ -127,3 +128,41 @@ def test_montecarlo_judges_a_design_in_its_conditions(monkeypatch, capsys, tmp_p
     c = json.loads(js.read_text())["conditions"]
     assert c["calibration_poses"] == "given" and c["given_poses_meet_conditions"]
     assert c["calibration_poses_file"] == str(poses)
+
+
+def test_pose_file_beyond_the_limits_and_a_spread_no_pose_set_meets(monkeypatch, capsys, tmp_path):
+    """A pool value beyond the joint limits is refused by its data row, line and column; a
+    minimum spread the poses in the box cannot keep names --min-spread, not a pool never given."""
+    pool = tmp_path / "pool.csv"
+    q = np.random.default_rng(7).uniform(-3.0, 3.0, (40, 6))
+    q[5, 2] = 3.3  # data row 6, line 7
+    pool.write_text("q1,q2,q3,q4,q5,q6\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in q))
+    out = tmp_path / "p.csv"
+    code, _, err = run_cli(monkeypatch, capsys, "design", "ur5", "--poses", "8", "--out", out, "--pool", pool)
+    err = " ".join(err.split())
+    assert code == 2 and "row 6 (line 7), column 'q3': 3.3 is outside the joint limits" in err, err
+    code, _, err = run_cli(
+        monkeypatch, capsys, "design", "ur5", "--poses", "8", "--out", out, "--region", "-900,-900,-200,900,900,900",
+        "--min-spread", "9", "--random-sets", "5", "--starts", "1",
+    )  # fmt: skip
+    err = " ".join(err.split())
+    assert code == 2 and "--min-spread: only" in err and "fewer than the 8 asked for" in err, err
+    assert not out.exists()
+
+
+def test_a_box_too_small_for_the_default_start_pool_still_gives_the_poses(monkeypatch, capsys, tmp_path):
+    """A box that about 1 in 2700 configurations reach: a start pool of 1000 such poses would
+    need more draws than allowed, the 12 poses asked for do not; the design is made, within it."""
+    out = tmp_path / "p.csv"
+    code, stdout, err = run_cli(
+        monkeypatch, capsys, "design", "ur5", "--poses", "12", "--out", out, "--region", "300,300,200,420,420,320",
+        "--random-sets", "5", "--starts", "1", "--seed", "1",
+    )  # fmt: skip
+    assert code in (0, None), err
+    import jaxcal
+
+    r = jaxcal.preset("ur5")
+    p = np.asarray(jaxcal.fk(r, jaxcal.design.read_poses(out, r)))[:, :3, 3]
+    assert len(p) == 12 and np.all(
+        (p >= [300 - 1e-6, 300 - 1e-6, 200 - 1e-6]) & (p <= [420 + 1e-6, 420 + 1e-6, 320 + 1e-6])
+    )
