@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._config import as_f64
+from .calibration import check_angles, check_units
 from .error_model import point_jacobian, pose_error
 from .errors import DataError
 from .kinematics import deflected, fk
@@ -254,5 +255,9 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
         position_only = False
     else:
         poses, position_only = targets.poses, targets.position_only
+    if targets.q is not None:  # the units checks calibrate and evaluate make, on the commands
+        q = np.asarray(targets.q)
+        check_angles(calibrated, q)
+        check_units(calibrated, q, poses, 0, batched=False, model_positions=np.asarray(fk(calibrated, q))[:, :3, 3])
     q0 = targets.q if targets.q is not None else np.tile(np.asarray(calibrated.q_limits).mean(axis=1), (len(poses), 1))
     return poses, compensate(calibrated, poses, q0, position_only=position_only, **kw)

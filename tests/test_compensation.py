@@ -168,3 +168,26 @@ def test_a_compliant_arm_and_a_long_prismatic_move_are_reached(rng, tmp_path):
     res = compensate(s, np.asarray(fk(s, q_true)), start, position_only=True)
     assert res.converged.all() and res.pos_residual_mm.max() < 1e-6
     assert_allclose(res.q[:, 2], q_true[:, 2], atol=1e-6)
+
+
+def test_targets_in_another_unit_are_refused_naming_the_option(tmp_path):
+    """Commands with target positions, written in metres for a robot in mm, or the commands in
+    degrees: refused as calibrate and evaluate refuse them, naming the option that reads them."""
+    r = preset("paper-6r")
+    q = np.asarray(simulate(r, n_poses=8, seed=2).q[0])
+    pos = np.asarray(fk(r, q))[:, :3, 3]
+
+    def targets(qs, ps):
+        p = tmp_path / "t.csv"
+        rows = ["q1,q2,q3,q4,q5,q6,x,y,z"] + [",".join(repr(float(v)) for v in np.r_[a, b]) for a, b in zip(qs, ps)]
+        p.write_text("\n".join(rows) + "\n")
+        return read_targets(p, r)
+
+    poses, res = compensate_targets(r, targets(q, pos))
+    assert res.converged.all()
+    with pytest.raises(DataError, match="metres read as millimetres") as e:
+        compensate_targets(r, targets(q, pos / 1000.0))
+    assert e.value.option == "length_unit"
+    with pytest.raises(DataError, match="look like degrees") as e:
+        compensate_targets(r, targets(np.degrees(q), pos))
+    assert e.value.option == "angle_unit"
