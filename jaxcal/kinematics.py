@@ -137,7 +137,8 @@ GRAVITY = (0.0, 0.0, -1.0)
 
 
 def gravity_moments(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n"]:
-    r"""Moment arm (mm) about each joint's axis of a unit weight at the tool origin, at the joint
+    r"""Moment arm (mm) about each joint's axis of a unit weight at the tool origin (or at the
+    robot's :attr:`~jaxcal.Robot.load` point), at the joint
     values ``q``: $\tau_i = u_i \cdot ((p - o_i) \times g)$ with the axis $u_i$ through $o_i$, the
     tool origin $p$ and :data:`GRAVITY` $g$, all in the robot's base frame. A prismatic joint's
     entry is 0. What a compliant joint's deflection is proportional to (:attr:`Robot.compliance`).
@@ -145,11 +146,13 @@ def gravity_moments(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n
     q = jnp.asarray(q)
     flat = q.reshape(-1, robot.n_joints)
     r = eqx.tree_at(lambda r: (r.base, r.compliance), robot, (jnp.eye(4), None), is_leaf=lambda x: x is None)
+    load = jnp.zeros(3) if r.load is None else r.load
+    weight = r.tool @ jnp.append(load, 1.0)  # in the last joint frame
     if r.convention == "joint":
         F, _, G = joint_chain(r, flat)  # (n, K, 4, 4)
         u = jnp.einsum("nkab,nb->kna", F[..., :3, :3], r.axes)
         o = jnp.swapaxes(F[..., :3, 3], 0, 1)
-        p = (G @ r.tool)[:, :3, 3]
+        p = (G @ weight)[:, :3]
     else:
         _, _, ys = chain(r, link_inputs(r, flat), frames=True)  # (n, 12, K): R row-major, then t
         ys = jnp.transpose(ys, (2, 0, 1))  # (K, n, 12)
@@ -160,7 +163,7 @@ def gravity_moments(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n
             t = jnp.concatenate([jnp.zeros((K, 1, 3)), t[:, :-1]], 1)
         u, o = z, t
         R_n = ys[:, -1, :9].reshape(-1, 3, 3)
-        p = jnp.einsum("kab,b->ka", R_n, r.tool[:3, 3]) + ys[:, -1, 9:]
+        p = jnp.einsum("kab,b->ka", R_n, weight[:3]) + ys[:, -1, 9:]
     tau = jnp.einsum("kna,kna->kn", u, jnp.cross(p[:, None, :] - o, jnp.asarray(GRAVITY)))
     return (tau * r.revolute_mask).reshape(q.shape)
 

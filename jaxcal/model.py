@@ -165,12 +165,16 @@ def measured_robot(model: Model) -> Robot:
     a controller should load."""
     if model.n_points != 1:
         return model.robot
-    if isinstance(model.points, jax.core.Tracer) or isinstance(model.robot.tool, jax.core.Tracer):
+    robot = model.robot
+    if robot.compliance is not None:  # the compliances' weight stays where the fit had it
+        load = (jnp.zeros(3) if robot.load is None else robot.load) - model.points[0]
+        robot = eqx.tree_at(lambda r: r.load, robot, load, is_leaf=lambda v: v is None)
+    if isinstance(model.points, jax.core.Tracer) or isinstance(robot.tool, jax.core.Tracer):
         offset = jnp.eye(4).at[:3, 3].set(model.points[0])
-        return eqx.tree_at(lambda r: r.tool, model.robot, model.robot.tool @ offset)
-    tool = np.array(model.robot.tool)  # NumPy: eager JAX operations would each compile
+        return eqx.tree_at(lambda r: r.tool, robot, robot.tool @ offset)
+    tool = np.array(robot.tool)  # NumPy: eager JAX operations would each compile
     tool[:3, 3] += tool[:3, :3] @ np.asarray(model.points)[0]
-    return eqx.tree_at(lambda r: r.tool, model.robot, jnp.asarray(tool, jnp.float64))
+    return eqx.tree_at(lambda r: r.tool, robot, jnp.asarray(tool, jnp.float64))
 
 
 def apply(model: Model, layout: Layout, x: Float[Array, " m"]) -> Model:

@@ -151,3 +151,29 @@ def test_compliance_with_geometry_errors_is_close(rng):
         assert abs(res.delta(name) - c[j]) < 0.05 * c[j]
     assert np.abs(np.asarray(predict(res.model, q_new)) - measure(q_new)).max() < 0.01
     assert jaxcal.calibrate(nominal, q, measure(q), compliance="no").after["pos_rms_mm"] > 1.0
+
+
+def test_a_point_folded_into_the_tool_keeps_the_compliances_weight(tmp_path, rng):
+    """A one-point model's robot (the point folded into its tool, what --out-robot writes) keeps
+    the unit weight where the model had it, the old tool origin: its moments are those of that
+    weight by autodiff, its forward kinematics the model's prediction of the point, and a TOML in
+    metres and degrees reads back the same. Without the load point the two part by millimetres."""
+    from jaxcal.model import measured_robot, predict
+
+    tool = np.eye(4)
+    tool[:3, :3] = jaxcal.lie.rpy_to_matrix(np.array([0.3, -0.2, 0.5]))
+    ur5 = jaxcal.preset("ur5").replace(compliance=np.r_[0.0, rng.uniform(1e-5, 3e-5, 3), 0.0, 0.0], tool=tool)
+    model = Model(ur5, np.array([[80.0, -60.0, 200.0]]))
+    folded = measured_robot(model)
+    q = rng.uniform(-1.5, 1.5, (12, 6))
+    assert_allclose(
+        np.asarray(eqx.filter_jit(gravity_moments)(folded, q)), np.asarray(_moments_by_autodiff(ur5, jnp.asarray(q))),
+        atol=1e-8,
+    )  # fmt: skip
+    want = np.asarray(predict(model, q))[:, 0]
+    assert_allclose(np.asarray(jaxcal.fk(folded, q))[:, :3, 3], want, atol=1e-9)
+    jaxcal.save_robot(folded.replace(units=("m", "deg")), tmp_path / "f.toml")
+    back = jaxcal.load_robot(tmp_path / "f.toml")
+    assert_allclose(np.asarray(jaxcal.fk(back, q))[:, :3, 3], want, atol=1e-9)
+    moved = np.asarray(jaxcal.fk(folded.replace(load=None), q))[:, :3, 3]
+    assert np.linalg.norm(moved - want, axis=-1).max() > 0.5  # the weight's place matters here

@@ -61,6 +61,10 @@ class Robot(eqx.Module):
     ``compliance_i * tau_i(q)`` beyond its command, ``tau_i`` the gravity moment arm (mm) about its
     axis of a unit weight at the tool origin (:func:`jaxcal.kinematics.gravity_moments`); 0 for
     prismatic joints."""
+    load: Float[Array, " 3"] | None = None
+    """Where that unit weight sits, in the tool frame (mm), when not at the tool origin: a
+    measured point folded into the tool (:func:`jaxcal.model.measured_robot`) moves the tool, not
+    the weight the compliances were fitted with. ``None``: the tool origin."""
     convention: str = eqx.field(static=True)
     joint_types: tuple[str, ...] = eqx.field(static=True)
     name: str = eqx.field(static=True, default="robot")
@@ -85,6 +89,7 @@ class Robot(eqx.Module):
         origins=None,
         axes=None,
         compliance=None,
+        load=None,
     ):
         if convention not in CONVENTIONS:
             raise RobotFileError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
@@ -122,6 +127,9 @@ class Robot(eqx.Module):
             raise RobotFileError(f"joint {j + 1}: lower limit is not below the upper limit")
         self.q_limits = q_limits
         self.compliance = _check_compliance(compliance, joint_types)
+        self.load = None if load is None else as_f64(load, "load")
+        if self.load is not None and (self.load.shape != (3,) or not np.all(np.isfinite(np.asarray(self.load)))):
+            raise RobotFileError(f"load must be 3 finite numbers (mm, tool frame), got {np.asarray(load)!r}")
         self.convention = convention
         self.joint_types = joint_types
         self.name = str(name)
@@ -207,6 +215,7 @@ class Robot(eqx.Module):
             origins=self.origins,
             axes=self.axes,
             compliance=self.compliance,
+            load=self.load,
         )
         args.update(kw)
         return Robot(**args)
@@ -216,7 +225,18 @@ class Robot(eqx.Module):
         descriptive fields, without validating again. Compiled functions are specialised on
         the static fields: stripping the description lets robots of one structure share them."""
         new = object.__new__(Robot)
-        for f in ("dh", "base", "tool", "q_limits", "origins", "axes", "compliance", "convention", "joint_types"):
+        for f in (
+            "dh",
+            "base",
+            "tool",
+            "q_limits",
+            "origins",
+            "axes",
+            "compliance",
+            "load",
+            "convention",
+            "joint_types",
+        ):
             object.__setattr__(new, f, getattr(self, f))
         n = len(self.joint_types)
         object.__setattr__(new, "name", name)

@@ -15,6 +15,8 @@ File shape (see README)::
     limits = [-3.14, 3.14]      # optional: joint limits (angle unit, or length unit if "P")
     compliance = 0.0            # optional: turn per length of gravity moment arm (angle unit
                                 # per length unit; jaxcal.Robot.compliance)
+    load = [0.0, 0.0, 0.0]      # optional: where the compliances' weight sits in the tool frame
+                                # (length unit; jaxcal.Robot.load; default the tool origin)
     [tool]                      # optional, flange -> tool point/frame
     xyz = [0.0, 0.0, 0.0]
     rpy = [0.0, 0.0, 0.0]       # roll-pitch-yaw, fixed axes x-y-z
@@ -37,7 +39,9 @@ from ._robot import ANGLE_UNITS as ANGLE
 from ._robot import LENGTH_UNITS as LENGTH
 from ._robot import Robot
 
-TOP_KEYS = {"name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points"}
+TOP_KEYS = {
+    "name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points", "load"
+}  # fmt: skip
 JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits", "compliance"}
 FRAME_KEYS = {"xyz", "rpy"}
 
@@ -122,6 +126,11 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
             limits.append([_num(x, f"joint {i} limits") * scale for x in lim])
     base = _frame(doc["base"], "base", lu, au) if "base" in doc else None
     tool = _frame(doc["tool"], "tool", lu, au) if "tool" in doc else None
+    load = doc.get("load")
+    if load is not None:
+        if not isinstance(load, list) or len(load) != 3:
+            raise RobotFileError(f"{source}: load must be [x, y, z] (the compliances' weight in the tool frame)")
+        load = [_num(v, f"load[{i}]") * lu for i, v in enumerate(load)]
     name = doc.get("name", "robot")
     if not isinstance(name, str):
         raise RobotFileError(f"{source}: name must be a string")
@@ -136,6 +145,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
         joint_names=names,
         units=(lu_name, au_name),
         compliance=None if all(c is None for c in compliance) else [c or 0.0 for c in compliance],
+        load=load,
     )
 
 
@@ -192,6 +202,8 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> 
     if robot.compliance is not None:
         for j, c in zip(doc["joints"], np.asarray(robot.compliance)):
             j["compliance"] = float(c) * lu / au
+        if robot.load is not None:
+            doc["load"] = [float(v) / lu for v in np.asarray(robot.load)]
     for key in ("tool", "base"):
         T = np.asarray(getattr(robot, key))
         if not np.allclose(T, np.eye(4), atol=0, rtol=0):

@@ -359,6 +359,11 @@ def urdf_text(
     """The URDF of a joint-frame ``robot`` (see the module docstring): the chain of the
     ``template`` file it was read from (with the same ``base_link`` and ``tip_link``) with the
     corrections folded in, or a minimal chain of its own without one."""
+    if robot.load is not None and robot.compliance is not None:
+        raise RobotFileError(
+            "this robot's compliances weigh a point that is not its tool origin (a measured point folded into its "
+            "tool); write the model with its points instead (jaxcal.save_model, --out-model)"
+        )
     yourdfpy = _yourdfpy()
     if robot.convention != "joint":
         raise RobotFileError("only joint-frame robots are written as URDF (jaxcal.kinematics.to_joint converts DH)")
