@@ -6,6 +6,8 @@ File shape (see README)::
     convention = "sdh"          # "sdh" or "mdh"
     length_unit = "mm"          # "mm" or "m"
     angle_unit = "rad"          # "rad" or "deg"
+    load = [0.0, 0.0, 0.0]      # optional: where the compliances' weight sits in the tool frame
+                                # (length unit; jaxcal.Robot.load; default the tool origin)
     [[joints]]                  # one table per joint, base to tip
     theta = 0.0                 # joint offset added to q
     d = 0.0
@@ -15,8 +17,6 @@ File shape (see README)::
     limits = [-3.14, 3.14]      # optional: joint limits (angle unit, or length unit if "P")
     compliance = 0.0            # optional: turn per length of gravity moment arm (angle unit
                                 # per length unit; jaxcal.Robot.compliance)
-    load = [0.0, 0.0, 0.0]      # optional: where the compliances' weight sits in the tool frame
-                                # (length unit; jaxcal.Robot.load; default the tool origin)
     [tool]                      # optional, flange -> tool point/frame
     xyz = [0.0, 0.0, 0.0]
     rpy = [0.0, 0.0, 0.0]       # roll-pitch-yaw, fixed axes x-y-z
