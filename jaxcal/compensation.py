@@ -258,6 +258,7 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
     if targets.q is not None:  # the units checks calibrate and evaluate make, on the commands
         q = np.asarray(targets.q)
         check_angles(calibrated, q)
-        check_units(calibrated, q, poses, 0, batched=False, model_positions=np.asarray(fk(calibrated, q))[:, :3, 3])
+        model = np.asarray(fk(calibrated, q))[:, :3, 3]
+        check_units(calibrated, q, poses, 0, batched=False, model_positions=model, robust=True)  # a few wild targets
     q0 = targets.q if targets.q is not None else np.tile(np.asarray(calibrated.q_limits).mean(axis=1), (len(poses), 1))
     return poses, compensate(calibrated, poses, q0, position_only=position_only, **kw)

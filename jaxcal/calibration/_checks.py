@@ -116,11 +116,14 @@ model's: angles in radians read as degrees (limits of +-pi then span 6.3 deg, +-
 It only names the likely cause: such data are refused either way."""
 
 
-def check_units(robot: Robot, q, target, n_points: int, *, batched: bool, model_positions) -> None:
+def check_units(
+    robot: Robot, q, target, n_points: int, *, batched: bool, model_positions, robust: bool = False
+) -> None:
     """Refuse a length-unit mismatch: the spread of the measured points (RMS distance to their
     centroid, independent of the unknown measurement frame) must be within 3x of the nominal
     model's at the same joint values; metres read as mm give 1000x. ``model_positions`` are the
-    nominal model's tool positions at ``q``."""
+    nominal model's tool positions at ``q``. ``robust``: the median distance to the median point
+    instead, for rows that may hold a few wild values (targets, not measurements)."""
     Q = q if batched else q[None]
     P_mea = positions_of(target if batched else target[None], n_points)
     P_mod = model_positions if batched else model_positions[None]
@@ -131,6 +134,8 @@ def check_units(robot: Robot, q, target, n_points: int, *, batched: bool, model_
 
     def spread(P):
         P = np.where(seen, P, np.nan)
+        if robust:
+            return np.nanmedian(np.linalg.norm(P - np.nanmedian(P, -2, keepdims=True), axis=-1), -1)
         return np.sqrt(np.nanmean(np.sum((P - np.nanmean(P, -2, keepdims=True)) ** 2, -1), -1))
 
     s_mod, s_mea = spread(np.asarray(P_mod)), spread(P_mea)

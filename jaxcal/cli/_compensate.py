@@ -36,13 +36,14 @@ def compensate(
 
     if out is not None:
         check_writable(out, "out")
-    cal = _compensated_robot(calibrated, point)
+    model = _model_of(calibrated)
     nom = None
     if nominal is not None:  # a nominal URDF: the chain the calibrated URDF records
         chain = calibrated_chain(calibrated)
         urdf = Path(nominal).suffix.lower() in (".urdf", ".xml") and calibrated_chain(nominal) is None
         nom = load_robot_arg(nominal, *(chain if chain and urdf else (None, None)))
-    tg = read_targets(targets, cal, length_unit=length_unit, angle_unit=angle_unit)
+    tg = read_targets(targets, model.robot, length_unit=length_unit, angle_unit=angle_unit)
+    cal = _target_frame(model, calibrated, point, commands_only=tg.poses is None)
     _, res = compensate_targets(cal, tg, nominal=nom)
     table = Table(title=f"compensation of {len(res.q)} targets")
     for col in ("", "position residual (mm)", "rotation residual (deg)"):
@@ -87,25 +88,27 @@ def compensate(
         raise typer.Exit(1)
 
 
-def _compensated_robot(calibrated: str, point: int | None):
-    """The robot whose tool is what the targets are for: a model's measured point (the one the
-    data determined; its tool frame is only where the points hang), else the robot's tool."""
+def _model_of(calibrated: str):
+    from ..model import Model, load_model
+    from ..robot import PRESETS
+
+    return Model(load_robot_arg(calibrated)) if calibrated in PRESETS else load_model(calibrated)
+
+
+def _target_frame(model, calibrated: str, point: int | None, *, commands_only: bool):
+    """The robot whose tool is what the targets are for: for target positions, a model's
+    measured point (the one the data determined; its tool frame is only where the points hang);
+    for commands only, the tool, where the nominal robot puts its own."""
     import numpy as np
 
     from ..errors import DataError
-    from ..model import Model, load_model, measured_robot
-    from ..robot import PRESETS
+    from ..model import Model, measured_robot
 
-    if calibrated in PRESETS:
-        model = Model(load_robot_arg(calibrated))
-    else:
-        model = load_model(calibrated)
     M = model.n_points
-    if M == 0:
-        if point is not None:
-            raise DataError(
-                f"{calibrated} has no measured points; --point applies to a model with them", option="point"
-            )
+    if point is not None and (M == 0 or commands_only):
+        why = "has no measured points" if M == 0 else "is given commands only: the targets are the nominal tool's"
+        raise DataError(f"--point: {calibrated} {why}", option="point")
+    if M == 0 or commands_only:
         return model.robot
     if point is None and M > 1:
         raise DataError(
