@@ -67,6 +67,8 @@ def compensate(
     for k in bad[:10]:
         why = "not reached" if not res.converged[k] else "outside the joint limits"
         console.print(f"  row {int(tg.rows[k])}: {why}", highlight=False)
+    if bad.size > 10:
+        console.print(f"  ... and {bad.size - 10} more (--out flags every row)", highlight=False)
     if out is not None:
         lu = unit_scale(length_unit, LENGTH_UNITS, "length_unit", cal.units[0])[0]
         au = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", cal.units[1])[0]

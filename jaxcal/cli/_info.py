@@ -34,7 +34,7 @@ def info(
                 " ".join(f"{v:.6g}" for v in rpy), f"{lim[0]:.4g} .. {lim[1]:.4g}",
             )  # fmt: skip
     else:
-        for col in ("joint", "name", "type", "theta", "d (mm)", "a (mm)", "alpha"):
+        for col in ("joint", "name", "type", "theta (rad)", "d (mm)", "a (mm)", "alpha (rad)"):
             table.add_column(col)
         for i, (row, t, n) in enumerate(zip(np.asarray(r.dh), r.joint_types, r.joint_names), start=1):
             table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row))
