@@ -85,7 +85,8 @@ def calibrate(
     ),
     json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
     out_robot: Path = typer.Option(
-        None, help="write the calibrated robot here (TOML; one measured point becomes the tool)"
+        None,
+        help="write the calibrated robot here (TOML; one measured point becomes the tool, several are kept as points)",
     ),
     out_model: Path = typer.Option(
         None,
@@ -103,6 +104,8 @@ def calibrate(
     tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
 ):
     """Calibrate from measured data with K-fold held-out validation (base and tool estimated)."""
+    import numpy as np
+
     from .._io import check_writable, write_atomic
     from ..calibration import GAUGE, calibrate_data
     from ..errors import DataError, ImplausibleFitError
@@ -173,15 +176,16 @@ def calibrate(
         "gauge": GAUGE,
     }
     if out_robot is not None and nominal.convention != "joint":
+        several = res.model.n_points > 1  # no one point is the tool: they are written beside it
         save_robot(
             res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
-            training_ranges=res.training_ranges,
+            training_ranges=res.training_ranges, points=np.asarray(res.model.points) if several else None,
         )  # fmt: skip
         console.print(f"calibrated robot written to {out_robot}")
-        if res.model.n_points > 1:
+        if several:
             console.print(
-                f"  it holds the robot, its tool frame where the {res.model.n_points} measured points hang: "
-                f"--out-model CAL.toml also keeps the points (what evaluate needs)",
+                f"  with the {res.model.n_points} measured points (`points`, tool frame); its tool frame is where "
+                f"they hang, not one of them",
                 highlight=False,
             )
     # a URDF robot's --out-robot is its model too: the points are links of the written URDF
@@ -239,7 +243,7 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> Non
         if res.model.n_points > 1:
             console.print(
                 f"  the {res.model.n_points} measured points are not in it either (tool0 is the TCP there): "
-                f"--out-model CAL.toml keeps them",
+                f"--out-robot CAL.toml keeps them",
                 highlight=False,
             )
     if out_dh is not None:

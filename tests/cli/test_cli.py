@@ -177,3 +177,31 @@ def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys)
     rows = (tmp_path / "o.csv").read_text().splitlines()
     reached = [ln.split(",")[-2] for ln in rows[1:]]
     assert reached == ["1", "1", "0", "1"]
+
+
+def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
+    """Three markers per pose on a DH robot: `--out-robot` writes the robot with its points, and
+    `jaxcal evaluate` of that file alone reproduces the calibration's training error."""
+    import json
+
+    r = preset("ur5")
+    sim = simulate(r, n_poses=30, seed=5, sigma_pos=0.0, base=True, tool=True)
+    T = np.asarray(sim.measured[0])
+    pts = np.array([[40.0, 0.0, 30.0], [-30.0, 50.0, 20.0], [0.0, -45.0, 60.0]])
+    P = np.einsum("kij,mj->kmi", T[:, :3, :3], pts) + T[:, None, :3, 3]
+    P += np.random.default_rng(5).normal(scale=0.02, size=P.shape)
+    head = ",".join([f"q{i}" for i in range(1, 7)] + [f"{a}{m}" for m in (1, 2, 3) for a in "xyz"])
+    rows = [",".join(repr(float(v)) for v in np.r_[q, p.ravel()]) for q, p in zip(np.asarray(sim.q[0]), P)]
+    data = _write(tmp_path, [head, *rows], "three.csv")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--out-robot", tmp_path / "cal.toml",
+        "--json", tmp_path / "rep.json",
+    )  # fmt: skip
+    assert code in (0, None), err
+    assert "with the 3 measured points" in " ".join(out.split())
+    code, out, err = run_cli(
+        monkeypatch, capsys, "evaluate", tmp_path / "cal.toml", data, "--json", tmp_path / "ev.json"
+    )
+    assert code in (0, None), err
+    train = json.loads((tmp_path / "rep.json").read_text())["train_rms_mm"]
+    assert json.loads((tmp_path / "ev.json").read_text())["position_rms_mm"] == pytest.approx(train, rel=1e-6)
