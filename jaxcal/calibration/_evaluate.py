@@ -86,8 +86,8 @@ def _far(model: Model, meas, pos, rot) -> list[str]:
     reach in position, :data:`ROTATION_DEG` in rotation), naming the input mistake that would
     explain them if one does (the mistakes :func:`._plausibility.variants` tries, each predicted
     with the model as it is; ``pos``, ``rot`` the RMS errors of the data as given)."""
-    limit = RESIDUAL_SHARE * model.robot.reach()
     q, M = np.asarray(meas.q), meas.n_points
+    limit = RESIDUAL_SHARE * model.robot.reach(q)
     if pos <= limit and rot <= ROTATION_DEG:
         return []
     tried = {m: _rms(model, qv, tv, M) for m, (qv, tv) in variants(model.robot, q, meas.measured, M).items()}

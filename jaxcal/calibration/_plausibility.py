@@ -3,7 +3,8 @@
 A converged fit is not a calibration when its residuals or its parameter changes are far beyond
 what a geometric calibration produces (:func:`findings`). The thresholds, all options:
 
-- ``max_residual_mm`` (default 1 % of the robot's reach): the calibrated position RMS;
+- ``max_residual_mm`` (default 1 % of the robot's reach, prismatic strokes as far as the data
+  move them): the calibrated position RMS;
 - ``max_rotation_deg`` (2 deg): the calibrated rotation RMS, for poses;
 - ``max_length_change_mm`` (5 % of the reach): the largest change of a DH length;
 - ``max_angle_change_deg`` (20 deg): the largest change of a DH angle (offsets are first put in
@@ -64,8 +65,8 @@ class Thresholds:
     camera: float = 0.1
 
     @classmethod
-    def of(cls, robot: Robot, opts) -> "Thresholds":
-        reach = robot.reach()
+    def of(cls, robot: Robot, opts, q=None) -> "Thresholds":
+        reach = robot.reach(None if q is None else np.asarray(q).reshape(-1, robot.n_joints))
         return cls(
             residual_mm=opts.max_residual_mm if opts.max_residual_mm is not None else RESIDUAL_SHARE * reach,
             rotation_deg=opts.max_rotation_deg,

@@ -229,7 +229,7 @@ def judge(
     """Empty when the fit is plausible as a calibration; else why not and the likely input
     mistake (:mod:`._plausibility`). ``extra``: a further finding (too many outliers,
     :func:`._outliers.too_many`). Raises :class:`jaxcal.ImplausibleFitError` with ``strict``."""
-    limits = plausibility.Thresholds.of(robot, opts)
+    limits = plausibility.Thresholds.of(robot, opts, q)
     found = plausibility.findings(stats, x, layout, limits, free=free, se=se) + ([extra] if extra else [])
     if not found:
         return ""

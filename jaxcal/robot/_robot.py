@@ -175,11 +175,13 @@ class Robot(eqx.Module):
     def revolute_mask(self) -> Float[Array, " n"]:
         return jnp.array([t == "R" for t in self.joint_types], dtype=jnp.float64)
 
-    def reach(self) -> float:
+    def reach(self, q=None) -> float:
         """A rough size of the arm in mm: the DH lengths, the tool offset and the prismatic
-        strokes added up (the scale that judges residuals and parameter changes)."""
+        strokes added up (the scale that judges residuals and parameter changes). A stroke is
+        the joint's limits, or with joint values ``q (K, n)`` the span they move it over: a file
+        without limits gives a prismatic joint +-1000 mm, which would set the scale."""
         dh = np.asarray(self.dh)
-        lim = np.asarray(self.q_limits)
+        lim = np.asarray(self.q_limits) if q is None else np.stack([np.min(q, 0), np.max(q, 0)], -1)
         stroke = sum(float(lim[i, 1] - lim[i, 0]) for i, t in enumerate(self.joint_types) if t == "P")
         if self.convention == "joint":
             links = np.linalg.norm(np.asarray(self.origins)[:, :3, 3], axis=-1).sum()

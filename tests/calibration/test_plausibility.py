@@ -139,3 +139,21 @@ def test_a_camera_depth_scale_the_poses_cannot_determine_is_refused():
     assert "do not determine" in depth.report["implausible"]
     assert "camera_depth_scale" in depth.report["implausible"]
     assert depth.report["camera_parameters"]["camera_depth_scale"]["std_error"] > 0.1
+
+
+def test_a_prismatic_stroke_counts_as_far_as_the_data_move_it(tmp_path):
+    """A robot file without limits gives a prismatic joint +-1000 mm; judged by that stroke, a
+    120 mm error of a 700 mm SCARA would pass the 5 % length limit. The thresholds take the
+    stroke the data cover: 0.05 x (lengths + tool + span)."""
+    rows = [(400.0, 350.0, 0.0, "R"), (0.0, 300.0, 180.0, "R"), (50.0, 0.0, 0.0, "P"), (0.0, 0.0, 0.0, "R")]
+    text = 'name = "scara"\nconvention = "sdh"\nangle_unit = "deg"\n' + "".join(
+        f'[[joints]]\ntheta = 0.0\nd = {d}\na = {a}\nalpha = {al}\ntype = "{t}"\n' for d, a, al, t in rows
+    )
+    (tmp_path / "scara.toml").write_text(text + "[tool]\nxyz = [0.0, 0.0, 80.0]\nrpy = [0.0, 0.0, 0.0]\n")
+    robot = jaxcal.load_robot(tmp_path / "scara.toml")
+    q = np.random.default_rng(1).uniform([-2, -2, 20.0, -3], [2, 2, 180.0, 3], (30, 4))
+    span = q[:, 2].max() - q[:, 2].min()
+    opts = jaxcal.Options()
+    assert Thresholds.of(robot, opts).length_mm > 150.0
+    want = 0.05 * (400 + 350 + 300 + 50 + 80 + span)
+    assert abs(Thresholds.of(robot, opts, q).length_mm - want) < 1e-9
