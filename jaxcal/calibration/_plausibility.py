@@ -260,6 +260,13 @@ def _fmt(pos, rot) -> str:
     return f"{pos:.4g} mm" + ("" if rot is None else f", {rot:.3g} deg")
 
 
+MIRROR_IMAGES = ("swapped x", "swapped y", "mirrored")
+"""The mistakes that reflect the positions: any two differ by a rotation, which the estimated
+measurement frame absorbs, so position data fit them alike (poses' rotations tell them apart)."""
+TIE = 1e-3
+"""Residuals within this share of each other are a tie."""
+
+
 def explain(found: list[str], before, ranked, limits: Thresholds) -> str:
     """One message: what is implausible, the likely cause it found (or the ones it ruled out).
     A correction counts when it brings the frames-only residual within the limits and to less
@@ -269,6 +276,17 @@ def explain(found: list[str], before, ranked, limits: Thresholds) -> str:
     fixes = [(m, p, r) for m, p, r in ranked if badness(p, r, limits) < min(1.0, 0.2 * b0)]
     if fixes:
         m, p, r = fixes[0]
+        mirrors = sorted(
+            (f[0] for f in fixes if f[0].startswith(MIRROR_IMAGES) and abs(f[1] - p) <= TIE * p), key=MISTAKES.index
+        )
+        if m.startswith(MIRROR_IMAGES) and len(mirrors) > 1:  # reflections differ by a turn the base takes
+            return (
+                f"{head}. Likely cause: a position axis swapped or mirrored ({'; '.join(mirrors)}: from positions "
+                f"alone these mirror images fit alike, so which one cannot be told; with one corrected the "
+                f"frames-only RMS residual drops from {_fmt(*before)} to {_fmt(p, r)}). Check the data file's "
+                f"position columns; if they are right, a sign in the robot model (an alpha, a joint axis) makes "
+                f"it the mirror image of the arm measured"
+            )
         return (
             f"{head}. Likely cause: {m} (with that corrected, the frames-only RMS residual drops from "
             f"{_fmt(*before)} to {_fmt(p, r)}). Check the data file's columns and units"
