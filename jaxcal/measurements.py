@@ -52,6 +52,7 @@ POSITION_COLUMNS = ("x", "y", "z")
 QUAT_COLUMNS = ("qw", "qx", "qy", "qz")
 QUAT_NORM_TOL = 1e-3
 _JOINT_RE = re.compile(r"q([1-9][0-9]*)")
+_MEASUREMENT_RE = re.compile(r"[xyz]([1-9][0-9]*)?|q[wxyz]")
 _POINT_RE = re.compile(r"([xyz])([1-9][0-9]*)")
 
 
@@ -244,7 +245,13 @@ def read_table(path, expected: str):
     seen: dict[str, int] = {}
     for i, name in enumerate(header):
         if name in seen:
-            raise DataError(f"{path}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1})")
+            clash = (
+                "; a joint named like a measurement column (x, y, z, qw..qz, x1..): write the joint columns "
+                "as q1..qN, or rename the joint in the robot file"
+                if _MEASUREMENT_RE.fullmatch(name)
+                else ""
+            )
+            raise DataError(f"{path}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1}){clash}")
         seen[name] = i
     return str(path), header, records[1:]
 
@@ -259,7 +266,10 @@ def joint_columns(header, robot: Robot, src: str, *, required: bool = True) -> l
     None when there are none and ``required`` is False."""
     n = robot.n_joints
     default = tuple(f"q{j}" for j in range(1, n + 1))
-    named = [] if tuple(robot.joint_names) == default else [c for c in robot.joint_names if c in header]
+    # a joint named like a measurement column (a gantry's x, a lift's z) is read by its number
+    by_number = any(_JOINT_RE.fullmatch(c) for c in header)
+    names = [c for c in robot.joint_names if not (by_number and _MEASUREMENT_RE.fullmatch(c))]
+    named = [] if tuple(robot.joint_names) == default else [c for c in names if c in header]
     numbered = sorted((int(m.group(1)), c) for c in header if (m := _JOINT_RE.fullmatch(c)))
     in_numbers = {c for _, c in numbered}
     if named and len(named) == n and (not numbered or in_numbers <= set(named)):

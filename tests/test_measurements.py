@@ -368,3 +368,18 @@ def test_spreadsheet_exports_read_as_the_plain_file(tmp_path, panda, dialect):
     skipped = len(text.splitlines()) - len(plain.splitlines())
     with pytest.raises(DataError, match=rf"row 4 \(line {5 + skipped}\), column 'z': not a number: 'abc'"):
         read_measurements(_csv(tmp_path, "\n".join(bad) + "\n", "bad.csv"), panda)
+
+
+def test_a_joint_named_like_a_position_column(tmp_path):
+    """A lift named ``z``: numbered joint columns read it (its name is the position's), and a
+    header that names it twice says why and what to write instead."""
+    dh = np.array([[0.0, 400.0, 350.0, 0.0], [0.0, 0.0, 300.0, math.pi], [0.0, 50.0, 0.0, 0.0]])
+    r = Robot(dh, joint_types="RRP", joint_names=("j1", "j2", "z"), q_limits=[[-2, 2], [-2, 2], [0, 200]])
+    q = np.random.default_rng(0).uniform([-2, -2, 20], [2, 2, 180], (6, 3))
+    p = np.asarray(fk(r, q))[:, :3, 3]
+    rows = "".join(",".join(repr(float(v)) for v in np.r_[a, b]) + "\n" for a, b in zip(q, p))
+    (tmp_path / "num.csv").write_text("q1,q2,q3,x,y,z\n" + rows)
+    assert_allclose(np.asarray(read_measurements(tmp_path / "num.csv", r).q), q, rtol=0, atol=1e-12)
+    (tmp_path / "named.csv").write_text("j1,j2,z,x,y,z\n" + rows)
+    with pytest.raises(DataError, match="duplicated column name 'z'.*a joint named like a measurement column.*q1..qN"):
+        read_measurements(tmp_path / "named.csv", r)
