@@ -12,13 +12,15 @@ from .._io import write_atomic
 from ..errors import RobotFileError
 from ..robot import ANGLE_UNITS, LENGTH_UNITS
 
-COLUMNS = ("parameter", "joint", "unit", "nominal", "calibrated", "delta", "std_error", "status")
+COLUMNS = ("parameter", "joint", "unit", "nominal", "calibrated", "delta", "std_error", "status", "convention")
 
 
 def dh_rows(result) -> list[dict]:
     """One row per kinematic parameter of a :class:`jaxcal.DataCalibration` (DH, or a URDF
     robot's joint-frame corrections, whose nominal values are 0), keyed by :data:`COLUMNS`;
-    ``std_error`` is ``None`` and ``status`` says why for a parameter held at its nominal value."""
+    ``std_error`` is ``None`` and ``status`` says why for a parameter held at its nominal value;
+    then the joint compliances the model estimated (angle unit per length unit); ``convention``
+    the table's (``sdh``, ``mdh``: Craig's, whose ``alpha_i``, ``a_i`` precede joint i)."""
     nominal, rep = result.nominal, result.report
     lu, au = nominal.units
     per_joint = nominal.n_kinds
@@ -43,6 +45,25 @@ def dh_rows(result) -> list[dict]:
                 "delta": float((cal[i] - nom[i]) / scale),
                 "std_error": se,
                 "status": status,
+                "convention": nominal.convention,
+            }
+        )
+    comp = result.model.robot.compliance
+    for j in range(nominal.n_joints) if comp is not None else ():  # joint compliances, when the model has them
+        name, scale = f"compliance{j + 1}", ANGLE_UNITS[au] / LENGTH_UNITS[lu]
+        if name not in result.deltas:
+            continue
+        rows.append(
+            {
+                "parameter": name,
+                "joint": j + 1,
+                "unit": f"{au}/{lu}",
+                "nominal": 0.0,
+                "calibrated": float(np.asarray(comp)[j] / scale),
+                "delta": float(np.asarray(comp)[j] / scale),
+                "std_error": result.deltas[name][1] / scale,
+                "status": "estimated",
+                "convention": nominal.convention,
             }
         )
     return rows

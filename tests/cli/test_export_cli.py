@@ -63,6 +63,7 @@ def test_ur_kinematics_reproduce_the_calibrated_model(tmp_path, monkeypatch, cap
     # the DH table holds the calibrated table of the robot file
     rows = list(csv.DictReader((tmp_path / "dh.csv").open()))
     np.testing.assert_array_equal([float(r["calibrated"]) for r in rows], np.asarray(cal.dh).ravel())
+    assert {r["convention"] for r in rows} == {"sdh"}
     html = (tmp_path / "report.html").read_text()
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 3
 
