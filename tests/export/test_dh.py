@@ -11,7 +11,7 @@ from helpers import ur5_tracker
 
 import jaxcal
 from jaxcal import RobotFileError
-from jaxcal.export import check_dh, dh_table, save_dh_table
+from jaxcal.export import check_dh, dh_rows, dh_table, save_dh_table
 
 
 def _rows(res):
@@ -58,3 +58,22 @@ def test_table_in_the_robot_files_units():
 def test_joint_frame_robot_refused():
     with pytest.raises(RobotFileError, match="out_dh: 'ur5' is described by joint frames"):
         check_dh(jaxcal.to_joint(jaxcal.preset("ur5")), "out_dh")
+
+
+def test_estimated_compliances_are_rows_in_the_files_units():
+    """A compliance of 2e-5 rad/mm in a file in metres and degrees is 2e-5 x 1000 / (pi/180)
+    deg/m, with its standard error alike; compliances not estimated get no row."""
+    from types import SimpleNamespace
+
+    nominal = jaxcal.preset("ur5").replace(units=("m", "deg"))
+    comp = np.array([0.0, 2e-5, 1e-5, 0.0, 0.0, 0.0])
+    result = SimpleNamespace(
+        nominal=nominal,
+        model=SimpleNamespace(robot=nominal.replace(compliance=comp)),
+        deltas={"compliance2": (2e-5, 4e-7)},
+        report={"not_estimated": {}, "choice": "all + compliance"},
+    )
+    rows = [r for r in dh_rows(result) if r["parameter"].startswith("compliance")]
+    k = 1000.0 / (np.pi / 180.0)
+    assert [r["parameter"] for r in rows] == ["compliance2"] and rows[0]["unit"] == "deg/m"
+    assert abs(rows[0]["calibrated"] - 2e-5 * k) < 1e-12 and abs(rows[0]["std_error"] - 4e-7 * k) < 1e-12
