@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, console, load_robot_arg
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg
 from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, numbers, read_poses_for, region_arg, view_arg
 
 
@@ -62,6 +62,8 @@ def design(
     ),
     random_sets: int = typer.Option(200, "--random-sets", help="random pose sets to compare the design with"),
     json_out: Path = typer.Option(None, "--json", help="write the design's summary as JSON"),
+    base_link: str = typer.Option(None, help=BASE_LINK_HELP),
+    tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
 ):
     """Design calibration poses: optimised by gradient through the identification Jacobian, or
     chosen from a pool; compared with random poses of the same count."""
@@ -72,7 +74,7 @@ def design(
     check_writable(out, "out")
     if json_out is not None:
         check_writable(json_out, "json_out")
-    r = load_robot_arg(robot)
+    r = load_robot_arg(robot, base_link, tip_link)
     box, cone = region_arg(region), view_arg(view)
     points = [numbers(p, 3, "point") for p in point] if point else None
     n_points = len(points) if points else int(position_only)

@@ -11,7 +11,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import app, console, err_console, load_robot_arg, progress
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, err_console, load_robot_arg, progress
 from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, read_poses_for, region_arg, view_arg
 
 
@@ -59,6 +59,8 @@ def montecarlo(
     estimate_tool: bool = typer.Option(False, "--estimate-tool/--no-estimate-tool"),
     repeats: int = typer.Option(3, "--repeats", help="timed runs after the first (compile) call"),
     json_out: Path = typer.Option(None, "--json", help="write the summary as JSON"),
+    base_link: str = typer.Option(None, help=BASE_LINK_HELP),
+    tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
     poses_file: Path = typer.Option(
         None, "--poses-file", help="calibrate every robot on these poses (a pose file, e.g. from jaxcal design)"
     ),
@@ -86,7 +88,7 @@ def montecarlo(
         check_writable(json_out, "json_out")
     if out_dir is not None:
         check_writable(out_dir / "study.json", "out")
-    r = load_robot_arg(robot)
+    r = load_robot_arg(robot, base_link, tip_link)
     q = read_poses_for(poses_file, r, "poses_file")
     poses = poses if q is None else len(q)
     q_val = read_poses_for(validation, r, "validation")
