@@ -259,6 +259,9 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
         q = np.asarray(targets.q)
         check_angles(calibrated, q)
         model = np.asarray(fk(calibrated, q))[:, :3, 3]
-        check_units(calibrated, q, poses, 0, batched=False, model_positions=model, robust=True)  # a few wild targets
+        check_units(
+            calibrated, q, poses, 0, batched=False, model_positions=model, robust=True, what="targets",
+            model="the calibrated model",
+        )  # fmt: skip
     q0 = targets.q if targets.q is not None else np.tile(np.asarray(calibrated.q_limits).mean(axis=1), (len(poses), 1))
     return poses, compensate(calibrated, poses, q0, position_only=position_only, **kw)

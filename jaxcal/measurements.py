@@ -246,8 +246,8 @@ def read_table(path, expected: str):
     for i, name in enumerate(header):
         if name in seen:
             clash = (
-                "; a joint named like a measurement column (x, y, z, qw..qz, x1..): write the joint columns "
-                "as q1..qN, or rename the joint in the robot file"
+                "; if a joint is named like a measurement column (x, y, z, qw..qz, x1..), write the joint "
+                "columns as q1..qN, or rename the joint in the robot file"
                 if _MEASUREMENT_RE.fullmatch(name)
                 else ""
             )

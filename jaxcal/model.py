@@ -166,7 +166,8 @@ def measured_robot(model: Model) -> Robot:
     if model.n_points != 1:
         return model.robot
     robot = model.robot
-    if robot.compliance is not None:  # the compliances' weight stays where the fit had it
+    c = robot.compliance
+    if c is not None and (isinstance(c, jax.core.Tracer) or np.any(np.asarray(c) != 0)):  # the weight stays put
         load = (jnp.zeros(3) if robot.load is None else robot.load) - model.points[0]
         robot = eqx.tree_at(lambda r: r.load, robot, load, is_leaf=lambda v: v is None)
     if isinstance(model.points, jax.core.Tracer) or isinstance(robot.tool, jax.core.Tracer):

@@ -177,3 +177,6 @@ def test_a_point_folded_into_the_tool_keeps_the_compliances_weight(tmp_path, rng
     assert_allclose(np.asarray(jaxcal.fk(back, q))[:, :3, 3], want, atol=1e-9)
     moved = np.asarray(jaxcal.fk(folded.replace(load=None), q))[:, :3, 3]
     assert np.linalg.norm(moved - want, axis=-1).max() > 0.5  # the weight's place matters here
+    # a rigid choice (every compliance 0) has no weight to keep: no load, and its file has none
+    rigid = measured_robot(Model(ur5.replace(compliance=np.zeros(6)), model.points))
+    assert rigid.load is None

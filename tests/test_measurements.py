@@ -381,5 +381,7 @@ def test_a_joint_named_like_a_position_column(tmp_path):
     (tmp_path / "num.csv").write_text("q1,q2,q3,x,y,z\n" + rows)
     assert_allclose(np.asarray(read_measurements(tmp_path / "num.csv", r).q), q, rtol=0, atol=1e-12)
     (tmp_path / "named.csv").write_text("j1,j2,z,x,y,z\n" + rows)
-    with pytest.raises(DataError, match="duplicated column name 'z'.*a joint named like a measurement column.*q1..qN"):
+    with pytest.raises(
+        DataError, match="duplicated column name 'z'.*if a joint is named like a measurement column.*q1..qN"
+    ):
         read_measurements(tmp_path / "named.csv", r)

@@ -58,9 +58,7 @@ def main():
     for label, k in (("first detection only", 0), ("again at the noise found (jaxcal)", _outliers.REWEIGHTS)):
         found, sets, false = run(k)
         print(f"{label:>34s} " + " ".join(f"{f'{f}/{sets}':>12s}" for f in found) + f" {false:>14d}")
-    print(
-        f"\n{len(ROBOTS)} robots x points and poses x 2 seeds; 60 poses, 0.02 mm noise; 2 x 60 clean poses per set"
-    )
+    print(f"\n{len(ROBOTS)} robots x points and poses x 2 seeds; 60 poses, 0.02 mm noise; 57 + 60 clean poses per set")
 
 
 if __name__ == "__main__":

@@ -117,13 +117,23 @@ It only names the likely cause: such data are refused either way."""
 
 
 def check_units(
-    robot: Robot, q, target, n_points: int, *, batched: bool, model_positions, robust: bool = False
+    robot: Robot,
+    q,
+    target,
+    n_points: int,
+    *,
+    batched: bool,
+    model_positions,
+    robust: bool = False,
+    what: str = "measured",
+    model: str = "the nominal model",
 ) -> None:
     """Refuse a length-unit mismatch: the spread of the measured points (RMS distance to their
     centroid, independent of the unknown measurement frame) must be within 3x of the nominal
     model's at the same joint values; metres read as mm give 1000x. ``model_positions`` are the
     nominal model's tool positions at ``q``. ``robust``: the median distance to the median point
-    instead, for rows that may hold a few wild values (targets, not measurements)."""
+    instead, for rows that may hold a few wild values (targets, not measurements); ``what`` and
+    ``model`` name the rows and the model in the message."""
     Q = q if batched else q[None]
     P_mea = positions_of(target if batched else target[None], n_points)
     P_mod = model_positions if batched else model_positions[None]
@@ -139,6 +149,7 @@ def check_units(
         return np.sqrt(np.nanmean(np.sum((P - np.nanmean(P, -2, keepdims=True)) ** 2, -1), -1))
 
     s_mod, s_mea = spread(np.asarray(P_mod)), spread(P_mea)
+    around = "from their median point (median distance)" if robust else "around their centroid"
     lu = robot.units[0]
     revolute = np.array([t == "R" for t in robot.joint_types])
     for i, (a, b) in enumerate(zip(s_mod, s_mea)):
@@ -148,7 +159,7 @@ def check_units(
             span = float(np.ptp(Q[i][:, revolute], axis=0).max()) if revolute.any() else np.inf
             if 0.01 <= ratio <= 100 and span < RADIANS_AS_DEGREES_SPAN:  # the arm barely moves: angles misread
                 raise DataError(
-                    f"measured{where}: positions spread {b:.4g} mm around their centroid, the nominal model's "
+                    f"{what}{where}: positions spread {b:.4g} mm {around}, {model}'s "
                     f"{a:.4g} mm at the same joint values, whose revolute joints span at most "
                     f"{np.degrees(span):.3g} deg: joint angles look like radians read as degrees; the robot's "
                     f'angles are in {robot.units[1]}; read the data with angle_unit="rad"',
@@ -162,8 +173,8 @@ def check_units(
                 else ("a unit or scale that is not the robot's", " the unit they were written in")
             )
             raise DataError(
-                f"measured{where}: positions spread {b:.4g} mm around their centroid, the nominal "
-                f"model's {a:.4g} mm at the same joint values ({ratio:.3g}x): lengths look like {guess}"
+                f"{what}{where}: positions spread {b:.4g} mm {around}, {model}'s "
+                f"{a:.4g} mm at the same joint values ({ratio:.3g}x): lengths look like {guess}"
                 f"; the robot's lengths are in {lu}; read the data with{fix}",
                 option="length_unit",
             )

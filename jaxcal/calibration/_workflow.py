@@ -111,7 +111,7 @@ def _compliant(robot: Robot, q, opts: Options) -> bool:
     if opts.compliance != "auto":
         return opts.compliance == "yes"
     tau = np.asarray(_gravity_moments(robot.stripped(), q))
-    return bool(np.ptp(tau, axis=0).max() > 0.01 * robot.reach())
+    return bool(np.ptp(tau, axis=0).max() > 0.01 * robot.reach(q))
 
 
 def _candidates(robot: Robot, opts: Options, cameras, compliance: bool) -> tuple[list, Candidate]:
@@ -265,7 +265,8 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
 
     sig = fr.sig[[-1]]
     det = detected(sig)
-    given = p.opts.sigma_pos_mm is not None or p.opts.sigma_rot_rad is not None
+    # noise given, or a loss scale that sets the noise found: nothing to learn by detecting again
+    given = p.opts.sigma_pos_mm is not None or p.opts.sigma_rot_rad is not None or p.opts.loss_scale is not None
     for _ in range(0 if given else outliers.REWEIGHTS):
         if not det.noise[0, 0] < outliers.REWEIGHT_SHARE * sig[0, 0]:
             break

@@ -107,10 +107,11 @@ def design(
         console.print(f"parameters of {params_from}: {', '.join(result.base_names)}", highlight=False, markup=False)
     console.print(result.report(), highlight=False, markup=False, soft_wrap=True)
     if not result.feasible:  # poses that leave the region, the view or the spread are not a design
+        given = [o for o, v in (("--region", region), ("--view", view), ("--min-spread", min_spread)) if v]
         raise DataError(
-            "no start met the region, the view and the minimum spread together; nothing was written (more --starts, "
-            "a larger region or a smaller --min-spread)",
-            option="region",
+            f"no start met {' and '.join(given) or 'the constraints'}; nothing was written (more --starts, or "
+            f"looser {', '.join(given) or 'constraints'})",
+            option=(given[0] if given else "--starts").lstrip("-").replace("-", "_"),
         )
     write_poses(out, result.q, r)
     console.print(f"wrote {out}")

@@ -49,6 +49,7 @@ def dh_rows(result) -> list[dict]:
             }
         )
     comp = result.model.robot.compliance
+    comp0 = np.zeros(nominal.n_joints) if nominal.compliance is None else np.asarray(nominal.compliance)
     for j in range(nominal.n_joints) if comp is not None else ():  # joint compliances, when the model has them
         name, scale = f"compliance{j + 1}", ANGLE_UNITS[au] / LENGTH_UNITS[lu]
         if name not in result.deltas:
@@ -58,9 +59,9 @@ def dh_rows(result) -> list[dict]:
                 "parameter": name,
                 "joint": j + 1,
                 "unit": f"{au}/{lu}",
-                "nominal": 0.0,
+                "nominal": float(comp0[j] / scale),
                 "calibrated": float(np.asarray(comp)[j] / scale),
-                "delta": float(np.asarray(comp)[j] / scale),
+                "delta": float((np.asarray(comp)[j] - comp0[j]) / scale),
                 "std_error": result.deltas[name][1] / scale,
                 "status": "estimated",
                 "convention": nominal.convention,

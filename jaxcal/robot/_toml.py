@@ -202,7 +202,7 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> 
     if robot.compliance is not None:
         for j, c in zip(doc["joints"], np.asarray(robot.compliance)):
             j["compliance"] = float(c) * lu / au
-        if robot.load is not None:
+        if robot.load is not None and np.any(np.asarray(robot.compliance) != 0):
             doc["load"] = [float(v) / lu for v in np.asarray(robot.load)]
     for key in ("tool", "base"):
         T = np.asarray(getattr(robot, key))

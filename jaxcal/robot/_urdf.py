@@ -359,7 +359,7 @@ def urdf_text(
     """The URDF of a joint-frame ``robot`` (see the module docstring): the chain of the
     ``template`` file it was read from (with the same ``base_link`` and ``tip_link``) with the
     corrections folded in, or a minimal chain of its own without one."""
-    if robot.load is not None and robot.compliance is not None:
+    if robot.load is not None and robot.compliance is not None and np.any(np.asarray(robot.compliance) != 0):
         raise RobotFileError(
             "this robot's compliances weigh a point that is not its tool origin (a measured point folded into its "
             "tool); write the model with its points instead (jaxcal.save_model, --out-model)"

@@ -219,3 +219,20 @@ def test_outliers_of_a_millimetre_are_found_when_the_robots_errors_dominate_the_
     assert [o["row"] for o in rep["outliers"]] == [18]
     assert 0.5 * NOISE < rep["outlier_detection"]["noise_pos_mm"] < 2 * NOISE
     assert rep["outliers"][0]["sigmas"] > 10 * rep["outlier_detection"]["threshold_sigmas"]
+
+
+def test_a_given_loss_scale_is_not_taken_for_the_noise_found(monkeypatch):
+    """A loss scale given sets the robust scale the detection reports (loss_scale x the weights):
+    detecting again at it would shrink the weights by it each time whatever the data say (53 of
+    60 poses flagged here). With one given, the detection runs once."""
+    robot = jaxcal.preset("ur5")
+    q = simulate(robot, n_poses=K, n_val=1, seed=9).q[0]
+    points = np.asarray(jaxcal.fk(robot, q))[:, :3, 3] + np.random.default_rng(9).normal(scale=0.3, size=(K, 3))
+    data = jaxcal.Measurements(q, points[:, None])
+    kw = dict(nested_max_poses=0, loss="huber", loss_scale=0.45, compliance="no")
+    rep = jaxcal.calibrate_data(robot, data, **kw).report
+    monkeypatch.setattr(outliers, "REWEIGHTS", 0)
+    once = jaxcal.calibrate_data(robot, data, **kw).report
+    assert [o["row"] for o in rep["outliers"]] == [o["row"] for o in once["outliers"]]
+    assert len(rep["outliers"]) < 0.2 * K and rep["plausible"]
+    assert rep["outlier_detection"]["noise_pos_mm"] == once["outlier_detection"]["noise_pos_mm"]

@@ -61,12 +61,13 @@ def test_joint_frame_robot_refused():
 
 
 def test_estimated_compliances_are_rows_in_the_files_units():
-    """A compliance of 2e-5 rad/mm in a file in metres and degrees is 2e-5 x 1000 / (pi/180)
-    deg/m, with its standard error alike; compliances not estimated get no row."""
+    """A compliance of 3e-5 rad/mm in a file in metres and degrees is 3e-5 x 1000 / (pi/180)
+    deg/m, its change from the nominal robot's 1e-5 and standard error alike; compliances not
+    estimated get no row."""
     from types import SimpleNamespace
 
-    nominal = jaxcal.preset("ur5").replace(units=("m", "deg"))
-    comp = np.array([0.0, 2e-5, 1e-5, 0.0, 0.0, 0.0])
+    nominal = jaxcal.preset("ur5").replace(units=("m", "deg"), compliance=np.r_[0.0, 1e-5, np.zeros(4)])
+    comp = np.array([0.0, 3e-5, 1e-5, 0.0, 0.0, 0.0])
     result = SimpleNamespace(
         nominal=nominal,
         model=SimpleNamespace(robot=nominal.replace(compliance=comp)),
@@ -76,4 +77,5 @@ def test_estimated_compliances_are_rows_in_the_files_units():
     rows = [r for r in dh_rows(result) if r["parameter"].startswith("compliance")]
     k = 1000.0 / (np.pi / 180.0)
     assert [r["parameter"] for r in rows] == ["compliance2"] and rows[0]["unit"] == "deg/m"
-    assert abs(rows[0]["calibrated"] - 2e-5 * k) < 1e-12 and abs(rows[0]["std_error"] - 4e-7 * k) < 1e-12
+    got = [rows[0][c] for c in ("nominal", "calibrated", "delta", "std_error")]
+    np.testing.assert_allclose(got, np.array([1e-5, 3e-5, 2e-5, 4e-7]) * k, rtol=1e-12)
