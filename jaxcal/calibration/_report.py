@@ -13,12 +13,15 @@ from ..model import Layout, Model, measured_robot, observed
 from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 from . import _core as core
 from . import _outliers as outliers
+from . import _selection as selection
 from ._param_sets import Candidate
 from ._single import estimated, judge, still_joint_notes
 
 RULE = (
-    "lowest score, the RMS of the K-fold and range-end held-out errors (linearised); a simpler set "
-    "within 1 % wins; then its parameters pruned, least significant first, while the score stays within 1 %"
+    f"lowest score, the RMS of the K-fold and range-end held-out errors (linearised); the simplest set within "
+    f"one standard error of it (at least {100 * selection.SIMPLER_TOLERANCE:g} %) wins; then its parameters "
+    f"pruned, least significant first, to the sparsest within {selection.PRUNE_SE:g} standard error of the best "
+    f"on that path (at least {100 * selection.PRUNE_TOLERANCE:g} %)"
 )
 
 
