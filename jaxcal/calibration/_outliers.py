@@ -49,9 +49,11 @@ the data would, and the noise it finds stays far above the measurements': outlie
 millimetres pass. When the noise found is below this share of the weights,
 :func:`jaxcal.calibrate_data` detects again with that noise as the weights, and keeps the new
 detection only if its noise falls below this share again (the prior was what held the fit; on
-real arms whose residual is not geometric it barely moves, and the first detection stands); at
-most :data:`REWEIGHTS` times."""
-REWEIGHTS = 2
+real arms whose residual is not geometric it barely moves, and the first detection stands); then
+again while the noise keeps falling below :data:`REFINE_SHARE` of the last (a detector halfway
+down still flags clean poses whose residual is its own misfit); at most :data:`REWEIGHTS` times."""
+REFINE_SHARE = 0.8
+REWEIGHTS = 4
 REDETECT_SIGMA = 0.5
 """When leaving the outliers out brings the frames-only noise below this share of what it was,
 gross outliers (a lost marker written as 0, 0, 0; swapped labels) set the weights and pulled the

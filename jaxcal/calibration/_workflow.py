@@ -267,12 +267,13 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
     det = detected(sig)
     # noise given, or a loss scale that sets the noise found: nothing to learn by detecting again
     given = p.opts.sigma_pos_mm is not None or p.opts.sigma_rot_rad is not None or p.opts.loss_scale is not None
-    for _ in range(0 if given else outliers.REWEIGHTS):
-        if not det.noise[0, 0] < outliers.REWEIGHT_SHARE * sig[0, 0]:
+    for k in range(0 if given else outliers.REWEIGHTS):
+        share = outliers.REWEIGHT_SHARE if k == 0 else outliers.REFINE_SHARE
+        if not det.noise[0, 0] < share * sig[0, 0]:
             break
         again = detected(det.noise)
-        if not again.noise[0, 0] < outliers.REWEIGHT_SHARE * det.noise[0, 0]:
-            break  # the prior was not what kept the residual up: the first detection stands
+        if not again.noise[0, 0] < share * det.noise[0, 0]:
+            break  # the prior was not what kept the residual up: the detection before stands
         sig, det = det.noise, again
     return det
 

@@ -236,3 +236,30 @@ def test_a_given_loss_scale_is_not_taken_for_the_noise_found(monkeypatch):
     assert [o["row"] for o in rep["outliers"]] == [o["row"] for o in once["outliers"]]
     assert len(rep["outliers"]) < 0.2 * K and rep["plausible"]
     assert rep["outlier_detection"]["noise_pos_mm"] == once["outlier_detection"]["noise_pos_mm"]
+
+
+def test_a_detector_halfway_down_flags_no_clean_pose():
+    """Three markers on a PUMA 560 (tests/data/outliers, made apart from jaxcal), rows 23, 33 and
+    34 corrupted by 1-5 mm: detecting again stopped at a detector that still misfit clean rows 22
+    and 31 by its own error and flagged them; it now goes on while the noise keeps falling, and
+    names the three rows alone."""
+    from pathlib import Path
+
+    robot = jaxcal.preset("puma560")
+    data = jaxcal.read_measurements(Path(__file__).parents[1] / "data/outliers/puma560_three_markers.csv", robot)
+    rep = jaxcal.calibrate_data(robot, data, nested_max_poses=0, compliance="no").report
+    assert sorted(o["row"] for o in rep["outliers"]) == [23, 33, 34]
+
+
+def test_a_point_written_as_zeros_is_an_outlier_not_another_unit(tmp_path):
+    """A position-only row exported as 0, 0, 0 (a lost reflector): read, named as an outlier and
+    left out, not refused as a row in another length unit."""
+    robot = jaxcal.preset("ur5")
+    sim = simulate(robot, n_poses=K, n_val=1, seed=3, sigma_pos=NOISE, base=True, tool=True)
+    p = np.array(sim.measured[0][:, :3, 3])
+    p[35] = 0.0  # data row 36
+    rows = "".join(",".join(repr(float(v)) for v in np.r_[a, b]) + "\n" for a, b in zip(np.asarray(sim.q[0]), p))
+    (tmp_path / "zero.csv").write_text("q1,q2,q3,q4,q5,q6,x,y,z\n" + rows)
+    data = jaxcal.read_measurements(tmp_path / "zero.csv", robot)
+    rep = jaxcal.calibrate_data(robot, data, nested_max_poses=0, compliance="no").report
+    assert [o["row"] for o in rep["outliers"]] == [36]
