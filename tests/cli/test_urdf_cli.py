@@ -128,7 +128,8 @@ def test_compensate_brings_the_measured_point_to_the_targets(monkeypatch, capsys
         urdf.update_cfg(dict(zip(names, qk)))
         T = urdf.get_transform("jaxcal_point1", "jaxcal_measurement_frame")
         assert reached == 1 and np.linalg.norm(T[:3, 3] - t) * 1000 < 1e-6
-    code, out, err = run_cli(monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--params", "frames",
-                             "--folds", "3", "--out-model", tmp_path / "p4.urdf")  # fmt: skip
+    from jaxcal import Model, load_robot, save_model
+
+    save_model(Model(load_robot(URDF), np.eye(4)[:, :3] * 50.0), tmp_path / "p4.urdf", template=URDF)
     code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "p4.urdf", tmp_path / "targets.csv")
     assert code == 2 and "--point 1..4" in err
