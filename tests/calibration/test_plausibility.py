@@ -157,3 +157,18 @@ def test_a_prismatic_stroke_counts_as_far_as_the_data_move_it(tmp_path):
     assert Thresholds.of(robot, opts).length_mm > 150.0
     want = 0.05 * (400 + 350 + 300 + 50 + 80 + span)
     assert abs(Thresholds.of(robot, opts, q).length_mm - want) < 1e-9
+
+
+def test_mirror_images_that_fit_alike_are_named_together():
+    """With positions alone the swaps and mirrors are reflections a turn apart, which the
+    measurement frame takes: tied residuals are named together, not the first by rounding; a
+    correction that fits clearly better is named alone."""
+    from jaxcal.calibration._plausibility import explain
+
+    before = (500.0, None)
+    tied = [("swapped y, z", 2.0731, None), ("swapped x, y", 2.0730, None), ("mirrored z", 2.0731, None)]
+    msg = explain(["x"], before, tied + [("joints reversed", 80.0, None)], LIMITS)
+    assert "a position axis swapped or mirrored (swapped x, y; swapped y, z; mirrored z:" in msg
+    assert "cannot be told" in msg
+    alone = explain(["x"], before, [("swapped x, y", 0.05, None), ("mirrored z", 2.07, None)], LIMITS)
+    assert "Likely cause: swapped x, y (" in alone

@@ -157,14 +157,3 @@ def test_output_path_under_a_file_refused_before_the_fit(tmp_path, monkeypatch, 
     err = " ".join(err.split())
     assert code == 2 and "--out-robot" in err and "is a file, not a folder" in err, err
     assert "Traceback" not in err and "calibrating" not in out
-
-
-def test_positions_alone_cannot_tell_which_axis_was_swapped(tmp_path, monkeypatch, capsys, truth):
-    """Positions only, x and y swapped: every swap and mirror is a reflection, any two a turn apart
-    that the measurement frame takes, so they fit alike; the message names them together and
-    says which one cannot be told, instead of one picked by rounding."""
-    text = _relabel(_csv(truth, position_only=True), {"x": "y", "y": "x"})
-    code, out, err, out_robot, report = _run(tmp_path, monkeypatch, capsys, text)
-    assert code == 3, err
-    assert "a position axis swapped or mirrored (swapped x, y;" in err and "cannot be told" in err, err
-    assert not out_robot.exists()

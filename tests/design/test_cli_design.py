@@ -166,17 +166,3 @@ def test_a_box_too_small_for_the_default_start_pool_still_gives_the_poses(monkey
     assert len(p) == 12 and np.all(
         (p >= [300 - 1e-6, 300 - 1e-6, 200 - 1e-6]) & (p <= [420 + 1e-6, 420 + 1e-6, 320 + 1e-6])
     )
-
-
-def test_a_urdf_chain_chosen_by_its_links(monkeypatch, capsys, tmp_path):
-    """`--base-link` picks the URDF chain to design for: the TIAGo arm without its torso lift,
-    whose pose file has the seven arm joints."""
-    from jaxcal.measurements import tiago_paths
-
-    out = tmp_path / "p.csv"
-    code, _, err = run_cli(
-        monkeypatch, capsys, "design", tiago_paths()[0], "--poses", "10", "--out", out, "--base-link",
-        "torso_lift_link", "--random-sets", "5", "--starts", "1", "--val-poses", "20",
-    )  # fmt: skip
-    assert code in (0, None), err
-    assert out.read_text().splitlines()[0] == ",".join(f"arm_{i}_joint" for i in range(1, 8))
