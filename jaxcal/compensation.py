@@ -11,7 +11,8 @@ starting command ``q_0``, which keeps a redundant arm, or a position-only target
 nominal command instead of anywhere on its self-motion, and keeps every step well posed.
 
 A command is then put on the branch of its starting command (revolute joints within pi of it:
-no whole-turn jumps) and checked against the robot's joint limits. A target is reached
+no whole-turn jumps), a joint beyond its limits there turned by whole turns into them where it
+fits, and checked against the robot's joint limits. A target is reached
 (``converged``) when the solver met its tolerances and the residual is below ``tol_mm``; a
 command outside the limits is flagged (``within_limits``), never silently written.
 """
@@ -74,6 +75,19 @@ class Compensation:
 def _wrap(d):
     """Angle differences into (-pi, pi]."""
     return d - 2 * jnp.pi * jnp.ceil((d - jnp.pi) / (2 * jnp.pi))
+
+
+def _into_limits(q, lim, revolute):
+    """A revolute joint outside its limits on the starting command's branch is moved by whole turns
+    into them where a turn fits (the same pose: a joint's range may span more than one turn)."""
+    q = q.copy()
+    lo, hi = lim[:, 0] - LIMIT_TOL, lim[:, 1] + LIMIT_TOL
+    for k in range(1, 4):  # up to three turns either way (limits of +-2 turns and more exist)
+        for s in (k, -k):
+            moved = q + s * 2 * np.pi
+            fix = revolute & ((q < lo) | (q > hi)) & (moved >= lo) & (moved <= hi)
+            q = np.where(fix, moved, q)
+    return q
 
 
 @eqx.filter_jit
@@ -175,8 +189,9 @@ def compensate(
         int(max_steps),
     )
     q, ep, er = np.asarray(q), np.asarray(ep), np.asarray(er) * (not position_only)
-    reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
     lim = np.asarray(calibrated.q_limits)
+    q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]))
+    reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
     inside = np.all((q >= lim[:, 0] - LIMIT_TOL) & (q <= lim[:, 1] + LIMIT_TOL), axis=-1)
     return Compensation(
         q=q,

@@ -118,6 +118,17 @@ def test_out_of_limit_and_unreachable_targets_are_flagged(rng):
     res = compensate(narrow, T, np.tile(q, (2, 1)))
     assert not res.within_limits[0] and not res.ok[0]
     assert not res.converged[1] and not res.ok[1]
+    # a joint whose limits lie a whole turn from the start: the same pose a turn on is inside them
+    lim = np.array(r.q_limits)
+    lim[0] = 0.5, 6.0
+    wide = r.replace(q_limits=lim)
+    q_true = np.tile(np.asarray(r.q_limits).mean(1), (2, 1))
+    q_true[:, 0] = [5.0, 3.0]
+    start = q_true + 0.01
+    start[0, 0] -= 2 * np.pi  # -1.27: on the branch of the start, the solution is beyond the lower limit
+    res = compensate(wide, np.asarray(fk(r, q_true)), start)
+    assert res.ok.all()
+    assert_allclose(res.q, q_true, atol=1e-8)
 
 
 def test_nominal_commands_are_moved_into_the_calibrated_frame(rng, tmp_path):

@@ -100,6 +100,12 @@ def _far(model: Model, meas, pos, rot) -> list[str]:
         else "no common input mistake explains it (a measurement frame that moved since the calibration, "
         "or another robot's data?)"
     )  # fmt: skip
+    if np.allclose(np.asarray(model.robot.base), np.eye(4)) and not (bp <= limit and br <= ROTATION_DEG):
+        why += (
+            "; the model's base is the identity (a robot file or a UR kinematics file holds no measurement "
+            "frame): the data must then be in the robot's base frame, or evaluate the model calibrate "
+            "writes (--out-robot, --out-model), which carries the frame"
+        )
     size = f"{pos:.4g} mm" + ("" if M else f", {rot:.3g} deg") + " RMS"
     return [
         f"the errors ({size}) are far beyond a calibration's ({limit:.3g} mm, {100 * RESIDUAL_SHARE:g} % of the "

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from helpers import dh_fk, measurement_csv, run_cli
+from helpers import dh_fk, measurement_csv, random_transform, run_cli
 
 from jaxcal import DataError, Measurements, evaluate, preset, read_measurements, save_robot
 from jaxcal.calibration._evaluate import posture_groups
@@ -132,4 +132,7 @@ def test_a_misread_file_is_refused_or_named():
     moved = T.copy()  # the tracker moved since the calibration: no mistake explains it
     moved[:, :3, 3] += [300.0, 0.0, 0.0]
     (w,) = evaluate(true, Measurements(q, moved))["warnings"]
-    assert "no common input mistake explains it" in w
+    assert "no common input mistake explains it" in w and "the model's base is the identity" in w
+    framed = Model(true.robot.replace(base=random_transform(rng, 100.0)))  # a calibrated model's frame
+    (w,) = evaluate(framed, Measurements(q, T))["warnings"]
+    assert "no common input mistake" in w and "identity" not in w
