@@ -19,6 +19,8 @@ CONVENTIONS = ("sdh", "mdh", "joint")
 LENGTH_UNITS = {"mm": 1.0, "m": 1000.0}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 JOINT_TYPES = ("R", "P")
+DEFAULT_LIMITS = {"R": (-np.pi, np.pi), "P": (-1000.0, 1000.0)}
+"""Limits (rad, mm) of a joint given none: a turn either way, a metre either way."""
 DH_NAMES = ("theta", "d", "a", "alpha")
 JOINT_FRAME_NAMES = ("offset", "x", "y", "z", "rx", "ry", "rz")
 """Per-joint parameters of the joint-frame form: the joint offset, then a rigid correction of
@@ -50,7 +52,8 @@ class Robot(eqx.Module):
     tool: Float[Array, "4 4"]
     """Last joint frame (flange) -> tool point/frame."""
     q_limits: Float[Array, "n 2"]
-    """Joint limits ``[lower, upper]`` (rad, or mm for prismatic joints); used by simulation."""
+    """Joint limits ``[lower, upper]`` (rad, or mm for prismatic joints; :data:`DEFAULT_LIMITS` when
+    none are given): poses are drawn and commands checked within them."""
     origins: Float[Array, "n 4 4"] | None = None
     """Joint frames only: each joint's fixed origin in its parent's frame (the fixed joints
     before it folded in)."""
@@ -117,7 +120,7 @@ class Robot(eqx.Module):
         self.base = _check_transform(base, "base")
         self.tool = _check_transform(tool, "tool")
         if q_limits is None:
-            q_limits = np.tile([-np.pi, np.pi], (n, 1))
+            q_limits = np.array([DEFAULT_LIMITS[t] for t in joint_types])
         q_limits = as_f64(q_limits, "q_limits")
         if q_limits.shape != (n, 2):
             raise RobotFileError(f"q_limits must have shape ({n}, 2), got {q_limits.shape}")

@@ -36,6 +36,7 @@ from .._io import write_atomic
 from ..errors import RobotFileError
 from ..lie import matrix_to_rpy, rpy_to_matrix
 from ._robot import ANGLE_UNITS as ANGLE
+from ._robot import DEFAULT_LIMITS
 from ._robot import LENGTH_UNITS as LENGTH
 from ._robot import Robot
 
@@ -119,7 +120,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
         lim = j.get("limits", None)
         scale = au if jt == "R" else lu
         if lim is None:
-            limits.append([-math.pi, math.pi] if jt == "R" else [-1000.0, 1000.0])
+            limits.append(DEFAULT_LIMITS[jt])
         else:
             if not isinstance(lim, list) or len(lim) != 2:
                 raise RobotFileError(f"{source}: joint {i}: limits must be [lower, upper]")

@@ -36,7 +36,7 @@ import numpy as np
 from .._io import write_atomic
 from ..errors import RobotFileError
 from ..lie import so3_exp
-from ._robot import Robot
+from ._robot import DEFAULT_LIMITS, Robot
 
 M_TO_MM = 1000.0
 MEASUREMENT_FRAME = "jaxcal_measurement_frame"
@@ -254,7 +254,7 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         scale = 1.0 if kind == "R" else M_TO_MM
         lim = j.limit
         if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None:
-            limits.append([-np.pi, np.pi] if kind == "R" else [-1000.0, 1000.0])
+            limits.append(DEFAULT_LIMITS[kind])
         elif not lim.lower < lim.upper:
             raise RobotFileError(
                 f"{source}: joint {j.name!r} has limits lower {lim.lower} "

@@ -110,6 +110,17 @@ def test_constructor_validation():
         Robot(np.zeros((2, 4)), joint_types=("R", "X"))
 
 
+def test_limits_left_out_are_the_same_in_code_and_file(tmp_path):
+    """A turn either way for a revolute joint, a metre (not pi mm) for a prismatic one, whether the
+    robot is built in Python or read from a file without limits."""
+    p = tmp_path / "rp.toml"
+    joint = "theta = 0\nd = 0\na = 100\nalpha = 0\n"
+    p.write_text(f'convention = "sdh"\n[[joints]]\n{joint}[[joints]]\ntype = "P"\n{joint}')
+    want = [[-np.pi, np.pi], [-1000.0, 1000.0]]
+    assert_allclose(np.asarray(Robot(np.zeros((2, 4)), joint_types=("R", "P")).q_limits), want)
+    assert_allclose(np.asarray(load_robot(p).q_limits), want)
+
+
 def test_constructor_does_not_mutate_inputs():
     dh = np.zeros((2, 4))
     before = dh.copy()
