@@ -9,6 +9,7 @@ from ._core import kin_order as kin_order
 from ._core import nominal_model as nominal_model
 from ._evaluate import evaluate as evaluate
 from ._options import GAUGE as GAUGE
+from ._options import JOINT_GAUGE as JOINT_GAUGE
 from ._options import Options as Options
 from ._param_sets import Candidate as Candidate
 from ._param_sets import parse_params as parse_params

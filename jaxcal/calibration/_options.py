@@ -23,6 +23,12 @@ GAUGE = (
 )
 """How a calibrated model's parameters are fixed where several give the same kinematics: written into
 the robot files the command line saves."""
+JOINT_GAUGE = (
+    "joint origins are the nominal ones with the estimated corrections folded in; a correction the base, the "
+    "tool or another joint's can absorb (a turn about a joint's own axis, a shift along a common normal, ...) "
+    "is held at 0 and carried there; joint offsets are within half a turn of the nominal ones"
+)
+"""The same for a joint-frame (URDF) model."""
 CAMERA_CHOICES = CAMERA_MODELS + ("auto",)
 COMPLIANCE_CHOICES = ("auto", "yes", "no")
 

@@ -107,7 +107,7 @@ def calibrate(
     import numpy as np
 
     from .._io import check_writable, write_atomic
-    from ..calibration import GAUGE, calibrate_data
+    from ..calibration import GAUGE, JOINT_GAUGE, calibrate_data
     from ..errors import DataError, ImplausibleFitError
     from ..export import check_dh, check_ur
     from ..measurements import read_measurements
@@ -173,7 +173,7 @@ def calibrate(
         "heldout_rms_mm": rep["heldout_rms_mm"],
         "choice": rep["choice"],
         "convention": res.robot.convention,
-        "gauge": GAUGE,
+        "gauge": JOINT_GAUGE if res.robot.convention == "joint" else GAUGE,
     }
     if out_robot is not None and nominal.convention != "joint":
         several = res.model.n_points > 1  # no one point is the tool: they are written beside it

@@ -36,9 +36,8 @@ from .._io import write_atomic
 from ..errors import RobotFileError
 from ..lie import matrix_to_rpy, rpy_to_matrix
 from ._robot import ANGLE_UNITS as ANGLE
-from ._robot import DEFAULT_LIMITS
+from ._robot import DEFAULT_LIMITS, Robot
 from ._robot import LENGTH_UNITS as LENGTH
-from ._robot import Robot
 
 TOP_KEYS = {
     "name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points", "load"

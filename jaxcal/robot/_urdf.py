@@ -356,19 +356,22 @@ def urdf_text(
     comment: dict | None = None,
     training_ranges: dict | None = None,
 ) -> str:
-    """The URDF of a joint-frame ``robot`` (see the module docstring): the chain of the
-    ``template`` file it was read from (with the same ``base_link`` and ``tip_link``) with the
-    corrections folded in, or a minimal chain of its own without one."""
+    """The URDF of a joint-frame ``robot`` (see the module docstring): the ``template`` file it
+    was read from (with the same ``base_link`` and ``tip_link``), every element kept as it was
+    (mimic joints, safety limits, transmissions, ros2_control, meshes) but the chain joints'
+    origins and axes, which carry the corrections; or a minimal chain of its own without one."""
     if robot.load is not None and robot.compliance is not None and np.any(np.asarray(robot.compliance) != 0):
         raise RobotFileError(
             "this robot's compliances weigh a point that is not its tool origin (a measured point folded into its "
             "tool); write the model with its points instead (jaxcal.save_model, --out-model)"
         )
     yourdfpy = _yourdfpy()
+    from lxml import etree  # yourdfpy's XML library
+
     if robot.convention != "joint":
         raise RobotFileError("only joint-frame robots are written as URDF (jaxcal.kinematics.to_joint converts DH)")
     if template is not None:
-        doc = copy.deepcopy(_parse(Path(template)))
+        doc = copy.deepcopy(_parse(Path(template)))  # the chain and the origins, as read_urdf reads them
         record = _record(doc)
         if record is not None:  # a calibrated file calibrated again: its chain, its added links replaced
             base_link, tip_link = _agreed(record, base_link, tip_link, str(template))
@@ -378,13 +381,16 @@ def urdf_text(
         missing = [nm for nm in robot.joint_names if nm not in by_name]
         if missing:
             raise RobotFileError(f"{template}: no joint named {', '.join(missing)}")
-        for i, nm in enumerate(robot.joint_names):
-            j = by_name[nm]
-            j.origin = _m(_mm(j.origin) @ _folded(robot, i))
-            j.axis = np.asarray(robot.axes)[i]  # unit, as read: every reader then turns it the same way
         base_link, tip_link = _chain(doc, str(template), base_link, tip_link)[1:]
         # the nominal tool is the template's fixed joints after the last movable one
         nominal_tool = _tool_of(doc, robot.joint_names[-1], tip_link)
+        root = etree.parse(str(template), etree.XMLParser(remove_blank_text=True)).getroot()
+        _drop_ours(root)
+        elements = {el.get("name"): el for el in root.findall("joint")}
+        for i, nm in enumerate(robot.joint_names):
+            _set(elements[nm], "origin", _mm(by_name[nm].origin) @ _folded(robot, i))
+            # unit, as read: every reader then turns it the same way
+            _set(elements[nm], "axis", np.asarray(robot.axes)[i])
     else:
         doc = yourdfpy.Robot(name=robot.name)
         doc.links.append(yourdfpy.Link(name="base_link"))
@@ -407,10 +413,14 @@ def urdf_text(
             )
             parent = child
         base_link, tip_link, nominal_tool = "base_link", parent, np.eye(4)
+        root = yourdfpy.URDF(robot=doc, build_scene_graph=False, load_meshes=False).write_xml().getroot()
 
     def fixed(parent, child, T):
-        doc.links.append(yourdfpy.Link(name=child))
-        doc.joints.append(yourdfpy.Joint(name=child + "_joint", type="fixed", parent=parent, child=child, origin=_m(T)))
+        etree.SubElement(root, "link", name=child)
+        j = etree.SubElement(root, "joint", name=child + "_joint", type="fixed")
+        etree.SubElement(j, "parent", link=parent)
+        etree.SubElement(j, "child", link=child)
+        _set(j, "origin", T)
 
     # the record (module docstring): measurement frame under the base link, tool under the tip
     fixed(base_link, MEASUREMENT_FRAME, np.linalg.inv(np.asarray(robot.base)))
@@ -420,22 +430,71 @@ def urdf_text(
         T = np.eye(4)
         T[:3, 3] = p
         fixed(TOOL_LINK, f"{POINT_LINK}{k}", T)
-    from lxml import etree  # yourdfpy's XML library
-
-    xml = yourdfpy.URDF(robot=doc, build_scene_graph=False, load_meshes=False).write_xml()
     if robot.compliance is not None:  # not URDF's: an element of jaxcal's own, other readers skip it
         for nm, c in zip(robot.joint_names, np.asarray(robot.compliance)):
-            xml.getroot().append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM)))
+            root.append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM)))
     kinds = dict(zip(robot.joint_names, robot.joint_types))
     for nm, (lo, hi) in (training_ranges or {}).items():  # metres and radians, as the file's
         s = 1.0 if kinds.get(nm) == "R" else 1.0 / M_TO_MM
         unit = "rad" if kinds.get(nm) == "R" else "m"
-        xml.getroot().append(etree.Element(RANGE, joint=nm, lower=repr(lo * s), upper=repr(hi * s), unit=unit))
-    text = etree.tostring(xml, xml_declaration=True, pretty_print=True).decode()
-    if comment:
-        note = "; ".join(f"{k}: {v}" for k, v in comment.items()).replace("--", "- -")
-        text = re.sub(r"(<\?xml[^>]*\?>\s*)?", lambda m: (m.group(0) or "") + f"<!-- {note} -->\n", text, count=1)
-    return text
+        root.append(etree.Element(RANGE, joint=nm, lower=repr(lo * s), upper=repr(hi * s), unit=unit))
+    note = "; ".join(f"{k}: {v}" for k, v in comment.items()).replace("--", "- -") if comment else None
+    etree.indent(root, space="  ")
+    return _serialised(root, note)
+
+
+NOTE = "jaxcal: "
+"""How the comment a calibration writes above the robot element begins (replaced when written again)."""
+
+
+def _drop_ours(root) -> None:
+    """Remove what an earlier calibration added to the file: its links, their joints and its own
+    elements."""
+    for el in list(root):
+        ours = (
+            el.tag in (COMPLIANCE, RANGE)
+            or (el.tag == "link" and _is_ours(el.get("name", "")))
+            or (el.tag == "joint" and any(_is_ours(c.get("link", "")) for c in el if c.tag in ("parent", "child")))
+        )
+        if ours:
+            root.remove(el)
+
+
+def _serialised(root, comment: str | None) -> str:
+    """The document: the comments beside the robot element kept (a licence, xacro's note) but an
+    earlier calibration's, then ``comment``, then the robot element."""
+    from lxml import etree
+
+    def kept(nodes):
+        return [
+            etree.tostring(n).decode() + "\n"
+            for n in nodes
+            if n.tag is etree.Comment
+            and not (n.text or "").lstrip().startswith(NOTE.strip())
+            and "heldout_rms_mm:" not in (n.text or "")  # the earlier comment, before it began with NOTE
+        ]
+
+    before = kept(reversed(list(root.itersiblings(preceding=True))))
+    after = kept(root.itersiblings())
+    ours = [] if comment is None else [etree.tostring(etree.Comment(f" {NOTE}{comment} ")).decode() + "\n"]
+    body = etree.tostring(root, pretty_print=True, encoding="unicode", with_tail=False) + "\n"
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + "".join(before + ours) + body + "".join(after)
+
+
+def _set(element, tag: str, value) -> None:
+    """Set (or add) ``<origin xyz rpy>`` from a transform (mm) or ``<axis xyz>`` from a vector."""
+    from lxml import etree
+    from yourdfpy.urdf import tra  # the conversion yourdfpy reads rpy with
+
+    el = element.find(tag)
+    if el is None:
+        el = etree.SubElement(element, tag)
+    if tag == "origin":
+        T = _m(value)
+        el.set("xyz", " ".join(repr(float(v)) for v in T[:3, 3]))
+        el.set("rpy", " ".join(repr(float(v)) for v in tra.euler_from_matrix(T)))
+    else:
+        el.set("xyz", " ".join(repr(float(v)) for v in value))
 
 
 def _tool_of(doc, last_joint: str, tip_link: str) -> np.ndarray:

@@ -117,6 +117,88 @@ def test_the_written_file_records_its_chain(tmp_path):
         load_model(path, tip_link="arm_7_link")
 
 
+RICH = """<?xml version="1.0"?>
+<!-- Licence: kept with the file -->
+<robot name="rich">
+  <link name="base"/><link name="l1"/><link name="l2"/><link name="finger_a"/><link name="finger_b"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.3" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="10" velocity="1"/>
+    <safety_controller soft_lower_limit="-1.9" soft_upper_limit="1.9" k_position="100" k_velocity="10"/>
+    <calibration rising="0.1"/><dynamics damping="0.5"/>
+  </joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.4 0 0" rpy="1.5707963267948966 0 0"/><axis xyz="0 1 1"/>
+    <limit lower="-2" upper="2" effort="10" velocity="1"/>
+  </joint>
+  <joint name="fa" type="prismatic"><parent link="l2"/><child link="finger_a"/>
+    <axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="1" velocity="1"/>
+  </joint>
+  <joint name="fb" type="prismatic"><parent link="l2"/><child link="finger_b"/>
+    <axis xyz="0 -1 0"/><limit lower="0" upper="0.04" effort="1" velocity="1"/><mimic joint="fa"/>
+  </joint>
+  <transmission name="t1"><type>transmission_interface/SimpleTransmission</type></transmission>
+  <gazebo reference="l1"><material>Gazebo/Grey</material></gazebo>
+  <ros2_control name="arm" type="system"><hardware><plugin>mock</plugin></hardware></ros2_control>
+</robot>
+"""
+
+
+def test_the_written_file_keeps_everything_but_the_chain_origins(tmp_path):
+    """Mimic joints, safety limits, transmissions, Gazebo and ros2_control blocks and the file's
+    comments come through a calibration unchanged; only the chain joints' origins and axes (and
+    jaxcal's own links) differ; written twice, the calibration's links and comment are not doubled."""
+    from lxml import etree
+
+    nominal = tmp_path / "rich.urdf"
+    nominal.write_text(RICH)
+    r = load_robot(nominal, base_link="base", tip_link="l2")
+    cal = r.replace(dh=np.full((2, 7), 1e-3), base=np.asarray(xyz_rpy_to_transform(np.ones(3), np.zeros(3))))
+    first, second = tmp_path / "first.urdf", tmp_path / "second.urdf"
+    chain = dict(base_link="base", tip_link="l2")
+    save_model(Model(cal, np.ones((1, 3))), first, template=nominal, comment={"data": "a.csv"}, **chain)
+    again = load_model(first)  # its origins carry the corrections: written again, the same arm
+    save_model(again, second, template=first, comment={"data": "b.csv"})
+
+    def elements(path):
+        root = etree.parse(str(path), etree.XMLParser(remove_blank_text=True)).getroot()
+        for el in root.iter("origin", "axis"):  # the chain's own, compared apart
+            if el.getparent().get("name") in ("j1", "j2"):
+                el.getparent().remove(el)
+        return [etree.tostring(e) for e in root if not (e.get("name") or "").startswith("jaxcal_")]
+
+    assert elements(second) == elements(nominal)
+    text = second.read_text()
+    assert "Licence: kept with the file" in text and text.count("jaxcal: data") == 1 and "b.csv" in text
+    assert text.count('<link name="jaxcal_') == 3 and "<mimic" in text
+    u = yourdfpy.URDF.load(str(second), build_scene_graph=True, load_meshes=False)
+    assert u.actuated_joint_names == ["j1", "j2", "fa"]  # fb still follows fa
+    back = load_robot(second)
+    np.testing.assert_allclose(np.asarray(back.dh), 0.0, atol=1e-12)  # the corrections are in the origins
+    q = np.array([[0.3, -0.4]])
+    u.update_cfg({"j1": 0.3, "j2": -0.4, "fa": 0.0})
+    T = np.array(u.get_transform(frame_to="l2", frame_from="base"))
+    T[:3, 3] *= 1000.0
+    np.testing.assert_allclose(T, _joint_chain_pose(cal, q[0]), atol=1e-9)
+
+
+def _joint_chain_pose(robot, q):
+    """base link -> tip link of a joint-frame robot from its origins, corrections and axes, in
+    NumPy (URDF: origin, then the joint's motion)."""
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    for i in range(robot.n_joints):
+        p = np.array(robot.dh[i])
+        E = np.eye(4)
+        E[:3, :3] = Rotation.from_rotvec(p[4:7]).as_matrix()
+        E[:3, 3] = p[1:4]
+        M = np.eye(4)
+        M[:3, :3] = Rotation.from_rotvec(np.array(robot.axes[i]) * (q[i] + p[0])).as_matrix()
+        T = T @ np.asarray(robot.origins)[i] @ E @ M
+    return T
+
+
 def test_a_calibrated_file_calibrated_again_and_the_earlier_layout(tmp_path):
     """A calibrated file as the nominal of a new calibration: its chain and added links are
     replaced, not doubled. A file of the earlier layout (the measurement frame as the root,
