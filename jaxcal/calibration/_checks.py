@@ -7,7 +7,7 @@ import numpy as np
 
 from .._config import as_f64
 from ..errors import DataError
-from ..robot import Robot
+from ..robot import DEFAULT_LIMITS, Robot
 
 
 def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None):
@@ -85,21 +85,30 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     return q, measured, measured.shape[-2]
 
 
+UNLIMITED_TURNS = 4
+"""A joint given no limits (a URDF ``continuous`` joint, a file without them) may turn several
+times: its values look like degrees only beyond this many turns."""
+
+
 def check_angles(robot: Robot, q) -> None:
     """Refuse joint angles that look like degrees: revolute values beyond both a full turn and
-    the joint limits in most poses (a few such poses are left to the fit and its checks)."""
+    the joint limits in most poses (a few such poses are left to the fit and its checks); for a
+    joint without limits, beyond :data:`UNLIMITED_TURNS` turns."""
     revolute = np.array([t == "R" for t in robot.joint_types])
     if not revolute.any() or q.shape[-2] < 3:
         return
-    lim = np.abs(np.asarray(robot.q_limits)).max(axis=1)
-    over = (np.abs(q) > np.maximum(2 * np.pi, lim) * 1.05) & revolute
+    limits = np.asarray(robot.q_limits)
+    unlimited = np.all(np.abs(limits - np.array(DEFAULT_LIMITS["R"])) < 1e-12, axis=1)
+    bound = np.where(unlimited, UNLIMITED_TURNS * 2 * np.pi, np.maximum(2 * np.pi, np.abs(limits).max(axis=1)))
+    over = (np.abs(q) > bound * 1.05) & revolute
     frac = over.any(-1).mean(-1)
     if np.any(frac > 0.5):
         idx = tuple(int(i) for i in np.argwhere(over)[0])
         unit = robot.units[1]
+        beyond = f"{UNLIMITED_TURNS} turns (it has no limits)" if unlimited[idx[-1]] else "a full turn and its limits"
         raise DataError(
             f"q: joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the poses have a "
-            f"revolute joint beyond a full turn and its limits (q{list(idx)} = {q[idx]:.6g} rad); the "
+            f"revolute joint beyond {beyond} (q{list(idx)} = {q[idx]:.6g} rad); the "
             f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"',
             option="angle_unit",
         )

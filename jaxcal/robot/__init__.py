@@ -10,6 +10,7 @@ from ._presets import PRESETS as PRESETS
 from ._presets import preset as preset
 from ._robot import ANGLE_UNITS as ANGLE_UNITS
 from ._robot import CONVENTIONS as CONVENTIONS
+from ._robot import DEFAULT_LIMITS as DEFAULT_LIMITS
 from ._robot import DH_NAMES as DH_NAMES
 from ._robot import JOINT_FRAME_NAMES as JOINT_FRAME_NAMES
 from ._robot import LENGTH_UNITS as LENGTH_UNITS

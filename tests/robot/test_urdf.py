@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from jaxcal import RobotFileError, fk, load_model, load_robot, save_model, to_joint
+from jaxcal import DataError, RobotFileError, fk, load_model, load_robot, save_model, to_joint
 from jaxcal.lie import xyz_rpy_to_transform
 from jaxcal.measurements import tiago_paths
 from jaxcal.model import Model
@@ -342,3 +342,13 @@ def test_continuous_joint_and_default_axis(tmp_path):
     T = np.asarray(fk(r, np.array([[np.pi / 2, np.pi / 2]])))[0]
     # spin turns the 0.2 m link to +y; tilt about x then turns nothing of a point on x
     np.testing.assert_allclose(T[:3, 3], [0.0, 200.0, 100.0], atol=1e-9)
+    # a continuous joint's readings may run over several turns: radians, not degrees; degrees
+    # (or more than four turns) still are refused, and the limited joint keeps its own bound
+    from jaxcal.calibration import check_angles
+
+    q = np.c_[np.linspace(-12.0, 12.0, 10), np.linspace(-0.9, 0.9, 10)]
+    check_angles(r, q)
+    with pytest.raises(DataError, match=r"beyond 4 turns \(it has no limits\)"):
+        check_angles(r, np.c_[np.degrees(q[:, 0]), q[:, 1]])
+    with pytest.raises(DataError, match="beyond a full turn and its limits"):
+        check_angles(r, np.c_[q[:, 0] / 10, np.degrees(q[:, 1]) * 2])
