@@ -143,7 +143,15 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     if model.n_points != M:
         have = "poses" if M == 0 else f"{M} point(s) per pose"
         want = "poses" if model.n_points == 0 else f"{model.n_points} point(s)"
-        raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}", option="data")
+        why = (
+            " (it was calibrated from measured points: its tool's orientation was not; score the positions "
+            "with a file of x, y, z)"
+            if M == 0
+            else " (choose the file's point it was fitted on: --points J)"
+            if model.n_points == 1
+            else ""
+        )
+        raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}{why}", option="data")
     q = np.asarray(meas.q)
     check_angles(model.robot, q)
     pred = np.asarray(_predict(model, q))

@@ -177,11 +177,20 @@ def calibrate(
     }
     if out_robot is not None and nominal.convention != "joint":
         several = res.model.n_points > 1  # no one point is the tool: they are written beside it
+        # one point is the tool's origin, written as the point (0, 0, 0): the file then says that
+        # only positions were measured (the tool's orientation is the nominal one, not calibrated)
+        points = np.asarray(res.model.points) if several else np.zeros((res.model.n_points, 3))
         save_robot(
             res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
-            training_ranges=res.training_ranges, points=np.asarray(res.model.points) if several else None,
+            training_ranges=res.training_ranges, points=points,
         )  # fmt: skip
         console.print(f"calibrated robot written to {out_robot}")
+        if res.model.n_points == 1:
+            console.print(
+                "  its tool origin is the measured point; the tool's orientation was not measured (the nominal "
+                "one), so the file marks the point (`points`) and pose targets warn",
+                highlight=False,
+            )
         if several:
             console.print(
                 f"  with the {res.model.n_points} measured points (`points`, tool frame); its tool frame is where "

@@ -24,7 +24,8 @@ def evaluate(
     ),
     json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
     points: str = typer.Option(
-        None, help="score only these measured points, e.g. 1 or 1,3 (default: all; a one-point model: 1)"
+        None,
+        help="score only these measured points, e.g. 1 or 1,3 (default: all; a one-point model: the one it fitted)",
     ),
     length_unit: str = typer.Option(None, help="m | mm (default: the model file's)"),
     angle_unit: str = typer.Option(None, help="rad | deg (default: the model file's)"),

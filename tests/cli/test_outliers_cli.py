@@ -9,6 +9,7 @@ import re
 import numpy as np
 import pytest
 from helpers import dh_fk, run_cli
+from scipy.spatial.transform import Rotation
 
 import jaxcal
 from jaxcal.measurements import write_measurements
@@ -155,6 +156,20 @@ def test_four_points_with_occluded_markers(tmp_path, monkeypatch, capsys):
     ev = json.loads((tmp_path / "e.json").read_text())
     assert len(ev["points"]) == 1 and ev["poses_evaluated"] == 28  # rows 20 (point 1 lost) and 25 dropped
     assert ev["dropped_rows"] == [20, 25] and ev["position_rms_mm"] < 0.1
+    # the one point is the tool origin, marked so: a pose file is not scored as poses, and pose
+    # targets warn that the tool's orientation was not calibrated
+    p1 = jaxcal.load_model(tmp_path / "p1.toml")
+    assert p1.n_points == 1 and np.all(np.asarray(p1.points) == 0)
+    T = np.asarray(jaxcal.fk(p1.robot, np.zeros((2, 6))))
+    quat = Rotation.from_matrix(T[:, :3, :3]).as_quat(scalar_first=True)
+    targets = tmp_path / "poses.csv"
+    targets.write_text(
+        "x,y,z,qw,qx,qy,qz\n"
+        + "".join(",".join(repr(float(v)) for v in [*t[:3, 3], *w]) + "\n" for t, w in zip(T, quat))
+    )
+    code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "p1.toml", targets)
+    assert code in (0, None), err
+    assert "its tool's orientation is the nominal one, not calibrated" in " ".join(out.split())
     # all four points of a four-point model: the lost ones are None per pose and left out of the figures
     code, out, err = run_cli(
         monkeypatch, capsys, "evaluate", tmp_path / "m4.toml", data, "--json", tmp_path / "e4.json"
