@@ -54,6 +54,12 @@ again while the noise keeps falling below :data:`REFINE_SHARE` of the last (a de
 down still flags clean poses whose residual is its own misfit); at most :data:`REWEIGHTS` times."""
 REFINE_SHARE = 0.8
 REWEIGHTS = 4
+UNMASK_SHARE = 0.5
+"""When no pose stands out of a least-squares fit, the detection looks again with robust weights
+(:func:`detect`, ``unmask``) and goes on only if the noise they find is below this share of the
+first: outliers had pulled the fit (a lost marker written as 0, 0, 0 in a tenth of the rows of a
+tracker metres away). Otherwise the first fit stands: excluding a pose raises its own residual,
+and on clean data with few poses per parameter that alone would flag some."""
 REDETECT_SIGMA = 0.5
 """When leaving the outliers out brings the frames-only noise below this share of what it was,
 gross outliers (a lost marker written as 0, 0, 0; swapped labels) set the weights and pulled the
@@ -129,6 +135,7 @@ def detect(
     loss_scale=None,
     robust_rounds: int = ROBUST_ROUNDS,
     max_rounds: int = MAX_ROUNDS,
+    unmask: bool = False,
 ) -> Detection:
     """Find the outliers of every member of ``fit`` (module docstring).
 
@@ -137,7 +144,9 @@ def detect(
     ``pos_norms``, ``rot_norms``, ``x``, ...); ``fit`` the members' fits on ``masks (B, K)``
     (their poses); ``dof_pos`` ``(K,)`` or ``(B, K)`` each pose's observed position rows;
     ``poses`` whether rotations are measured; ``sigmas`` the outlier level
-    (:func:`jaxcal.solvers.outlier_threshold`); ``loss_scale`` a given noise scale per row.
+    (:func:`jaxcal.solvers.outlier_threshold`); ``loss_scale`` a given noise scale per row;
+    ``unmask``: when no pose stands out, the robust refits are made anyway (one data set's
+    detection: outliers that pulled the fit until none stands out are found).
 
     **Returns** a :class:`Detection`; members with nothing flagged keep their fit unchanged.
     """
@@ -149,13 +158,22 @@ def detect(
     u, scale = standardised(fit, dof_pos, masks, **kw)
     flags = masks & (u > thr)
     todo = flags.any(-1, keepdims=True)
+    first = Detection(flags, u, scale, thr, fit)
     if not todo.any():
-        return Detection(flags, u, scale, thr, fit)
+        if not unmask:
+            return first
+        # a gross minority can pull a least-squares fit until no pose stands out (masking): look
+        # again with the robust weights; nothing flagged then, and the fit stands as it was
+        todo = np.ones_like(todo)
     for _ in range(robust_rounds):  # members with nothing flagged refit as they were (warm: no step)
         c = np.asarray(robust_weights(u, 1.0, dof, "cauchy"))
         fit = refit(np.where(todo, masks * c, masks), fit["x"])
         u, scale = standardised(fit, dof_pos, masks, **kw)
+    if not first.flags.any():  # looked again: masking shows as a noise that the robust fit shrinks
+        todo &= scale[:, :1] < UNMASK_SHARE * first.scale[:, :1]
     used = masks & (u > thr) & todo
+    if not used.any() and not first.flags.any():
+        return first
     for r in range(max_rounds):  # the scale over every pose: the median needs no trimming
         fit = refit((masks & ~used).astype(float), fit["x"])
         u, scale = standardised(fit, dof_pos, masks, **kw)
@@ -193,6 +211,22 @@ def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5) 
     )
 
 
+def zeros_note(target, n_points: int, flags) -> str:
+    """What to say when flagged poses measure a point at exactly 0, 0, 0: a lost marker that the
+    export wrote as zeros (empty cells leave that point out and keep the pose's others)."""
+    pts = np.asarray(target)[..., :3, 3][:, None] if n_points == 0 else np.asarray(target)
+    zero = np.all(pts == 0.0, -1) & np.asarray(flags, bool)[:, None]  # (K, M)
+    if not zero.any():
+        return ""
+    per = ", ".join(
+        f"point {j + 1} in {int(zero[:, j].sum())} of them" for j in range(zero.shape[1]) if zero[:, j].any()
+    )
+    return (
+        f"; the outliers include positions at exactly 0, 0, 0 ({per}): lost markers written as zeros? "
+        "Export them as empty cells: that point is then left out and the pose's other points kept"
+    )
+
+
 def pose_position_mm(pos_err) -> np.ndarray:
     """Each pose's position error (mm): the point's, or the RMS over the points seen."""
     pos_err = np.asarray(pos_err, float)
@@ -217,7 +251,7 @@ def describe(det: Detection, member: int, pos_err, rot_err_deg, rows, *, exclude
     return out
 
 
-def found(fit: dict, refit, masks, target, opts) -> Detection:
+def found(fit: dict, refit, masks, target, opts, *, unmask: bool = False) -> Detection:
     """The outliers of the fits ``fit`` on ``masks`` as the options ask (``keep_outliers``: the
     poses beyond the threshold, kept in the fit; else :func:`detect`, ``refit`` as there), for
     the measurements ``target``."""
@@ -225,4 +259,4 @@ def found(fit: dict, refit, masks, target, opts) -> Detection:
     dof = position_rows(target)
     if opts.keep_outliers:
         return assess(fit, masks, dof, **kw)
-    return detect(refit, fit, masks, dof, **kw)
+    return detect(refit, fit, masks, dof, unmask=unmask, **kw)

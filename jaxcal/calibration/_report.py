@@ -303,6 +303,8 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
     )
     pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
     many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
+    if many:
+        many += outliers.zeros_note(p.target, p.n_points, last.flags[0])
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se)
     h = _heldout(fits, fr, p)

@@ -260,7 +260,7 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
                 p.cfg, ref, p.q, p.target, w, weights, prior, p.opts.loss_scale, x0=x0, **p.run, label="outliers"
             )
 
-        det = outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts)
+        det = outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts, unmask=True)
         return dataclasses.replace(det, noise=det.scale * sig)  # mm, rad: the weights of this detection
 
     sig = fr.sig[[-1]]
