@@ -46,6 +46,9 @@ from .measurements import (
 from .robot import Robot
 from .solvers import least_squares
 
+FAR_REACHES = 1.5
+"""Targets given without commands whose median distance from the robot's base is beyond this many
+times its reach (:meth:`jaxcal.Robot.reach`, an upper bound) are refused: none can be reached."""
 LIMIT_TOL = 1e-9
 """Slack (rad or mm) of the joint-limit check, for commands that land on a limit."""
 
@@ -278,5 +281,14 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
             calibrated, q, poses, 0, batched=False, model_positions=model, robust=True, what="targets",
             model="the calibrated model",
         )  # fmt: skip
+    else:  # no commands to compare with: targets beyond any reach are likely in another unit
+        far = np.median(np.linalg.norm(np.asarray(poses)[:, :3, 3] - np.asarray(calibrated.base)[:3, 3], axis=1))
+        if far > FAR_REACHES * calibrated.reach():
+            raise DataError(
+                f"targets: their median distance from the robot's base is {far:.4g} mm, {far / calibrated.reach():.3g} "
+                f"times its reach ({calibrated.reach():.4g} mm): written in another length unit (length_unit), or "
+                "in another frame than the calibrated model's?",
+                option="length_unit",
+            )
     q0 = targets.q if targets.q is not None else np.tile(np.asarray(calibrated.q_limits).mean(axis=1), (len(poses), 1))
     return poses, compensate(calibrated, poses, q0, position_only=position_only, **kw)

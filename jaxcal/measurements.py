@@ -244,7 +244,7 @@ def read_table(path, expected: str):
     header = records[0][1]
     seen: dict[str, int] = {}
     for i, name in enumerate(header):
-        if name in seen:
+        if name in seen and name.strip():  # empty names: trailing separators (Excel's ;;), no data
             clash = (
                 "; if a joint is named like a measurement column (x, y, z, qw..qz, x1..), write the joint "
                 "columns as q1..qN, or rename the joint in the robot file"
@@ -290,6 +290,8 @@ def joint_columns(header, robot: Robot, src: str, *, required: bool = True) -> l
             raise DataError(f"{src}: no joint columns; {expected}; {_header_read(header)}")
         return None
     idx = [j for j, _ in numbered]
+    if "q0" in header and idx == list(range(1, n)):
+        raise DataError(f"{src}: joint columns q0..q{n - 1}: jaxcal numbers joints from 1; name them q1..q{n}")
     if idx != list(range(1, n + 1)):
         if idx == list(range(1, len(idx) + 1)):
             raise DataError(f"{src}: robot has {n} joints, file has q1..q{len(idx)}")
@@ -456,7 +458,7 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) 
     points, quat = measurement_columns(header, src)
     pcols = [c for p in points for c in p]
     used = set(jcols) | set(pcols) | set(quat or [])
-    ignored = tuple(c for c in header if c not in used)
+    ignored = tuple(c for c in header if c not in used and c.strip())
     require_rows(records, src)
     values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else points)
     seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(points), 3).any(-1)).any(-1)

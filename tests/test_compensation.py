@@ -202,3 +202,10 @@ def test_targets_in_another_unit_are_refused_naming_the_option(tmp_path):
     with pytest.raises(DataError, match="look like degrees") as e:
         compensate_targets(r, targets(np.degrees(q), pos))
     assert e.value.option == "angle_unit"
+    # positions alone, in metres, by a tracker 5 m from the base: beyond any reach, refused
+    far = r.replace(base=np.asarray(r.base) + np.pad(np.array([[5000.0], [0.0], [0.0]]), ((0, 1), (3, 0))))
+    p = tmp_path / "xyz.csv"
+    p.write_text("x,y,z\n" + "".join(",".join(repr(float(v)) for v in b / 1000.0) + "\n" for b in pos + [5000.0, 0, 0]))
+    with pytest.raises(DataError, match="times its reach") as e:
+        compensate_targets(far, read_targets(p, far))
+    assert e.value.option == "length_unit"

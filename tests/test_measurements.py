@@ -145,6 +145,11 @@ def test_joint_columns_by_name_and_other_columns_listed(tmp_path, panda):
     m = read_measurements(_csv(tmp_path, text), named)
     assert_allclose(m.q[0], [0.1, 0.2, 0.3, -1, 0.5, 0.6, 0.7])
     assert m.ignored == ("stamp", "note")
+    # Excel's trailing separators (empty column names, twice): no data, not a duplicated column
+    m = read_measurements(
+        _csv(tmp_path, text.replace("note\n", "note;;\n").replace("ok\n", "ok;;\n").replace(",", ";")), named
+    )
+    assert_allclose(m.q[0], [0.1, 0.2, 0.3, -1, 0.5, 0.6, 0.7]) and m.ignored == ("stamp", "note")
 
 
 def test_joint_names_that_look_numbered_are_names(tmp_path, panda):
@@ -265,6 +270,10 @@ BAD = {
     "duplicated column": ("q1,q2,q3,q4,q5,q6,q7,x,y,z,y\n", r"duplicated column name 'y' \(columns 9 and 11\)"),
     "6 joints": ("q1,q2,q3,q4,q5,q6,x,y,z\n", r"e\.csv: robot has 7 joints, file has q1\.\.q6"),
     "8 joints": (HEADER7.replace("q7", "q7,q8") + "\n", r"robot has 7 joints, file has q1\.\.q8"),
+    "numbered from 0": (
+        "q0,q1,q2,q3,q4,q5,q6,x,y,z\n",
+        r"joint columns q0\.\.q6: jaxcal numbers joints from 1; name them q1\.\.q7",
+    ),
     "q9 gap": (HEADER7 + ",q9\n", r"column\(s\) 'q9' but the robot has 7 joints \(q1\.\.q7\)"),
     "partial quaternion": (
         HEADER7 + ",qw,qx\n",

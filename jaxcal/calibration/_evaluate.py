@@ -113,6 +113,22 @@ def _far(model: Model, meas, pos, rot) -> list[str]:
     ]
 
 
+def _zeros(meas) -> list[str]:
+    """A warning naming the rows with a position at exactly 0, 0, 0: a lost marker the export
+    wrote as zeros, scored as a measurement."""
+    t = np.asarray(meas.measured)
+    pts = t[:, None, :3, 3] if meas.n_points == 0 else t
+    numbers = np.arange(1, len(t) + 1) if getattr(meas, "rows", None) is None else meas.rows
+    rows = [int(r) for r, z in zip(numbers, np.all(pts == 0.0, -1).any(-1)) if z]
+    if not rows:
+        return []
+    listed = ", ".join(map(str, rows[:10])) + (f" and {len(rows) - 10} more" if len(rows) > 10 else "")
+    return [
+        f"row(s) {listed}: a position at exactly 0, 0, 0, scored as measured (a lost marker written as zeros? "
+        "export lost markers as empty cells)"
+    ]
+
+
 def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -> dict:
     """Errors of ``model`` on the measurements ``meas`` (:class:`jaxcal.Measurements`), nothing
     fitted: JSON-ready, lengths in mm, angles in degrees.
@@ -175,7 +191,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             for n, lo, hi in zip(model.robot.joint_names, training.q.min(0), training.q.max(0))
         }
     rot_rms = 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
-    out["warnings"] = _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
+    out["warnings"] = _zeros(meas) + _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
     if ranges is not None:
         away = outside(model.robot, meas.q, ranges)
         share = float(away.mean()) if len(away) else 0.0

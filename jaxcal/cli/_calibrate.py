@@ -86,7 +86,8 @@ def calibrate(
     json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
     out_robot: Path = typer.Option(
         None,
-        help="write the calibrated robot here (TOML; one measured point becomes the tool, several are kept as points)",
+        help="write the calibrated robot here (a DH robot: TOML, one measured point as the tool, several as points; "
+        "a URDF robot: its URDF, as --out-model)",
     ),
     out_model: Path = typer.Option(
         None,
@@ -125,8 +126,12 @@ def calibrate(
     if out_dh is not None:
         check_dh(nominal, "out_dh")
     for name, path in (("out_robot", out_robot), ("out_model", out_model)):
-        if path is not None and (path.suffix.lower() == ".urdf") != (nominal.convention == "joint"):
-            kind = "a URDF robot is written as URDF (.urdf)" if nominal.convention == "joint" else "a DH robot as TOML"
+        if path is not None and (path.suffix.lower() in (".urdf", ".xml")) != (nominal.convention == "joint"):
+            kind = (
+                "a URDF robot is written as URDF (.urdf, .xml)"
+                if nominal.convention == "joint"
+                else "a DH robot as TOML"
+            )
             raise DataError(f"{name}: {kind}; nothing was computed", option=name)
     meas = read_measurements(data, nominal, length_unit=length_unit, angle_unit=angle_unit)
     if points is not None:

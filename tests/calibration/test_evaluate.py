@@ -133,6 +133,10 @@ def test_a_misread_file_is_refused_or_named():
     moved[:, :3, 3] += [300.0, 0.0, 0.0]
     (w,) = evaluate(true, Measurements(q, moved))["warnings"]
     assert "no common input mistake explains it" in w and "the model's base is the identity" in w
+    zero = T.copy()  # row 4 a lost marker written as zeros: named, not blamed on a frame
+    zero[3, :3, 3] = 0.0
+    w = evaluate(true, Measurements(q, zero))["warnings"]
+    assert w[0].startswith("row(s) 4: a position at exactly 0, 0, 0") and len(w) == 2
     framed = Model(true.robot.replace(base=random_transform(rng, 100.0)))  # a calibrated model's frame
     (w,) = evaluate(framed, Measurements(q, T))["warnings"]
     assert "no common input mistake" in w and "identity" not in w

@@ -93,7 +93,7 @@ def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):
 def test_output_kind_is_checked_before_the_fit(monkeypatch, capsys, split):
     d = split
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--out-model", d / "x.toml")
-    assert code == 2 and "--out-model: a URDF robot is written as URDF (.urdf); nothing was computed" in err
+    assert code == 2 and "--out-model: a URDF robot is written as URDF (.urdf, .xml); nothing was computed" in err
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", d / "train.csv", "--out-model", d / "x.urdf")
     assert code == 2 and "a DH robot as TOML" in err
 
