@@ -249,6 +249,19 @@ def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Ta
     return Targets(q=q, poses=poses, position_only=bool(points) and not quat, rows=rows)
 
 
+def orientation_note(n_points: int, targets: Targets, name: str) -> str:
+    """A warning for target orientations given to a model calibrated from measured points
+    (``n_points`` > 0, the model file ``name``): its tool's orientation is the nominal one, never
+    measured. Empty otherwise."""
+    if not n_points or targets.poses is None or targets.position_only:
+        return ""
+    return (
+        f"{name} was calibrated from measured points: its tool's orientation is the nominal one, not calibrated, "
+        "and the targets' orientations are met only as far as it is right (x, y, z targets alone compensate "
+        "the positions)"
+    )
+
+
 def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | None = None, **kw):
     """Resolve a :class:`Targets` file into ``(target poses, start q)`` and compensate.
 

@@ -60,6 +60,9 @@ UNMASK_SHARE = 0.5
 first: outliers had pulled the fit (a lost marker written as 0, 0, 0 in a tenth of the rows of a
 tracker metres away). Otherwise the first fit stands: excluding a pose raises its own residual,
 and on clean data with few poses per parameter that alone would flag some."""
+UNMASK_PROBE = 0.8
+"""... and the first robust refit must bring it below this share, or the looking stops there (on
+clean data the robust noise barely moves: one refit, not all of them)."""
 REDETECT_SIGMA = 0.5
 """When leaving the outliers out brings the frames-only noise below this share of what it was,
 gross outliers (a lost marker written as 0, 0, 0; swapped labels) set the weights and pulled the
@@ -165,11 +168,15 @@ def detect(
         # a gross minority can pull a least-squares fit until no pose stands out (masking): look
         # again with the robust weights; nothing flagged then, and the fit stands as it was
         todo = np.ones_like(todo)
-    for _ in range(robust_rounds):  # members with nothing flagged refit as they were (warm: no step)
+    for r in range(robust_rounds):  # members with nothing flagged refit as they were (warm: no step)
         c = np.asarray(robust_weights(u, 1.0, dof, "cauchy"))
         fit = refit(np.where(todo, masks * c, masks), fit["x"])
         u, scale = standardised(fit, dof_pos, masks, **kw)
-    if not first.flags.any():  # looked again: masking shows as a noise that the robust fit shrinks
+        if r == 0 and not first.flags.any():  # looking again: masking shows as a noise the robust fit shrinks
+            todo &= scale[:, :1] < UNMASK_PROBE * first.scale[:, :1]
+            if not todo.any():
+                return first
+    if not first.flags.any():
         todo &= scale[:, :1] < UNMASK_SHARE * first.scale[:, :1]
     used = masks & (u > thr) & todo
     if not used.any() and not first.flags.any():

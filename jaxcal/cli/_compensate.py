@@ -30,7 +30,7 @@ def compensate(
     import numpy as np
 
     from .._io import check_writable, write_atomic
-    from ..compensation import compensate_targets, read_targets
+    from ..compensation import compensate_targets, orientation_note, read_targets
     from ..measurements import unit_scale
     from ..robot import ANGLE_UNITS, LENGTH_UNITS, calibrated_chain
 
@@ -44,13 +44,9 @@ def compensate(
         nom = load_robot_arg(nominal, *(chain if chain and urdf else (None, None)))
     tg = read_targets(targets, model.robot, length_unit=length_unit, angle_unit=angle_unit)
     cal = _target_frame(model, calibrated, point, commands_only=tg.poses is None)
-    if model.n_points and tg.poses is not None and not tg.position_only:
-        console.print(
-            f"[yellow]warning:[/yellow] {calibrated} was calibrated from measured points: its tool's orientation is "
-            "the nominal one, not calibrated, and the targets' orientations are met only as far as it is right "
-            "(x, y, z targets alone compensate the positions)",
-            highlight=False,
-        )
+    note = orientation_note(model.n_points, tg, str(calibrated))
+    if note:
+        console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)
     _, res = compensate_targets(cal, tg, nominal=nom)
     table = Table(title=f"compensation of {len(res.q)} targets")
     for col in ("", "position residual (mm)", "rotation residual (deg)"):

@@ -257,25 +257,12 @@ def test_a_detector_halfway_down_flags_no_clean_pose():
     assert sorted(o["row"] for o in rep["outliers"]) == [23, 33, 34]
 
 
-def test_a_point_written_as_zeros_is_an_outlier_not_another_unit(tmp_path):
-    """A position-only row exported as 0, 0, 0 (a lost reflector): read, named as an outlier and
-    left out, not refused as a row in another length unit."""
-    robot = jaxcal.preset("ur5")
-    sim = simulate(robot, n_poses=K, n_val=1, seed=3, sigma_pos=NOISE, base=True, tool=True)
-    p = np.array(sim.measured[0][:, :3, 3])
-    p[35] = 0.0  # data row 36
-    rows = "".join(",".join(repr(float(v)) for v in np.r_[a, b]) + "\n" for a, b in zip(np.asarray(sim.q[0]), p))
-    (tmp_path / "zero.csv").write_text("q1,q2,q3,q4,q5,q6,x,y,z\n" + rows)
-    data = jaxcal.read_measurements(tmp_path / "zero.csv", robot)
-    rep = jaxcal.calibrate_data(robot, data, nested_max_poses=0, compliance="no").report
-    assert [o["row"] for o in rep["outliers"]] == [36]
-
-
 def test_zero_rows_that_pull_the_fit_until_none_stands_out_are_found():
-    """Six of 50 tracker rows exported as 0, 0, 0, the tracker 2.4 m away and turned (a file made
-    apart from jaxcal, tests/data/outliers): they pulled the least-squares fit until no pose stood
-    out (robust noise 323 mm, nothing named, the fit refused). Looked at again with robust weights,
-    the six are named and the model is at the noise."""
+    """Six of 50 tracker rows exported as 0, 0, 0 (lost reflectors), the tracker 2.4 m away and
+    turned (a file made apart from jaxcal, tests/data/outliers): read, not refused as rows in
+    another length unit; they pulled the least-squares fit until no pose stood out (robust noise
+    323 mm, nothing named, the fit refused). Looked at again with robust weights, the six are
+    named and left out, and the model is at the noise."""
     from pathlib import Path
 
     robot = jaxcal.preset("ur5")
