@@ -8,7 +8,13 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
 from jaxcal import DataError, Robot, fk, preset
-from jaxcal.measurements import Measurements, franka_csv_path, read_measurements, write_measurements
+from jaxcal.measurements import (
+    Measurements,
+    franka_csv_path,
+    orientation_like,
+    read_measurements,
+    write_measurements,
+)
 
 HEADER7 = "q1,q2,q3,q4,q5,q6,q7,x,y,z"
 GOOD_ROW = "0.1,0.2,0.3,-1.5,0.5,1.5,0.7"
@@ -150,6 +156,9 @@ def test_joint_columns_by_name_and_other_columns_listed(tmp_path, panda):
         _csv(tmp_path, text.replace("note\n", "note;;\n").replace("ok\n", "ok;;\n").replace(",", ";")), named
     )
     assert_allclose(m.q[0], [0.1, 0.2, 0.3, -1, 0.5, 0.6, 0.7]) and m.ignored == ("stamp", "note")
+    # orientations in forms jaxcal does not read are named (calibrate then warns: positions alone)
+    names = ["stamp", "r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R", "note", "A1", "x2"]
+    assert orientation_like(names) == ["r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R"]
 
 
 def test_joint_names_that_look_numbered_are_names(tmp_path, panda):

@@ -270,6 +270,8 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> Non
 
 def show(rep: dict, meas) -> None:
     """Print a calibration report."""
+    from ..measurements import orientation_like
+
     title = (
         f"candidate models on {rep['poses']} poses ({meas.source}): held-out error of {rep['folds']}-fold and "
         f"{rep['range_end_folds']} range-end folds (linearised)"
@@ -358,6 +360,14 @@ def show(rep: dict, meas) -> None:
         console.print(f"camera model {rep['camera_model']}: {vals} (a sensor property, not written to the robot file)")
     if rep.get("ignored_columns"):
         console.print(f"ignored columns: {', '.join(rep['ignored_columns'])}")
+        rot = orientation_like(rep["ignored_columns"])
+        if rot and rep["position_only"]:
+            console.print(
+                f"[yellow]warning:[/yellow] columns {', '.join(rot)} look like orientations; jaxcal reads an "
+                "orientation only as a quaternion (qw, qx, qy, qz) beside one point, so this calibration used the "
+                "positions alone",
+                highlight=False,
+            )
     lost_notes(meas)
     show_outliers(rep)
 
