@@ -252,7 +252,7 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
     ref = core.take(fr.fit["model"], [len(fr.sig) - 1])
     mask = p.valid[None].astype(float)
 
-    def detected(sig):
+    def detected(sig, unmask=False):
         weights = core.weights_of(p.layout, sig)
 
         def refit(w, x0=None):
@@ -260,11 +260,11 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
                 p.cfg, ref, p.q, p.target, w, weights, prior, p.opts.loss_scale, x0=x0, **p.run, label="outliers"
             )
 
-        det = outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts, unmask=True)
+        det = outliers.found(refit(mask), refit, mask.astype(bool), p.target, p.opts, unmask=unmask)
         return dataclasses.replace(det, noise=det.scale * sig)  # mm, rad: the weights of this detection
 
     sig = fr.sig[[-1]]
-    det = detected(sig)
+    det = detected(sig, unmask=True)  # the detections at the noise found start from its fit: looked at once
     # noise given, or a loss scale that sets the noise found: nothing to learn by detecting again
     given = p.opts.sigma_pos_mm is not None or p.opts.sigma_rot_rad is not None or p.opts.loss_scale is not None
     for k in range(0 if given else outliers.REWEIGHTS):
