@@ -141,8 +141,9 @@ def check_units(
     centroid, independent of the unknown measurement frame) must be within 3x of the nominal
     model's at the same joint values; metres read as mm give 1000x. ``model_positions`` are the
     nominal model's tool positions at ``q``. ``robust``: the median distance to the median point
-    instead, for rows that may hold a few wild values (targets, not measurements); ``what`` and
-    ``model`` name the rows and the model in the message."""
+    instead, for rows that may hold a few wild values (a lost marker's sentinel, an unreachable
+    target), which the detection or the solver then names; ``what`` and ``model`` name the rows
+    and the model in the message."""
     Q = q if batched else q[None]
     P_mea = positions_of(target if batched else target[None], n_points)
     P_mod = model_positions if batched else model_positions[None]

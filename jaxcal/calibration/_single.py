@@ -315,7 +315,7 @@ def calibrate(
     ref = start(masks)
     check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
-    check_units(robot, q, target, n_points, batched=False, model_positions=pos0)
+    check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True)
     ident = core.identify(J0, layout, robot)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))

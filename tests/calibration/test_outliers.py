@@ -262,7 +262,8 @@ def test_zero_rows_that_pull_the_fit_until_none_stands_out_are_found():
     turned (a file made apart from jaxcal, tests/data/outliers): read, not refused as rows in
     another length unit; they pulled the least-squares fit until no pose stood out (robust noise
     323 mm, nothing named, the fit refused). Looked at again with robust weights, the six are
-    named and left out, and the model is at the noise."""
+    named and left out, and the model is at the noise. A sentinel row (-9999 mm) is not taken for
+    a file in another length unit (the units are judged by a median spread)."""
     from pathlib import Path
 
     robot = jaxcal.preset("ur5")
@@ -270,3 +271,12 @@ def test_zero_rows_that_pull_the_fit_until_none_stands_out_are_found():
     rep = jaxcal.calibrate_data(robot, data, nested_max_poses=0, folds=2).report  # compliance candidates: as by default
     assert sorted(o["row"] for o in rep["outliers"]) == [1, 8, 15, 22, 29, 36]
     assert rep["plausible"] and rep["heldout_rms_mm"] < 3 * NOISE
+    # and row 40 a lost reflector written as -9999 mm: one row, not a unit the file is in (the
+    # checks of the first stage pass it on to the detection)
+    from jaxcal.calibration import _workflow
+    from jaxcal.calibration._options import make_options
+
+    measured = np.array(data.measured)
+    measured[39] = -9999.0
+    sentinel = jaxcal.Measurements(data.q, measured, rows=data.rows)
+    _workflow._prepare(robot, sentinel, make_options(None, dict(nested_max_poses=0, folds=2)), None)
