@@ -43,7 +43,7 @@ from .measurements import (
     require_rows,
     unit_scale,
 )
-from .robot import Robot
+from .robot import DEFAULT_LIMITS, Robot
 from .solvers import least_squares
 
 FAR_REACHES = 1.5
@@ -193,7 +193,9 @@ def compensate(
     )
     q, ep, er = np.asarray(q), np.asarray(ep), np.asarray(er) * (not position_only)
     lim = np.asarray(calibrated.q_limits)
-    q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]))
+    # not for default limits: a continuous joint (no limits) would be sent a turn round instead
+    given = ~np.all(np.abs(lim - np.array(DEFAULT_LIMITS["R"])) < 1e-12, axis=1)
+    q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]) & given)
     reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
     inside = np.all((q >= lim[:, 0] - LIMIT_TOL) & (q <= lim[:, 1] + LIMIT_TOL), axis=-1)
     return Compensation(

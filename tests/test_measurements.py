@@ -140,7 +140,8 @@ def test_units_follow_the_robot_file(tmp_path):
     assert_allclose(m.q[0], [math.pi / 2, math.pi / 4], rtol=1e-15)
     assert_allclose(m.measured[0, 0], [100.0, 200.0, 300.0], rtol=1e-15)
     m = read_measurements(p, robot, length_unit="mm", angle_unit="rad")
-    assert_allclose(m.q[0], [90.0, 45.0]) and assert_allclose(m.measured[0, 0], [0.1, 0.2, 0.3])
+    assert_allclose(m.q[0], [90.0, 45.0])
+    assert_allclose(m.measured[0, 0], [0.1, 0.2, 0.3])
 
 
 def test_joint_columns_by_name_and_other_columns_listed(tmp_path, panda):
@@ -155,7 +156,8 @@ def test_joint_columns_by_name_and_other_columns_listed(tmp_path, panda):
     m = read_measurements(
         _csv(tmp_path, text.replace("note\n", "note;;\n").replace("ok\n", "ok;;\n").replace(",", ";")), named
     )
-    assert_allclose(m.q[0], [0.1, 0.2, 0.3, -1, 0.5, 0.6, 0.7]) and m.ignored == ("stamp", "note")
+    assert_allclose(m.q[0], [0.1, 0.2, 0.3, -1, 0.5, 0.6, 0.7])
+    assert m.ignored == ("stamp", "note")
     # orientations in forms jaxcal does not read are named (calibrate then warns: positions alone)
     names = ["stamp", "r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R", "note", "A1", "x2"]
     assert orientation_like(names) == ["r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R"]

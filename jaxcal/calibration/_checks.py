@@ -85,31 +85,31 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     return q, measured, measured.shape[-2]
 
 
-UNLIMITED_TURNS = 4
-"""A joint given no limits (a URDF ``continuous`` joint, a file without them) may turn several
-times: its values look like degrees only beyond this many turns."""
-
-
 def check_angles(robot: Robot, q) -> None:
     """Refuse joint angles that look like degrees: revolute values beyond both a full turn and
-    the joint limits in most poses (a few such poses are left to the fit and its checks); for a
-    joint without limits, beyond :data:`UNLIMITED_TURNS` turns."""
+    the joint limits in most poses (a few such poses are left to the fit and its checks). A
+    joint whose limits are the default ones may be a continuous joint turning several times: the
+    message says so, since its values may be radians."""
     revolute = np.array([t == "R" for t in robot.joint_types])
     if not revolute.any() or q.shape[-2] < 3:
         return
     limits = np.asarray(robot.q_limits)
-    unlimited = np.all(np.abs(limits - np.array(DEFAULT_LIMITS["R"])) < 1e-12, axis=1)
-    bound = np.where(unlimited, UNLIMITED_TURNS * 2 * np.pi, np.maximum(2 * np.pi, np.abs(limits).max(axis=1)))
-    over = (np.abs(q) > bound * 1.05) & revolute
+    over = (np.abs(q) > np.maximum(2 * np.pi, np.abs(limits).max(axis=1)) * 1.05) & revolute
     frac = over.any(-1).mean(-1)
     if np.any(frac > 0.5):
         idx = tuple(int(i) for i in np.argwhere(over)[0])
         unit = robot.units[1]
-        beyond = f"{UNLIMITED_TURNS} turns (it has no limits)" if unlimited[idx[-1]] else "a full turn and its limits"
+        unlimited = np.all(np.abs(limits[idx[-1]] - np.array(DEFAULT_LIMITS["R"])) < 1e-12)
+        turns = (
+            f"; if joint {robot.joint_names[idx[-1]]!r} is a continuous joint whose readings run over several "
+            "turns, they are radians: give it limits that cover them in the robot file"
+            if unlimited
+            else ""
+        )
         raise DataError(
             f"q: joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the poses have a "
-            f"revolute joint beyond {beyond} (q{list(idx)} = {q[idx]:.6g} rad); the "
-            f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"',
+            f"revolute joint beyond a full turn and its limits (q{list(idx)} = {q[idx]:.6g} rad); the "
+            f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"{turns}',
             option="angle_unit",
         )
 

@@ -467,7 +467,7 @@ def _serialised(root, comment: str | None) -> str:
 
     def kept(nodes):
         return [
-            etree.tostring(n).decode() + "\n"
+            etree.tostring(n, encoding="unicode", with_tail=False) + "\n"
             for n in nodes
             if n.tag is etree.Comment
             and not (n.text or "").lstrip().startswith(NOTE.strip())
@@ -476,7 +476,7 @@ def _serialised(root, comment: str | None) -> str:
 
     before = kept(reversed(list(root.itersiblings(preceding=True))))
     after = kept(root.itersiblings())
-    ours = [] if comment is None else [etree.tostring(etree.Comment(f" {NOTE}{comment} ")).decode() + "\n"]
+    ours = [] if comment is None else [etree.tostring(etree.Comment(f" {NOTE}{comment} "), encoding="unicode") + "\n"]
     body = etree.tostring(root, pretty_print=True, encoding="unicode", with_tail=False) + "\n"
     return '<?xml version="1.0" encoding="utf-8"?>\n' + "".join(before + ours) + body + "".join(after)
 

@@ -118,7 +118,7 @@ def test_the_written_file_records_its_chain(tmp_path):
 
 
 RICH = """<?xml version="1.0"?>
-<!-- Licence: kept with the file -->
+<!-- Licence: kept with the file, © its authors -->
 <robot name="rich">
   <link name="base"/><link name="l1"/><link name="l2"/><link name="finger_a"/><link name="finger_b"/>
   <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
@@ -151,14 +151,14 @@ def test_the_written_file_keeps_everything_but_the_chain_origins(tmp_path):
     from lxml import etree
 
     nominal = tmp_path / "rich.urdf"
-    nominal.write_text(RICH)
+    nominal.write_text(RICH, encoding="utf-8")
     r = load_robot(nominal, base_link="base", tip_link="l2")
     cal = r.replace(dh=np.full((2, 7), 1e-3), base=np.asarray(xyz_rpy_to_transform(np.ones(3), np.zeros(3))))
     first, second = tmp_path / "first.urdf", tmp_path / "second.urdf"
     chain = dict(base_link="base", tip_link="l2")
     save_model(Model(cal, np.ones((1, 3))), first, template=nominal, comment={"data": "a.csv"}, **chain)
     again = load_model(first)  # its origins carry the corrections: written again, the same arm
-    save_model(again, second, template=first, comment={"data": "b.csv"})
+    save_model(again, second, template=first, comment={"data": "donnée/b.csv"})
 
     def elements(path):
         root = etree.parse(str(path), etree.XMLParser(remove_blank_text=True)).getroot()
@@ -168,8 +168,9 @@ def test_the_written_file_keeps_everything_but_the_chain_origins(tmp_path):
         return [etree.tostring(e) for e in root if not (e.get("name") or "").startswith("jaxcal_")]
 
     assert elements(second) == elements(nominal)
-    text = second.read_text()
-    assert "Licence: kept with the file" in text and text.count("jaxcal: data") == 1 and "b.csv" in text
+    text = second.read_text(encoding="utf-8")
+    assert "Licence: kept with the file, © its authors" in text and "jaxcal: data: donnée/b.csv" in text
+    assert text.count("jaxcal: data") == 1
     assert text.count('<link name="jaxcal_') == 3 and "<mimic" in text
     u = yourdfpy.URDF.load(str(second), build_scene_graph=True, load_meshes=False)
     assert u.actuated_joint_names == ["j1", "j2", "fa"]  # fb still follows fa
@@ -342,13 +343,13 @@ def test_continuous_joint_and_default_axis(tmp_path):
     T = np.asarray(fk(r, np.array([[np.pi / 2, np.pi / 2]])))[0]
     # spin turns the 0.2 m link to +y; tilt about x then turns nothing of a point on x
     np.testing.assert_allclose(T[:3, 3], [0.0, 200.0, 100.0], atol=1e-9)
-    # a continuous joint's readings may run over several turns: radians, not degrees; degrees
-    # (or more than four turns) still are refused, and the limited joint keeps its own bound
+    # a continuous joint's readings may run over several turns: taken for degrees (a limited
+    # joint's ±pi reads the same), the refusal says they may be radians and what to do then
     from jaxcal.calibration import check_angles
 
     q = np.c_[np.linspace(-12.0, 12.0, 10), np.linspace(-0.9, 0.9, 10)]
-    check_angles(r, q)
-    with pytest.raises(DataError, match=r"beyond 4 turns \(it has no limits\)"):
-        check_angles(r, np.c_[np.degrees(q[:, 0]), q[:, 1]])
-    with pytest.raises(DataError, match="beyond a full turn and its limits"):
+    with pytest.raises(DataError, match="if joint 'spin' is a continuous joint whose readings run over several turns"):
+        check_angles(r, q)
+    with pytest.raises(DataError, match="beyond a full turn and its limits") as e:
         check_angles(r, np.c_[q[:, 0] / 10, np.degrees(q[:, 1]) * 2])
+    assert "continuous" not in str(e.value)  # tilt has limits of its own
