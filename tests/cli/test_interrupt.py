@@ -1,5 +1,5 @@
 """Ctrl-C at any moment of `jaxcal calibrate` (importing, reading, compiling, fitting) ends with
-one line, exit code 130, and no output file: 20 interrupts at delays spread over the run."""
+one line, exit code 130, and no output file: 12 interrupts at delays spread over the run."""
 
 import os
 import signal
@@ -13,7 +13,7 @@ from helpers import dh_fk, measurement_csv
 
 from jaxcal import preset
 
-TRIALS = 20
+TRIALS = 12
 
 
 def test_ctrl_c_is_clean_every_time(tmp_path):
