@@ -11,8 +11,8 @@ starting command ``q_0``, which keeps a redundant arm, or a position-only target
 nominal command instead of anywhere on its self-motion, and keeps every step well posed.
 
 A command is then put on the branch of its starting command (revolute joints within pi of it:
-no whole-turn jumps), a joint beyond its limits there turned by whole turns into them where it
-fits, and checked against the robot's joint limits. A target is reached
+no whole-turn jumps), a joint beyond limits of its own there turned by whole turns into them
+where it fits, and checked against the robot's joint limits. A target is reached
 (``converged``) when the solver met its tolerances and the residual is below ``tol_mm``; a
 command outside the limits is flagged (``within_limits``), never silently written.
 """
@@ -43,7 +43,7 @@ from .measurements import (
     require_rows,
     unit_scale,
 )
-from .robot import DEFAULT_LIMITS, Robot
+from .robot import Robot
 from .solvers import least_squares
 
 FAR_REACHES = 1.5
@@ -194,8 +194,7 @@ def compensate(
     q, ep, er = np.asarray(q), np.asarray(ep), np.asarray(er) * (not position_only)
     lim = np.asarray(calibrated.q_limits)
     # not for default limits: a continuous joint (no limits) would be sent a turn round instead
-    given = ~np.all(np.abs(lim - np.array(DEFAULT_LIMITS["R"])) < 1e-12, axis=1)
-    q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]) & given)
+    q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]) & calibrated.limits_given())
     reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
     inside = np.all((q >= lim[:, 0] - LIMIT_TOL) & (q <= lim[:, 1] + LIMIT_TOL), axis=-1)
     return Compensation(

@@ -7,7 +7,7 @@ import numpy as np
 
 from .._config import as_f64
 from ..errors import DataError
-from ..robot import DEFAULT_LIMITS, Robot
+from ..robot import Robot
 
 
 def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None):
@@ -99,11 +99,10 @@ def check_angles(robot: Robot, q) -> None:
     if np.any(frac > 0.5):
         idx = tuple(int(i) for i in np.argwhere(over)[0])
         unit = robot.units[1]
-        unlimited = np.all(np.abs(limits[idx[-1]] - np.array(DEFAULT_LIMITS["R"])) < 1e-12)
         turns = (
             f"; if joint {robot.joint_names[idx[-1]]!r} is a continuous joint whose readings run over several "
             "turns, they are radians: give it limits that cover them in the robot file"
-            if unlimited
+            if not robot.limits_given()[idx[-1]]
             else ""
         )
         raise DataError(
@@ -117,6 +116,13 @@ def check_angles(robot: Robot, q) -> None:
 def positions_of(target, n_points: int):
     """Measured positions ``(..., K, 3)``: the tool origin of poses, the first point of points."""
     return target[..., :3, 3] if n_points == 0 else target[..., 0, :]
+
+
+def zero_points(target, n_points: int) -> np.ndarray:
+    """``(K, M)`` the points (the tool origin of poses: ``M`` 1) measured at exactly 0, 0, 0: a lost
+    marker an export wrote as zeros."""
+    pts = np.asarray(target)[:, None, :3, 3] if n_points == 0 else np.asarray(target)
+    return np.all(pts == 0.0, -1)
 
 
 RADIANS_AS_DEGREES_SPAN = np.radians(20.0)

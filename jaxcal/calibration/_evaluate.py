@@ -10,7 +10,7 @@ from .._config import jit
 from ..errors import DataError
 from ..model import Model, predict
 from ..robot import Robot
-from ._checks import check_angles, check_units
+from ._checks import check_angles, check_units, zero_points
 from ._plausibility import RESIDUAL_SHARE, variants
 
 _predict = jit(predict)  # one program, not one per operation
@@ -116,10 +116,9 @@ def _far(model: Model, meas, pos, rot) -> list[str]:
 def _zeros(meas) -> list[str]:
     """A warning naming the rows with a position at exactly 0, 0, 0: a lost marker the export
     wrote as zeros, scored as a measurement."""
-    t = np.asarray(meas.measured)
-    pts = t[:, None, :3, 3] if meas.n_points == 0 else t
-    numbers = np.arange(1, len(t) + 1) if getattr(meas, "rows", None) is None else meas.rows
-    rows = [int(r) for r, z in zip(numbers, np.all(pts == 0.0, -1).any(-1)) if z]
+    zero = zero_points(meas.measured, meas.n_points).any(-1)
+    numbers = np.arange(1, len(zero) + 1) if getattr(meas, "rows", None) is None else meas.rows
+    rows = [int(r) for r, z in zip(numbers, zero) if z]
     if not rows:
         return []
     listed = ", ".join(map(str, rows[:10])) + (f" and {len(rows) - 10} more" if len(rows) > 10 else "")

@@ -36,6 +36,7 @@ from jaxtyping import Bool, Float
 
 from ..model import observed
 from ..solvers import outlier_threshold, robust_scale, robust_weights
+from ._checks import zero_points
 
 ROBUST_ROUNDS = 3
 """Cauchy-reweighted refits before the first exclusion."""
@@ -221,8 +222,7 @@ def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5) 
 def zeros_note(target, n_points: int, flags) -> str:
     """What to say when flagged poses measure a point at exactly 0, 0, 0: a lost marker that the
     export wrote as zeros (empty cells leave that point out and keep the pose's others)."""
-    pts = np.asarray(target)[..., :3, 3][:, None] if n_points == 0 else np.asarray(target)
-    zero = np.all(pts == 0.0, -1) & np.asarray(flags, bool)[:, None]  # (K, M)
+    zero = zero_points(target, n_points) & np.asarray(flags, bool)[:, None]  # (K, M)
     if not zero.any():
         return ""
     per = ", ".join(

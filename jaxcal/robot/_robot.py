@@ -178,6 +178,13 @@ class Robot(eqx.Module):
     def revolute_mask(self) -> Float[Array, " n"]:
         return jnp.array([t == "R" for t in self.joint_types], dtype=jnp.float64)
 
+    def limits_given(self) -> np.ndarray:
+        """``(n,)`` False for a joint whose limits are :data:`DEFAULT_LIMITS`: given none (a URDF
+        ``continuous`` joint, a file without them), or given exactly those, which reads the same."""
+        lim = np.asarray(self.q_limits)
+        default = np.array([DEFAULT_LIMITS[t] for t in self.joint_types])
+        return ~np.all(np.abs(lim - default) < 1e-12, axis=1)
+
     def reach(self, q=None) -> float:
         """A rough size of the arm in mm: the DH lengths, the tool offset and the prismatic
         strokes added up (the scale that judges residuals and parameter changes). A stroke is
