@@ -80,6 +80,19 @@ def measure(
     return T.at[..., :3, :3].set(R).at[..., :3, 3].add(dp)
 
 
+def outlier_count(share: float, n_poses: int) -> int:
+    """Poses per robot given a gross error for a ``share`` of ``n_poses``; a share that rounds to
+    none is an error, not a study without outliers."""
+    n = int(round(share * n_poses))
+    if share > 0 and n == 0:
+        raise DataError(
+            f"outliers: a share of {share:g} of {n_poses} poses rounds to no pose; give at least "
+            f"{0.5 / n_poses:.3g} (half a pose) or 0",
+            option="outliers",
+        )
+    return n
+
+
 def inject_outliers(key, measured: Float[Array, "K 4 4"], n: int, lo_mm: float, hi_mm: float):
     """``n`` of the ``K`` measured poses (chosen at random) moved by a gross position error: a
     random direction, a length uniform in ``[lo_mm, hi_mm]`` (a slipped reflector, a swapped
@@ -211,7 +224,7 @@ def simulate(
     if q.shape[-1] != n or q_val.shape[-1] != n:
         raise DataError(f"q and q_val must have {n} joint columns")
     keys = jax.random.split(k_noise, n_robots)
-    n_out = int(round(outliers * q.shape[-2]))
+    n_out = outlier_count(outliers, q.shape[-2])
     meas, true_val, mask = _measure_batch(
         robot.stripped(),
         x_true,

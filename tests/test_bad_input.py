@@ -17,6 +17,7 @@ from jaxcal import DataError, RobotFileError
 from jaxcal.calibration import calibrate, calibrate_batch, identify
 from jaxcal.compensation import compensate
 from jaxcal.error_model import identification_jacobian, perturb
+from jaxcal.experiments import run_montecarlo
 from jaxcal.measurements import read_measurements, write_measurements
 from jaxcal.robot import load_robot
 from jaxcal.simulation import simulate
@@ -159,6 +160,11 @@ PY = {
         DataError,
         "too few poses: 2 poses",
     ),
+    "batch no data sets": (
+        lambda: calibrate_batch(ROBOT, SIM.q[:0], SIM.measured[:0]),
+        DataError,
+        "no data sets: q and measured have R = 0",
+    ),
     "batch metres in one data set": (
         lambda: calibrate_batch(ROBOT, SIM.q, np.stack([SIM.measured[0], _scaled_pos(SIM.measured[1], 1e-3)])),
         DataError,
@@ -178,6 +184,16 @@ PY = {
     # simulate
     "simulate n_poses 0": (lambda: simulate(ROBOT, n_poses=0), DataError, "n_poses must be an integer >= 1"),
     "simulate n_robots 0": (lambda: simulate(ROBOT, n_robots=0), DataError, "n_robots"),
+    "simulate outliers round to none": (
+        lambda: simulate(ROBOT, n_poses=30, outliers=0.01),
+        DataError,
+        "a share of 0.01 of 30 poses rounds to no pose",
+    ),
+    "montecarlo one noise-free component": (
+        lambda: run_montecarlo(ROBOT, n_robots=2, n_poses=20, sigma_pos=0.0, sigma_rot=1e-5),
+        DataError,
+        "noise_mm is 0 but the rotation noise is not",
+    ),
     "simulate sigma nan": (lambda: simulate(ROBOT, sigma_pos=float("nan")), DataError, "sigma_pos"),
     "simulate sigma negative": (lambda: simulate(ROBOT, sigma_rot=-1.0), DataError, "sigma_rot"),
     "simulate x_true shape": (lambda: simulate(ROBOT, x_true=np.zeros(5)), DataError, r"x_true .* got \(5,\)"),

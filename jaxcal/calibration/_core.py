@@ -336,6 +336,31 @@ def nominal_model(robot: Robot, layout: Layout) -> Model:
     return Model(carrying(robot.stripped(), layout), pts, camera=layout.camera)
 
 
+GENERIC_POINT_MM = 100.0
+"""Distance of :func:`generic_model`'s measured points from the tool origin."""
+
+
+def generic_model(robot: Robot, layout: Layout) -> Model:
+    """:func:`nominal_model` with its measured points at seeded generic offsets about
+    :data:`GENERIC_POINT_MM` from the tool origin: a point on the last joint's axis (or several at
+    one place) hides parameters that real markers reveal, so what a pose set must identify is
+    judged at generic points. Points that are not estimated (a known tool) stay at the tool origin."""
+    model = nominal_model(robot, layout)
+    if not layout.n_points or not layout.tool:
+        return model
+    pts = np.random.default_rng(0).normal(size=(layout.n_points, 3))
+    pts *= GENERIC_POINT_MM / np.linalg.norm(pts, axis=-1, keepdims=True)
+    return eqx.tree_at(lambda m: m.points, model, pts)
+
+
+def distinct_poses(q) -> np.ndarray:
+    """Number of distinct joint vectors among the poses ``q (..., K, n)`` (rows equal to 1e-9 count
+    once): a repeated row adds no equation a fit can use."""
+    q = np.round(np.asarray(q, float) * 1e9)
+    h = np.sort(q @ np.random.default_rng(0).uniform(0.5, 1.5, q.shape[-1]), axis=-1)
+    return 1 + np.count_nonzero(np.diff(h, axis=-1), axis=-1)
+
+
 def carrying(robot: Robot, layout: Layout) -> Robot:
     """``robot`` with zero compliances where the layout estimates them and it has none: every
     model of a workflow then has one structure, and one compiled solve serves them all."""

@@ -134,6 +134,9 @@ class BatchResult:
     """``(R,)``: the solver gave non-finite values; ``x`` is 0 there, not converged."""
     devices: tuple[str, ...] = ()
     """The devices the data sets were shared over (:func:`jaxcal.sharding.describe`)."""
+    problems: tuple[str, ...] = ()
+    """Per data set, why its poses cannot identify what a generic pose set does (a joint that
+    never moves, too few distinct poses; not converged then), or ""."""
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -175,14 +178,36 @@ def make_layout(
     )
 
 
-def check_enough_poses(n_poses: int, layout: Layout, needed: int) -> None:
+def check_enough_poses(n_poses: int, layout: Layout, needed: int, n_rows: int | None = None) -> None:
+    """Refuse ``n_poses`` distinct poses (of ``n_rows`` data rows, when some repeat a joint vector)
+    that give fewer equations than the ``needed`` parameters."""
     rows = layout.rows
     if n_poses * rows < needed:
+        d = "distinct " if n_rows is not None and n_rows > n_poses else ""
+        repeats = (
+            f" (the other {n_rows - n_poses} of {n_rows} rows repeat their joint values, and a repeated row "
+            f"adds no equation)"
+            if d
+            else ""
+        )
         raise DataError(
-            f"too few poses: {n_poses} poses x {rows} rows = {n_poses * rows} equations for {needed} "
-            f"parameters; need at least {-(-needed // rows)} poses",
+            f"too few poses: {n_poses} {d}poses{repeats} x {rows} rows = {n_poses * rows} equations for "
+            f"{needed} parameters; need at least {-(-needed // rows)} {d}poses",
             option="measured",
         )
+
+
+def few_distinct(q, rows: int, needed: int) -> str:
+    """A finding when the rows of ``q (K, n)`` repeat joint values so that the distinct poses give
+    fewer equations than the ``needed`` parameters a varied pose set identifies ("" otherwise)."""
+    K, d = len(q), int(core.distinct_poses(q))
+    if d == K or d * rows >= needed:
+        return ""
+    return (
+        f"only {d} of the {K} data rows have distinct joint values ({d} x {rows} rows = {d * rows} equations "
+        f"for the {needed} parameters a varied pose set identifies): the fit reproduces these poses and "
+        f"not others; measure more distinct postures"
+    )
 
 
 def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, frames_only: bool = False, lever=None):
@@ -244,25 +269,24 @@ def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
     """A note per joint that never moves in the data: what depends on it is not identified, and
     the model is only checked at that joint value."""
     q = np.asarray(q)
-    span = q.max(0) - q.min(0)
-    tiny = np.where(np.array([t == "R" for t in robot.joint_types]), 1e-6, 1e-3)
     return tuple(
         f"joint {j + 1} ({robot.joint_names[j]}) never moves in the data (always {q[0, j]:.6g}): its "
         f"parameters are not identified apart from its neighbours', and the model is only checked there"
-        for j in np.flatnonzero(span <= tiny)
+        for j in np.flatnonzero(_still_joints(robot, q))
     )
 
 
 def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: int = 0, **kw) -> Identifiability:
     """Identifiability of the parameters a calibration with these options would carry, over the
     poses ``q (K, n)`` at the nominal robot (frames offered first, as in :func:`calibrate`);
-    ``n_points`` points per pose, 0 for poses."""
+    ``n_points`` points per pose (at generic places on the tool, :func:`._core.generic_model`), 0
+    for poses."""
     opts = make_options(options, kw, elimination=True)
     layout = make_layout(robot, opts, n_points)
     q = np.asarray(check_q(robot, as_f64(q, "q")))
     if q.ndim != 2:
         raise DataError(f"q must have shape (K, {robot.n_joints}), got {q.shape}", option="q")
-    return core.identify(core.analyse(nominal_model(robot, layout), layout, q)[0], layout, robot)
+    return core.identify(core.analyse(core.generic_model(robot, layout), layout, q)[0], layout, robot)
 
 
 def calibrate(
@@ -313,7 +337,8 @@ def calibrate(
         return core.start_models(robot.stripped(), layout, q, target, masks, shared=True)
 
     ref = start(masks)
-    check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
+    needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted)
+    check_enough_poses(K, layout, needed)
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True)
     ident = core.identify(J0, layout, robot)
@@ -376,7 +401,20 @@ def calibrate(
     after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
     many = outliers.too_many(flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction)
-    why = judge(robot, q, target, n_points, layout, opts, after, x, estimated(prior), many, se=se)
+    few = few_distinct(q, layout.rows, needed)
+    why = judge(
+        robot,
+        q,
+        target,
+        n_points,
+        layout,
+        opts,
+        after,
+        x,
+        estimated(prior),
+        "; ".join(filter(None, (many, few))),
+        se=se,
+    )
     return CalibrationResult(
         model=model,
         nominal=robot,
@@ -423,14 +461,19 @@ def calibrate_batch(
     measurements with the same leading axis. One compiled, vmapped solve run in chunks within
     ``memory_mb`` (no Python loop over data sets inside a chunk), each chunk's data sets shared
     over ``devices`` (``"all"``, a count, or ``None`` for the default device alone;
-    :func:`jaxcal.sharding.select_devices`). The identifiable set comes from the first data set
-    unless ``ident`` is given. A data set whose solve gives non-finite values is reported
-    (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN."""
+    :func:`jaxcal.sharding.select_devices`). The identifiable set comes from the data set that
+    moves the most joints through the most distinct poses (the first of those) unless ``ident`` is
+    given; a data set that cannot identify it (a joint still in it alone, too few distinct poses) is
+    named in ``problems`` and not converged. A data set whose solve gives non-finite values is
+    reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN. Members that
+    Gauss-Newton does not converge are fitted again by Levenberg-Marquardt, as in :func:`calibrate`."""
     devs = select_devices(devices)
     opts = make_options(options, kw, elimination=True)
     q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
     layout = make_layout(robot, opts, n_points)
     R, K = q.shape[:2]
+    if R == 0:
+        raise DataError("no data sets: q and measured have R = 0 along their first axis", option="q")
     if ident is not None and tuple(ident.names) != tuple(layout.names()):
         raise DataError(
             f"ident is for parameters {ident.names[:3]}... ({len(ident.names)}), this calibration "
@@ -444,7 +487,11 @@ def calibrate_batch(
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
     wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
-    check_enough_poses(K, layout, core.generic_rank(nominal_model(robot, layout), layout, K, wanted))
+    still, distinct = _still_joints(robot, q), core.distinct_poses(q)
+    # the identifiable set from the data set that moves the most joints through the most distinct
+    # poses: one degenerate data set must not take parameters from the others
+    r0 = int(np.lexsort((-distinct, still.sum(-1)))[0])
+    check_enough_poses(K, layout, core.generic_rank(core.generic_model(robot, layout), layout, K, wanted))
     masks = np.ones((R, K))
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
     nominal = core.broadcast_model(nominal_model(robot, layout), R)
@@ -457,11 +504,12 @@ def calibrate_batch(
         return core.start_models(robot.stripped(), layout, q, target, masks, shared=False)
 
     ref = start(masks)
-    J0 = core.analyse(core.member(ref, 0), layout, q[0])[0]
+    J0 = core.analyse(core.member(ref, r0), layout, q[r0])[0]
     if ident is None:
         ident = core.identify(J0, layout, robot)
     prior = np.repeat(prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))[None], R, 0)
-    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs)
+    problems = _batch_problems(robot, still & ~still[r0], distinct, layout.rows, len(estimated(prior[0])))
+    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=True)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
 
     def stages(ref, masks):  # frames only (unless nothing needs it), then the set
@@ -496,7 +544,7 @@ def calibrate_batch(
     nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
     x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
     x[nonfinite] = 0.0
-    ok = np.asarray(b["converged"]) & ~nonfinite
+    ok = np.asarray(b["converged"]) & ~nonfinite & ~np.array([bool(p) for p in problems])
     share = det.flags.mean(-1)
     return BatchResult(
         x=x,
@@ -510,7 +558,27 @@ def calibrate_batch(
         degraded=(det.flags.any(-1) & (opts.keep_outliers and opts.loss == "l2")) | (share > opts.max_outlier_fraction),
         nonfinite=nonfinite,
         devices=tuple(describe(devs)),
+        problems=problems,
     )
+
+
+def _still_joints(robot: Robot, q) -> np.ndarray:
+    """``(..., n)`` which joints never move over the poses ``q (..., K, n)``."""
+    tiny = np.where(np.array([t == "R" for t in robot.joint_types]), 1e-6, 1e-3)
+    return np.ptp(np.asarray(q), axis=-2) <= tiny
+
+
+def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int) -> tuple[str, ...]:
+    """Why each data set cannot identify the ``needed`` parameters of the batch's set ("" where it
+    can): a joint that never moves in it alone (``still (R, n)``), or too few ``distinct`` poses."""
+    out = []
+    for r in range(len(still)):  # the messages of the data sets with a problem
+        why = [f"joint {j + 1} ({robot.joint_names[j]}) never moves" for j in np.flatnonzero(still[r])]
+        if distinct[r] * rows < needed:
+            eq = distinct[r] * rows
+            why.append(f"{distinct[r]} distinct poses x {rows} rows = {eq} equations for {needed} parameters")
+        out.append("; ".join(why))
+    return tuple(out)
 
 
 def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:

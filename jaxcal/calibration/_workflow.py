@@ -18,7 +18,9 @@ on the tool) with ``B0, X0`` from the closed-form guess of each training set
    (:data:`._outliers.REDETECT_SIGMA`).
 4. **Selection** (:mod:`._selection`): on the problem linearised at the frames-only fit, every
    candidate is scored by held-out error on K-fold and range-end folds, the best (a simpler one
-   within 1 % winning) is chosen, and its parameters pruned while the score holds.
+   within 1 % winning) is chosen, and its parameters pruned while the score holds. Where that
+   linearisation misses the final fit's residual (:data:`RELINEARISE`), stages 4-6 run again on
+   the problem linearised at the final fit.
 5. **Held-out figures**: the selection is made again inside every outer training set (K-fold
    folds: new postures; range-end folds: postures beyond the training ranges), each choice
    fitted in full on its training set and scored on the poses held out (nested
@@ -166,8 +168,8 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     union = set().union(*(c.dh for c in candidates))
     wanted = list(layout.frames) + list(layout.cameras) + sorted(union)
-    needed = core.generic_rank(nominal_model(robot, layout), layout, K, wanted)
-    check_enough_poses(K, layout, needed)
+    needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted)
+    check_enough_poses(int(core.distinct_poses(q)), layout, needed, K)
     n_train = K - int(np.bincount(fid).max())
     if compliance and opts.compliance == "auto" and n_train * layout.rows < 2 * (needed + layout.n_comp):
         # too few poses to tell a compliance from noise: the rigid candidates alone
@@ -313,6 +315,55 @@ def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selecte
     return _Selected(ch, p.candidates[ch.index], prior, free, priors, lev)
 
 
+RELINEARISE = 0.2
+"""When the problem linearised at the frames-only fit misses the final fit's weighted residual by
+more than this share of it (kinematic errors of a degree or more), the selection is made again on
+the problem linearised at that fit."""
+
+
+def _linear(p: _Problem, model: Model, sig, x=None) -> tuple[selection.Linear, np.ndarray]:
+    """The problem linearised at ``model`` (Stage 4), in the parameters of the frames-only fit of
+    all poses: ``x`` is ``model`` relative to that fit (its priors stay centred on the nominal)."""
+    J = core.analyse(model, p.layout, p.q)[0]
+    r = np.asarray(_errors(model, p.q, p.target))
+    if x is not None:
+        r = r + np.einsum("krm,m->kr", J, np.asarray(x))
+    return selection.linearise(J, r, core.weights_of(p.layout, sig)[0], p.n_points), J
+
+
+def _chosen(p: _Problem, fr: _Frames, lin: selection.Linear, J):
+    """Stages 4-6: the choice on all poses and inside every outer training set, each fitted in
+    full (the last member: all poses)."""
+    opts = p.opts
+    final = _select(p, lin, J, p.valid, opts.seed)
+    train = p.masks[:-1]
+    per_fold = [_select(p, lin, J, train[o], opts.seed + 1 + o) if p.nested else final for o in range(len(train))]
+    members = per_fold + [final]
+    fits = core.run_members(
+        p.cfg,
+        fr.fit["model"],
+        p.q,
+        p.target,
+        p.masks.astype(float),
+        core.weights_of(p.layout, fr.sig),
+        np.stack([s.prior for s in members]),
+        opts.loss_scale,
+        **p.run,
+        label="held-out and final fits",
+    )
+    return final, per_fold, fits
+
+
+def _linear_gap(p: _Problem, lin: selection.Linear, sig, fits) -> float:
+    """How far the linearised problem misses the weighted residual of the final fit (all poses) at
+    that fit's parameters, as a share of that residual (RMS over the poses kept)."""
+    model, x = core.member(fits["model"], -1), np.asarray(fits["x"][-1])
+    actual = np.asarray(_errors(model, p.q, p.target)) * core.weights_of(p.layout, sig)[0]
+    missed = actual - (lin.r - np.einsum("krm,m->kr", lin.J, x))
+    ok = lin.seen & p.valid[:, None] & np.isfinite(actual)
+    return float(np.sqrt(np.mean(missed[ok] ** 2) / max(np.mean(actual[ok] ** 2), 1e-300)))
+
+
 def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, progress=None, **kw) -> DataCalibration:
     """Calibrate from measured data: choose the model, estimate it, and measure how well it predicts
     poses it was not fitted on (module docstring).
@@ -339,26 +390,11 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             det = _outliers_found(dataclasses.replace(p, valid=np.ones(len(p.q), bool)), fr)
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)
-    ref = fr.member(-1)
-    J = core.analyse(ref, p.layout, p.q)[0]
-    w = core.weights_of(p.layout, fr.sig[[-1]])[0]
-    lin = selection.linearise(J, np.asarray(_errors(ref, p.q, p.target)), w, p.n_points)
-    final = _select(p, lin, J, p.valid, opts.seed)
-    train = p.masks[:-1]
-    per_fold = [_select(p, lin, J, train[o], opts.seed + 1 + o) if p.nested else final for o in range(len(train))]
-
-    # every choice fitted in full: the outer training sets, then all poses
-    members = per_fold + [final]
-    fits = core.run_members(
-        p.cfg,
-        fr.fit["model"],
-        p.q,
-        p.target,
-        p.masks.astype(float),
-        core.weights_of(p.layout, fr.sig),
-        np.stack([s.prior for s in members]),
-        opts.loss_scale,
-        **p.run,
-        label="held-out and final fits",
-    )
+    lin, J = _linear(p, fr.member(-1), fr.sig[[-1]])
+    final, per_fold, fits = _chosen(p, fr, lin, J)
+    for _ in range(2):  # large kinematic errors: linearised again at the fit
+        if _linear_gap(p, lin, fr.sig[[-1]], fits) <= RELINEARISE:
+            break
+        lin, J = _linear(p, core.member(fits["model"], -1), fr.sig[[-1]], fits["x"][-1])
+        final, per_fold, fits = _chosen(p, fr, lin, J)
     return report_of(p, fr, det, lin, final, per_fold, fits)

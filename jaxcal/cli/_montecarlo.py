@@ -132,7 +132,7 @@ def montecarlo(
     )
     t.add_column("quantity")
     t.add_column("value", justify="right")
-    timed = out["robots_per_second"] is not None  # None: every chunk was done before this run
+    timed = out["robots_per_second"] is not None  # None: nothing run warm (every chunk done before, or --repeats 0)
     rows = [
         ("devices", ", ".join(out["devices"])),
         ("chunks (robots each)", f"{out['chunks_done']} / {out['chunks']} ({out['chunk_robots']})"),

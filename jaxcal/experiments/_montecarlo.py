@@ -4,6 +4,7 @@ bound; resumable when its chunks are kept in a folder (:mod:`._study`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import statistics
 import time
 
@@ -21,7 +22,7 @@ from ..kinematics import check_q, fk
 from ..model import Layout, Model, jacobian
 from ..robot import Robot
 from ..sharding import describe, select_devices
-from ..simulation import error_scales, inject_outliers, measure, sample_poses
+from ..simulation import error_scales, inject_outliers, measure, outlier_count, sample_poses
 from ..solvers import design_poses
 from ._study import StudyFolder, fingerprint
 from ._timing import machine_info
@@ -51,25 +52,41 @@ def _jacobians(robot, q, *, layout: Layout):
     return jax.vmap(lambda q_: jacobian(model, layout, q_))(q)
 
 
-@eqx.filter_jit
-def _information(robot, q, w, *, layout: Layout, base: tuple[int, ...]):
-    """``(R, r, r)`` Fisher information ``Jb^T Jb`` of the base columns, rows weighted by ``w``:
-    each robot's Jacobian reduced where it is made."""
-    model = Model(robot, jnp.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+def _points(layout: Layout, R: int, x_true=None):
+    """``(R, M, 3)`` the measured points the bound is evaluated at: each true robot's tool point
+    where the layout estimates it (at the tool origin, rotations about the last axis would not
+    move it), else the tool origin; None for poses."""
+    if not layout.n_points:
+        return None
+    pts = np.zeros((R, layout.n_points, 3))
+    if layout.tool and x_true is not None:
+        k = layout.n_kin + 6 * layout.base
+        pts[:, 0] = np.asarray(x_true)[:, k : k + 3]
+    return pts
 
-    def one(q_):
+
+@eqx.filter_jit
+def _information(robot, q, w, points, *, layout: Layout, base: tuple[int, ...]):
+    """``(R, r, r)`` Fisher information ``Jb^T Jb`` of the base columns, rows weighted by ``w``:
+    each robot's Jacobian reduced where it is made (its measured ``points`` (R, M, 3), or None)."""
+
+    def one(q_, p_):
+        model = Model(robot, p_, camera=layout.camera)
         Jb = jacobian(model, layout, q_).reshape(-1, layout.size)[:, list(base)] * w[:, None]
         return Jb.T @ Jb
 
-    return jax.vmap(one)(q)
+    return jax.vmap(one)(q, points)
 
 
-def crlb_variances(robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None) -> np.ndarray:
+def crlb_variances(
+    robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None, x_true=None
+) -> np.ndarray:
     """``(R, r)`` Cramér–Rao variances of the base parameters for each robot's pose set ``q (R,
-    K, n)`` at the nominal model: the diagonal of :func:`jaxcal.identifiability.crlb`, from each
-    robot's column-scaled information matrix, :data:`CRLB_SLICE` robots at a time (a slice's
-    Jacobians are the largest arrays of a study)."""
-    return _variances(_base_information(robot, q, ident, layout, sigma_pos, sigma_rot))
+    K, n)`` at the nominal model (its measured point where ``x_true`` puts it, :func:`_points`):
+    the diagonal of :func:`jaxcal.identifiability.crlb`, from each robot's column-scaled
+    information matrix, :data:`CRLB_SLICE` robots at a time (a slice's Jacobians are the largest
+    arrays of a study)."""
+    return _variances(_base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_true))
 
 
 def _variances(N) -> np.ndarray:
@@ -77,10 +94,11 @@ def _variances(N) -> np.ndarray:
     return np.diagonal(np.linalg.inv(N / (d[:, :, None] * d[:, None, :])), axis1=-2, axis2=-1) / d**2
 
 
-def _base_information(robot: Robot, q, ident, layout: Layout, sigma_pos, sigma_rot) -> np.ndarray:
+def _base_information(robot: Robot, q, ident, layout: Layout, sigma_pos, sigma_rot, x_true=None) -> np.ndarray:
     """``(R, r, r)`` information of the base parameters of each robot's poses ``q (R, K, n)``."""
     q = np.asarray(q)
     R, K = q.shape[:2]
+    pts = _points(layout, R, x_true)
     sig = row_sigmas(
         K,
         position_only=layout.n_points > 0,
@@ -88,23 +106,25 @@ def _base_information(robot: Robot, q, ident, layout: Layout, sigma_pos, sigma_r
         sigma_rot_rad=None if layout.n_points else sigma_rot,
     )
     step = min(R, CRLB_SLICE)
-    padded = np.concatenate([q, np.repeat(q[-1:], -R % step, 0)])  # whole slices: one compile
-    fn = lambda s: _information(robot.stripped(), padded[s : s + step], 1 / sig, layout=layout, base=tuple(ident.base))  # noqa: E731
+    pad = lambda a: None if a is None else np.concatenate([a, np.repeat(a[-1:], -R % step, 0)])  # noqa: E731
+    padded, pts = pad(q), pad(pts)  # whole slices: one compile
+    base = tuple(ident.base)
+    piece = lambda a, s: None if a is None else a[s : s + step]  # noqa: E731
+    fn = lambda s: _information(robot.stripped(), piece(padded, s), 1 / sig, piece(pts, s), layout=layout, base=base)  # noqa: E731
     return np.concatenate([np.asarray(fn(s)) for s in range(0, len(padded), step)])[:R]
 
 
 @eqx.filter_jit
-def _position_moments(robot, q_val, *, layout: Layout, base: tuple[int, ...]):
+def _position_moments(robot, q_val, points, *, layout: Layout, base: tuple[int, ...]):
     """``(R, r, r)`` mean over each robot's inspection poses ``q_val (R, V, n)`` of ``G^T G``,
-    ``G`` the base columns of the tool point's position rows: ``tr(C S)`` is the expected squared
-    position error there for an estimate with covariance ``C``."""
-    model = Model(robot, jnp.zeros((layout.n_points, 3)) if layout.n_points else None, camera=layout.camera)
+    ``G`` the base columns of the measured point's position rows (``points``, :func:`_points`):
+    ``tr(C S)`` is the expected squared position error there for an estimate with covariance ``C``."""
 
-    def one(qv):
-        G = jacobian(model, layout, qv)[:, :3][..., list(base)]
+    def one(qv, p_):
+        G = jacobian(Model(robot, p_, camera=layout.camera), layout, qv)[:, :3][..., list(base)]
         return jnp.einsum("vrb,vrc->bc", G, G) / qv.shape[0]
 
-    return jax.vmap(one)(q_val)
+    return jax.vmap(one)(q_val, points)
 
 
 def _validation_crlb(N, S) -> np.ndarray:
@@ -281,7 +301,14 @@ def run_montecarlo(
         raise DataError(f"memory_mb must be > 0, got {memory_mb}", option="memory_mb")
     devs = select_devices(devices)
     step = progress or (lambda done, total, stage: None)
-    noisy = sigma_pos > 0 or sigma_rot > 0
+    noisy = sigma_pos > 0 or (sigma_rot > 0 and not position_only)  # position-only: no rotation measured
+    if noisy and not position_only and min(sigma_pos, sigma_rot) == 0:
+        zero, other = ("noise_mm", "rotation") if sigma_pos == 0 else ("noise_rad", "position")
+        raise DataError(
+            f"{zero} is 0 but the {other} noise is not: with one noise-free component the fit's weights and the "
+            f"Cramer-Rao bound are degenerate; give both > 0, or both 0 for a noise-free study",
+            option=zero,
+        )
     design = None
     if method.startswith("elimination"):  # its pair design; n_poses sets the pairs per step
         design = (max(1, (n_poses - 2) // (2 * (robot.n_joints - 1))), 2)
@@ -329,7 +356,7 @@ def run_montecarlo(
         estimate_tool=estimate_tool,
         params="all",
         sigma_pos_mm=sigma_pos if noisy else None,
-        sigma_rot_rad=sigma_rot if noisy else None,
+        sigma_rot_rad=sigma_rot if noisy and not position_only else None,
         memory_mb=memory_mb,
         keep_outliers=keep_outliers,
     )
@@ -367,7 +394,12 @@ def run_montecarlo(
         else:  # warm chunks time themselves: the first chunk's data are not needed again
             warm.append((len(q_i), dt))
             first = first[:2] + (None,)
+        frames = estimate_base or estimate_tool
+        exact = _truth_exactly(robot, q_val_i, true_val, position_only, opts, ident, devs) if frames else None
         rec = _record(robot, res, x_true, q_i, q_val_i, true_val, ident, sigma_pos, sigma_rot, noisy, q_val is not None)
+        if exact is not None:  # the base-set errors against the truths' own coordinates
+            fine = np.isfinite(exact[:, base_idx])
+            rec["err"] = np.where(fine, res.x[:, base_idx] - exact[:, base_idx], rec["err"])
         rec |= _flag_counts(res, bad)
         n_i = min(c, n_robots - i * c)  # without the padding
         rec = {k: v[:n_i] for k, v in rec.items()}
@@ -486,7 +518,7 @@ def _gross(fraction, outlier_mm, n_poses: int):
     lo_hi = np.asarray(outlier_mm, float) if np.shape(outlier_mm) == (2,) else np.full(2, np.nan)
     if not 0 <= lo_hi[0] <= lo_hi[1] < np.inf:
         raise DataError(f"outlier_mm must be A,B with 0 <= A <= B (mm), got {outlier_mm!r}", option="outlier_mm")
-    n = int(round(fraction * n_poses))
+    n = outlier_count(fraction, n_poses)
     return (n, float(lo_hi[0]), float(lo_hi[1])) if n else None
 
 
@@ -500,9 +532,22 @@ def _measured(meas, position_only: bool):
     return meas[..., :3, 3] if position_only else meas
 
 
+def _truth_exactly(robot, q_val, true_val, position_only: bool, opts, ident, devs):
+    """``(R, m)`` each simulated truth's own coordinates in the base set, by a noise-free fit of
+    its inspection poses (NaN where that fit did not converge; None without enough poses). With the
+    base or the tool estimated, the frames absorb DH errors nonlinearly, and a linear map of the
+    truth misses by more than the noise moves a well-determined frame parameter."""
+    exact = dataclasses.replace(opts, keep_outliers=True, sigma_pos_mm=None, sigma_rot_rad=None)
+    try:
+        res = calibrate_batch(robot, q_val, _measured(true_val, position_only), exact, ident=ident, devices=devs)
+    except DataError:  # too few inspection poses for the base set
+        return None
+    return np.where(res.converged[:, None], res.x, np.nan)
+
+
 def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot, noisy, shared_val=False) -> dict:
-    """One chunk's results: per robot the estimates, truths, base-set errors, convergence and
-    inspection RMS; the chunk's sum of Cramér–Rao covariances."""
+    """One chunk's results: per robot the estimates, truths, base-set errors (against the truth
+    mapped linearly), convergence and inspection RMS; the chunk's sum of Cramér–Rao covariances."""
     layout = res.layout
     x_t = _true_x(x_true, layout)
     err = res.x[:, list(ident.base)] - x_t @ ident.combination_matrix.T  # what the base set estimates
@@ -518,10 +563,12 @@ def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot,
         "val_rms": np.asarray(val),
     }
     if noisy:  # each robot's bound on the base set's variances, and on its inspection error
-        N = _base_information(robot, q, ident, layout, sigma_pos, sigma_rot)
+        N = _base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_t)
         rec["crlb_var"] = _variances(N)
-        qv = q_val[:1] if shared_val else q_val
-        S = _position_moments(robot.stripped(), jnp.asarray(qv), layout=layout, base=tuple(ident.base))
+        pts = _points(layout, len(x_t), x_t)
+        one = shared_val and not (layout.n_points and layout.tool)  # the same inspection for every robot
+        qv, pts = (q_val[:1], None if pts is None else pts[:1]) if one else (q_val, pts)
+        S = _position_moments(robot.stripped(), jnp.asarray(qv), pts, layout=layout, base=tuple(ident.base))
         rec["crlb_val2"] = _validation_crlb(N, np.asarray(S))
     return rec
 
@@ -585,12 +632,12 @@ def _timing(first, warm, wall: float) -> dict:
             "wall_seconds": wall,
         }
     runs = [t for _, t in warm]
-    rate = sum(n for n, _ in warm) / sum(runs) if warm else first[0] / first[1]
+    rate = sum(n for n, _ in warm) / sum(runs) if warm else None  # no warm run: not measured
     return {
         "robots_per_second": rate,
-        "run_seconds": statistics.median(runs) if runs else first[1],
+        "run_seconds": statistics.median(runs) if runs else None,
         "run_seconds_all": runs,
-        "compile_seconds": max(first[1] - first[0] / rate, 0.0),
+        "compile_seconds": None if rate is None else max(first[1] - first[0] / rate, 0.0),
         "first_call_seconds": first[1],
         "wall_seconds": wall,
     }

@@ -104,8 +104,8 @@ def test_joint_that_never_moves_names_its_offset():
 
 
 def test_batch_data_set_with_its_own_degeneracy_never_nan():
-    """The base set comes from data set 0; data set 1 is degenerate (identical poses), so its
-    normal equations are singular on that base set. No NaN: reported and zeroed."""
+    """The base set comes from data set 0 (data set 1, identical poses, moves no joint), so data set
+    1's normal equations are singular on that base set. No NaN: reported and zeroed."""
     q0 = _q
     q1 = _identical()
     sim = simulate(ROBOT, n_robots=2, q=np.stack([q0, q1]), seed=4)
@@ -140,3 +140,42 @@ def test_divergence_is_a_result_code_not_nan():
             assert "non-finite" in str(e)
             continue
         assert np.all(np.isfinite(res.x)) and not res.converged
+
+
+def test_batch_set_does_not_come_from_a_degenerate_data_set():
+    """Three noise-free data sets of paper-6r with base and tool (NumPy FK, tests.helpers); in the
+    first, joint 3 never moves. It must not take parameters from the others: the good ones fit
+    their poses exactly and converge; it is flagged, naming the joint, and not converged."""
+    from tests.helpers import dh_fk, random_transform
+
+    rng = np.random.default_rng(2)
+    dh0, lim = np.asarray(ROBOT.dh), np.asarray(ROBOT.q_limits)
+    q = lim[:, 0] + rng.uniform(size=(3, 30, 6)) * (lim[:, 1] - lim[:, 0])
+    q[0, :, 2] = 0.3
+    truths = [
+        (dh0 + rng.normal(size=dh0.shape) * [0.005, 0.05, 0.05, 0.005], random_transform(rng), random_transform(rng))
+        for _ in range(3)
+    ]
+    poses = np.stack([dh_fk(t[0], q[i], base=t[1], tool=t[2]) for i, t in enumerate(truths)])
+    res = calibrate_batch(ROBOT, q, poses)
+    assert res.identifiability.rank == 29  # every data set that moves all joints identifies 29
+    assert not res.converged[0] and "joint 3 (q3) never moves" in res.problems[0]
+    qv = lim[:, 0] + rng.uniform(size=(100, 6)) * (lim[:, 1] - lim[:, 0])
+    for r in (1, 2):
+        assert res.converged[r] and res.problems[r] == ""
+        single = calibrate(ROBOT, q[r], poses[r])  # the batch's fit is the single one...
+        np.testing.assert_allclose(res.x[r], single.x, atol=1e-6)
+        f, t = single.robot, truths[r]  # ...which predicts new poses of the true arm
+        err = dh_fk(np.asarray(f.dh), qv, base=f.base, tool=f.tool) - dh_fk(t[0], qv, base=t[1], tool=t[2])
+        assert np.abs(err[:, :3, 3]).max() < 1e-4
+
+
+def test_rows_repeating_a_few_joint_vectors_are_not_a_calibration():
+    """30 rows repeating 4 joint vectors (a logger that repeated rows) give 12 equations, not 90: the
+    single fit is marked implausible, naming the repeats, and the data workflow refuses them."""
+    q = np.repeat(_q[:4], [8, 8, 7, 7], axis=0)
+    points = simulate(ROBOT, q=q, seed=2, tool=True).measured[0, :, :3, 3]
+    res = calibrate(ROBOT, q, points, estimate_base=False)
+    assert not res.plausible and "only 4 of the 30 data rows have distinct joint values" in res.implausible
+    with pytest.raises(jaxcal.DataError, match=r"4 distinct poses \(the other 26 of 30 rows repeat"):
+        jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(q, points[:, None]))
