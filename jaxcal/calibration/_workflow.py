@@ -392,7 +392,8 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             fr = _frames(p)
     lin, J = _linear(p, fr.member(-1), fr.sig[[-1]])
     final, per_fold, fits = _chosen(p, fr, lin, J)
-    for _ in range(2):  # large kinematic errors: linearised again at the fit
+    chooses = len(p.candidates) > 1 or p.auto  # a fixed set has nothing the linearisation decides
+    for _ in range(2 * chooses):  # large kinematic errors: linearised again at the fit
         if _linear_gap(p, lin, fr.sig[[-1]], fits) <= RELINEARISE:
             break
         lin, J = _linear(p, core.member(fits["model"], -1), fr.sig[[-1]], fits["x"][-1])
