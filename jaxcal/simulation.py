@@ -87,7 +87,7 @@ def outlier_count(share: float, n_poses: int) -> int:
     if share > 0 and n == 0:
         raise DataError(
             f"outliers: a share of {share:g} of {n_poses} poses rounds to no pose; give at least "
-            f"{0.5 / n_poses:.3g} (half a pose) or 0",
+            f"{1 / n_poses:.3g} (one pose) or 0",
             option="outliers",
         )
     return n

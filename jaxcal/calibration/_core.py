@@ -353,12 +353,23 @@ def generic_model(robot: Robot, layout: Layout) -> Model:
     return eqx.tree_at(lambda m: m.points, model, pts)
 
 
-def distinct_poses(q) -> np.ndarray:
-    """Number of distinct joint vectors among the poses ``q (..., K, n)`` (rows equal to 1e-9 count
-    once): a repeated row adds no equation a fit can use."""
-    q = np.round(np.asarray(q, float) * 1e9)
-    h = np.sort(q @ np.random.default_rng(0).uniform(0.5, 1.5, q.shape[-1]), axis=-1)
-    return 1 + np.count_nonzero(np.diff(h, axis=-1), axis=-1)
+def joint_tolerance(robot: Robot) -> np.ndarray:
+    """``(n,)`` joint readings closer than this are the same (rad; mm for a prismatic joint): a
+    joint that moves less never moves, and rows that differ less repeat one pose."""
+    return np.where(np.array([t == "R" for t in robot.joint_types]), 1e-6, 1e-3)
+
+
+def distinct_poses(q, tol) -> np.ndarray:
+    """Number of distinct joint vectors among the poses ``q (..., K, n)``: a row within ``tol``
+    (:func:`joint_tolerance`) of an earlier row in every joint repeats it, and adds no equation a
+    fit can use."""
+    q = np.asarray(q, float)
+    flat = q.reshape((-1,) + q.shape[-2:])
+    out = np.empty(len(flat), int)
+    for r, qr in enumerate(flat):  # (K, K) comparisons of one data set at a time
+        near = np.all(np.abs(qr[:, None] - qr[None]) <= tol, axis=-1)
+        out[r] = len(qr) - int(np.count_nonzero(np.tril(near, -1).any(axis=1)))
+    return out.reshape(q.shape[:-2])
 
 
 def carrying(robot: Robot, layout: Layout) -> Robot:

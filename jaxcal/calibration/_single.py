@@ -193,14 +193,15 @@ def check_enough_poses(n_poses: int, layout: Layout, needed: int, n_rows: int | 
         raise DataError(
             f"too few poses: {n_poses} {d}poses{repeats} x {rows} rows = {n_poses * rows} equations for "
             f"{needed} parameters; need at least {-(-needed // rows)} {d}poses",
-            option="measured",
+            option="q" if d else "measured",
         )
 
 
-def few_distinct(q, rows: int, needed: int) -> str:
+def few_distinct(q, tol, rows: int, needed: int) -> str:
     """A finding when the rows of ``q (K, n)`` repeat joint values so that the distinct poses give
-    fewer equations than the ``needed`` parameters a varied pose set identifies ("" otherwise)."""
-    K, d = len(q), int(core.distinct_poses(q))
+    fewer equations than the ``needed`` parameters a varied pose set identifies ("" otherwise;
+    ``tol``: :func:`._core.joint_tolerance`)."""
+    K, d = len(q), int(core.distinct_poses(q, tol))
     if d == K or d * rows >= needed:
         return ""
     return (
@@ -401,7 +402,7 @@ def calibrate(
     after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
     many = outliers.too_many(flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction)
-    few = few_distinct(q, layout.rows, needed)
+    few = few_distinct(q, core.joint_tolerance(robot), layout.rows, needed)
     why = judge(
         robot,
         q,
@@ -464,9 +465,10 @@ def calibrate_batch(
     :func:`jaxcal.sharding.select_devices`). The identifiable set comes from the data set that
     moves the most joints through the most distinct poses (the first of those) unless ``ident`` is
     given; a data set that cannot identify it (a joint still in it alone, too few distinct poses) is
-    named in ``problems`` and not converged. A data set whose solve gives non-finite values is
-    reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN. Members that
-    Gauss-Newton does not converge are fitted again by Levenberg-Marquardt, as in :func:`calibrate`."""
+    named in ``problems`` and not converged, and members that Gauss-Newton does not converge are
+    fitted again by Levenberg-Marquardt, as in :func:`calibrate`. A given ``ident`` is the caller's:
+    only too few distinct poses are named, and there is no such retry. A data set whose solve gives
+    non-finite values is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN."""
     devs = select_devices(devices)
     opts = make_options(options, kw, elimination=True)
     q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
@@ -487,7 +489,7 @@ def calibrate_batch(
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
     wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
-    still, distinct = _still_joints(robot, q), core.distinct_poses(q)
+    still, distinct = _still_joints(robot, q), core.distinct_poses(q, core.joint_tolerance(robot))
     # the identifiable set from the data set that moves the most joints through the most distinct
     # poses: one degenerate data set must not take parameters from the others
     r0 = int(np.lexsort((-distinct, still.sum(-1)))[0])
@@ -505,11 +507,15 @@ def calibrate_batch(
 
     ref = start(masks)
     J0 = core.analyse(core.member(ref, r0), layout, q[r0])[0]
+    given_ident = ident
     if ident is None:
         ident = core.identify(J0, layout, robot)
     prior = np.repeat(prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))[None], R, 0)
-    problems = _batch_problems(robot, still & ~still[r0], distinct, layout.rows, len(estimated(prior[0])))
-    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=True)
+    # a given set is the caller's: only its count is judged, and a data set that cannot separate it
+    # stays unconverged (Levenberg-Marquardt's damping would hold it and call it converged)
+    mine = given_ident is None
+    problems = _batch_problems(robot, still & ~still[r0] & mine, distinct, layout.rows, len(estimated(prior[0])))
+    run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
 
     def stages(ref, masks):  # frames only (unless nothing needs it), then the set
@@ -564,8 +570,7 @@ def calibrate_batch(
 
 def _still_joints(robot: Robot, q) -> np.ndarray:
     """``(..., n)`` which joints never move over the poses ``q (..., K, n)``."""
-    tiny = np.where(np.array([t == "R" for t in robot.joint_types]), 1e-6, 1e-3)
-    return np.ptp(np.asarray(q), axis=-2) <= tiny
+    return np.ptp(np.asarray(q), axis=-2) <= core.joint_tolerance(robot)
 
 
 def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int) -> tuple[str, ...]:
@@ -611,4 +616,5 @@ def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
         degraded=np.zeros(R, bool),
         nonfinite=nonfinite,
         devices=tuple(describe(select_devices(None))),  # the elimination design solve is not sharded
+        problems=("",) * R,
     )

@@ -169,7 +169,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     union = set().union(*(c.dh for c in candidates))
     wanted = list(layout.frames) + list(layout.cameras) + sorted(union)
     needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted)
-    check_enough_poses(int(core.distinct_poses(q)), layout, needed, K)
+    check_enough_poses(int(core.distinct_poses(q, core.joint_tolerance(robot))), layout, needed, K)
     n_train = K - int(np.bincount(fid).max())
     if compliance and opts.compliance == "auto" and n_train * layout.rows < 2 * (needed + layout.n_comp):
         # too few poses to tell a compliance from noise: the rigid candidates alone
@@ -317,8 +317,8 @@ def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selecte
 
 RELINEARISE = 0.2
 """When the problem linearised at the frames-only fit misses the final fit's weighted residual by
-more than this share of it (kinematic errors of a degree or more), the selection is made again on
-the problem linearised at that fit."""
+more than this share of it (nominal errors large for the noise: tenths of a degree at 0.02 mm, or
+any on noise-free data), the selection is made again on the problem linearised at that fit."""
 
 
 def _linear(p: _Problem, model: Model, sig, x=None) -> tuple[selection.Linear, np.ndarray]:

@@ -187,8 +187,9 @@ def _draw(
     outliers,
 ):
     """Robots ``idx`` of a study: true errors, poses, noisy measurements, inspection poses and
-    their true poses. Robot ``i``'s draw depends on ``(key, i)`` alone, so a study's results do
-    not depend on how it is chunked, on the devices, or on being resumed. ``q_each (R, K, n)``:
+    their true poses, outlier flags, and the calibration poses' true poses. Robot ``i``'s draw
+    depends on ``(key, i)`` alone, so a study's results do not depend on how it is chunked, on the
+    devices, or on being resumed. ``q_each (R, K, n)``:
     each robot's poses (drawn under the study's conditions); ``q_val (V, n)``: the inspection
     poses of every robot."""
 
@@ -206,7 +207,8 @@ def _draw(
         if outliers is not None:  # gross errors, on a key of their own (the clean draws unchanged)
             meas, bad = inject_outliers(jax.random.fold_in(kn, 1), meas, *outliers)
         qv = sample_poses(kv, robot, (n_val,)) if q_val is None else q_val
-        return x, q, meas, qv, fk(perturb(robot, x, base=base, tool=tool), qv), bad
+        true = perturb(robot, x, base=base, tool=tool)
+        return x, q, meas, qv, fk(true, qv), bad, fk(true, q)
 
     return jax.vmap(one)(idx, q_each)
 
@@ -384,7 +386,7 @@ def run_montecarlo(
     for i in np.flatnonzero(~done):
         if max_chunks is not None and computed >= max_chunks:
             break
-        x_true, q_i, meas, q_val_i, true_val, bad = draw(int(i))
+        x_true, q_i, meas, q_val_i, true_val, bad, true_q = draw(int(i))
         measured = _measured(meas, position_only)
         t0 = time.perf_counter()
         res = calibrate_batch(robot, q_i, measured, opts, ident=ident, devices=devs)
@@ -395,7 +397,7 @@ def run_montecarlo(
             warm.append((len(q_i), dt))
             first = first[:2] + (None,)
         frames = estimate_base or estimate_tool
-        exact = _truth_exactly(robot, q_val_i, true_val, position_only, opts, ident, devs) if frames else None
+        exact = _truth_exactly(robot, q_i, true_q, position_only, opts, ident, devs) if frames else None
         rec = _record(robot, res, x_true, q_i, q_val_i, true_val, ident, sigma_pos, sigma_rot, noisy, q_val is not None)
         if exact is not None:  # the base-set errors against the truths' own coordinates
             fine = np.isfinite(exact[:, base_idx])
@@ -532,16 +534,14 @@ def _measured(meas, position_only: bool):
     return meas[..., :3, 3] if position_only else meas
 
 
-def _truth_exactly(robot, q_val, true_val, position_only: bool, opts, ident, devs):
-    """``(R, m)`` each simulated truth's own coordinates in the base set, by a noise-free fit of
-    its inspection poses (NaN where that fit did not converge; None without enough poses). With the
-    base or the tool estimated, the frames absorb DH errors nonlinearly, and a linear map of the
-    truth misses by more than the noise moves a well-determined frame parameter."""
-    exact = dataclasses.replace(opts, keep_outliers=True, sigma_pos_mm=None, sigma_rot_rad=None)
-    try:
-        res = calibrate_batch(robot, q_val, _measured(true_val, position_only), exact, ident=ident, devices=devs)
-    except DataError:  # too few inspection poses for the base set
-        return None
+def _truth_exactly(robot, q, true_poses, position_only: bool, opts, ident, devs):
+    """``(R, m)`` each simulated truth's own coordinates in the base set: a Gauss-Newton fit of its
+    true poses at its calibration poses, whatever the study's method (a one-step method's truth
+    would share its bias); NaN where it did not converge (the truth is then mapped linearly). With
+    the base or the tool estimated, the frames absorb DH errors nonlinearly, and a linear map of
+    the truth misses by more than the noise moves a well-determined frame parameter."""
+    exact = dataclasses.replace(opts, method="gn", keep_outliers=True, sigma_pos_mm=None, sigma_rot_rad=None)
+    res = calibrate_batch(robot, q, _measured(true_poses, position_only), exact, ident=ident, devices=devs)
     return np.where(res.converged[:, None], res.x, np.nan)
 
 
