@@ -280,8 +280,9 @@ def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
 def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: int = 0, **kw) -> Identifiability:
     """Identifiability of the parameters a calibration with these options would carry, over the
     poses ``q (K, n)`` at the nominal robot (frames offered first, as in :func:`calibrate`);
-    ``n_points`` points per pose (at generic places on the tool, :func:`._core.generic_model`), 0
-    for poses."""
+    ``n_points`` points per pose (at generic places on an estimated tool,
+    :func:`._core.generic_model`: a marker on the last joint's axis identifies less, which
+    :func:`calibrate` finds from its data), 0 for poses."""
     opts = make_options(options, kw, elimination=True)
     layout = make_layout(robot, opts, n_points)
     q = np.asarray(check_q(robot, as_f64(q, "q")))
@@ -514,7 +515,7 @@ def calibrate_batch(
     # a given set is the caller's: only its count is judged, and a data set that cannot separate it
     # stays unconverged (Levenberg-Marquardt's damping would hold it and call it converged)
     mine = given_ident is None
-    problems = _batch_problems(robot, still & ~still[r0] & mine, distinct, layout.rows, len(estimated(prior[0])))
+    problems = _batch_problems(robot, still & ~still[r0] & mine, distinct, layout.rows, len(estimated(prior[0])), K)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
 
@@ -573,15 +574,15 @@ def _still_joints(robot: Robot, q) -> np.ndarray:
     return np.ptp(np.asarray(q), axis=-2) <= core.joint_tolerance(robot)
 
 
-def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int) -> tuple[str, ...]:
+def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_rows: int) -> tuple[str, ...]:
     """Why each data set cannot identify the ``needed`` parameters of the batch's set ("" where it
     can): a joint that never moves in it alone (``still (R, n)``), or too few ``distinct`` poses."""
     out = []
     for r in range(len(still)):  # the messages of the data sets with a problem
         why = [f"joint {j + 1} ({robot.joint_names[j]}) never moves" for j in np.flatnonzero(still[r])]
         if distinct[r] * rows < needed:
-            eq = distinct[r] * rows
-            why.append(f"{distinct[r]} distinct poses x {rows} rows = {eq} equations for {needed} parameters")
+            eq, k = distinct[r] * rows, n_rows
+            why.append(f"{distinct[r]} distinct poses of {k} x {rows} rows = {eq} equations for {needed} parameters")
         out.append("; ".join(why))
     return tuple(out)
 
