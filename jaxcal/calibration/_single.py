@@ -515,7 +515,8 @@ def calibrate_batch(
     # a given set is the caller's: only its count is judged, and a data set that cannot separate it
     # stays unconverged (Levenberg-Marquardt's damping would hold it and call it converged)
     mine = given_ident is None
-    problems = _batch_problems(robot, still & ~still[r0] & mine, distinct, layout.rows, len(estimated(prior[0])), K)
+    alone = (still & ~still[r0] & mine) | still.all(-1, keepdims=True)  # and no joint moving is never a set
+    problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), K)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
 
@@ -579,7 +580,9 @@ def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_row
     can): a joint that never moves in it alone (``still (R, n)``), or too few ``distinct`` poses."""
     out = []
     for r in range(len(still)):  # the messages of the data sets with a problem
-        why = [f"joint {j + 1} ({robot.joint_names[j]}) never moves" for j in np.flatnonzero(still[r])]
+        moves = not still[r].all()
+        why = [f"joint {j + 1} ({robot.joint_names[j]}) never moves" for j in np.flatnonzero(still[r]) if moves]
+        why += [] if moves else ["no joint moves"]
         if distinct[r] * rows < needed:
             eq, k = distinct[r] * rows, n_rows
             why.append(f"{distinct[r]} distinct poses of {k} x {rows} rows = {eq} equations for {needed} parameters")

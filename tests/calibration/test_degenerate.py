@@ -143,23 +143,26 @@ def test_divergence_is_a_result_code_not_nan():
 
 
 def test_batch_set_does_not_come_from_a_degenerate_data_set():
-    """Three noise-free data sets of paper-6r with base and tool (NumPy FK, tests.helpers); in the
-    first, joint 3 never moves. It must not take parameters from the others: the good ones fit
-    their poses exactly and converge; it is flagged, naming the joint, and not converged."""
+    """Four noise-free data sets of paper-6r with base and tool (NumPy FK, tests.helpers); in the
+    first, joint 3 never moves; in the last, no joint does. They must not take parameters from the
+    others: the good ones fit their poses exactly and converge; they are flagged, naming why, and
+    not converged."""
     from tests.helpers import dh_fk, random_transform
 
     rng = np.random.default_rng(2)
     dh0, lim = np.asarray(ROBOT.dh), np.asarray(ROBOT.q_limits)
-    q = lim[:, 0] + rng.uniform(size=(3, 30, 6)) * (lim[:, 1] - lim[:, 0])
+    q = lim[:, 0] + rng.uniform(size=(4, 30, 6)) * (lim[:, 1] - lim[:, 0])
     q[0, :, 2] = 0.3
+    q[3] = q[3, :1]
     truths = [
         (dh0 + rng.normal(size=dh0.shape) * [0.005, 0.05, 0.05, 0.005], random_transform(rng), random_transform(rng))
-        for _ in range(3)
+        for _ in range(4)
     ]
     poses = np.stack([dh_fk(t[0], q[i], base=t[1], tool=t[2]) for i, t in enumerate(truths)])
     res = calibrate_batch(ROBOT, q, poses)
     assert res.identifiability.rank == 29  # every data set that moves all joints identifies 29
     assert not res.converged[0] and "joint 3 (q3) never moves" in res.problems[0]
+    assert not res.converged[3] and res.problems[3].startswith("no joint moves")
     qv = lim[:, 0] + rng.uniform(size=(100, 6)) * (lim[:, 1] - lim[:, 0])
     for r in (1, 2):
         assert res.converged[r] and res.problems[r] == ""
