@@ -354,22 +354,24 @@ def generic_model(robot: Robot, layout: Layout) -> Model:
 
 
 def joint_tolerance(robot: Robot) -> np.ndarray:
-    """``(n,)`` joint readings closer than this are the same (rad; mm for a prismatic joint): a
-    joint that moves less never moves, and rows that differ less repeat one pose."""
+    """``(n,)`` a joint that moves less than this over the data never moves (rad; mm for a
+    prismatic joint)."""
     return np.where(np.array([t == "R" for t in robot.joint_types]), 1e-6, 1e-3)
 
 
-def distinct_poses(q, tol) -> np.ndarray:
-    """Number of distinct joint vectors among the poses ``q (..., K, n)``: a row within ``tol``
-    (:func:`joint_tolerance`) of an earlier row in every joint repeats it, and adds no equation a
-    fit can use."""
-    q = np.asarray(q, float)
-    flat = q.reshape((-1,) + q.shape[-2:])
-    out = np.empty(len(flat), int)
-    for r, qr in enumerate(flat):  # (K, K) comparisons of one data set at a time
-        near = np.all(np.abs(qr[:, None] - qr[None]) <= tol, axis=-1)
-        out[r] = len(qr) - int(np.count_nonzero(np.tril(near, -1).any(axis=1)))
-    return out.reshape(q.shape[:-2])
+def same_pose(robot: Robot) -> np.ndarray:
+    """``(n,)`` the grid (rad; mm for a prismatic joint) on which joint vectors that round alike are
+    one posture: 1e-4 rad moves a 1 m arm 0.1 mm, far below any two postures a calibration means
+    to tell apart, and far above an encoder's read-back noise."""
+    return np.where(np.array([t == "R" for t in robot.joint_types]), 1e-4, 0.1)
+
+
+def distinct_poses(q, grid) -> np.ndarray:
+    """Number of distinct postures among the poses ``q (..., K, n)``: rows that round alike on
+    ``grid`` (:func:`same_pose`) repeat one posture, and add no equation a fit can use."""
+    keys = np.round(np.asarray(q, float) / grid)
+    h = np.sort(keys @ np.random.default_rng(0).uniform(0.5, 1.5, keys.shape[-1]), axis=-1)
+    return 1 + np.count_nonzero(np.diff(h, axis=-1), axis=-1)
 
 
 def carrying(robot: Robot, layout: Layout) -> Robot:

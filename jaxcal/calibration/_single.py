@@ -197,11 +197,11 @@ def check_enough_poses(n_poses: int, layout: Layout, needed: int, n_rows: int | 
         )
 
 
-def few_distinct(q, tol, rows: int, needed: int) -> str:
+def few_distinct(q, grid, rows: int, needed: int) -> str:
     """A finding when the rows of ``q (K, n)`` repeat joint values so that the distinct poses give
     fewer equations than the ``needed`` parameters a varied pose set identifies ("" otherwise;
-    ``tol``: :func:`._core.joint_tolerance`)."""
-    K, d = len(q), int(core.distinct_poses(q, tol))
+    ``grid``: :func:`._core.same_pose`)."""
+    K, d = len(q), int(core.distinct_poses(q, grid))
     if d == K or d * rows >= needed:
         return ""
     return (
@@ -403,7 +403,7 @@ def calibrate(
     after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
     many = outliers.too_many(flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction)
-    few = few_distinct(q, core.joint_tolerance(robot), layout.rows, needed)
+    few = few_distinct(q, core.same_pose(robot), layout.rows, needed)
     why = judge(
         robot,
         q,
@@ -490,7 +490,7 @@ def calibrate_batch(
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
     wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
-    still, distinct = _still_joints(robot, q), core.distinct_poses(q, core.joint_tolerance(robot))
+    still, distinct = _still_joints(robot, q), core.distinct_poses(q, core.same_pose(robot))
     # the identifiable set from the data set that moves the most joints through the most distinct
     # poses: one degenerate data set must not take parameters from the others
     r0 = int(np.lexsort((-distinct, still.sum(-1)))[0])
@@ -578,15 +578,15 @@ def _still_joints(robot: Robot, q) -> np.ndarray:
 def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_rows: int) -> tuple[str, ...]:
     """Why each data set cannot identify the ``needed`` parameters of the batch's set ("" where it
     can): a joint that never moves in it alone (``still (R, n)``), or too few ``distinct`` poses."""
-    out = []
-    for r in range(len(still)):  # the messages of the data sets with a problem
+    out = [""] * len(still)
+    for r in np.flatnonzero(still.any(-1) | (distinct * rows < needed)):  # the data sets with a problem
         moves = not still[r].all()
         why = [f"joint {j + 1} ({robot.joint_names[j]}) never moves" for j in np.flatnonzero(still[r]) if moves]
         why += [] if moves else ["no joint moves"]
         if distinct[r] * rows < needed:
             eq, k = distinct[r] * rows, n_rows
             why.append(f"{distinct[r]} distinct poses of {k} x {rows} rows = {eq} equations for {needed} parameters")
-        out.append("; ".join(why))
+        out[r] = "; ".join(why)
     return tuple(out)
 
 

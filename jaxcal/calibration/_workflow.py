@@ -169,7 +169,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     union = set().union(*(c.dh for c in candidates))
     wanted = list(layout.frames) + list(layout.cameras) + sorted(union)
     needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted)
-    check_enough_poses(int(core.distinct_poses(q, core.joint_tolerance(robot))), layout, needed, K)
+    check_enough_poses(int(core.distinct_poses(q, core.same_pose(robot))), layout, needed, K)
     n_train = K - int(np.bincount(fid).max())
     if compliance and opts.compliance == "auto" and n_train * layout.rows < 2 * (needed + layout.n_comp):
         # too few poses to tell a compliance from noise: the rigid candidates alone
