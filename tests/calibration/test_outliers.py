@@ -280,3 +280,37 @@ def test_zero_rows_that_pull_the_fit_until_none_stands_out_are_found():
     measured[39] = -9999.0
     sentinel = jaxcal.Measurements(data.q, measured, rows=data.rows)
     _workflow._prepare(robot, sentinel, make_options(None, dict(nested_max_poses=0, folds=2)), None)
+
+
+def test_a_batch_finds_zero_rows_as_calibrate_does():
+    """Three lost markers written as 0, 0, 0 by a tracker 3 m away, in one data set of a batch (NumPy
+    FK, tests.helpers): Gauss-Newton diverges on that data set, and the Levenberg-Marquardt retry
+    (as in calibrate) lets the detection name the same rows and the batch fit the same model; the
+    other data sets are untouched."""
+    from scipy.spatial.transform import Rotation
+
+    def frame(v, w):  # 1 mm and 0.01 rad scale frame errors
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = Rotation.from_rotvec(w).as_matrix(), v
+        return T
+
+    rng = np.random.default_rng(12)
+    robot = jaxcal.preset("paper-6r")
+    lim, dh0 = np.asarray(robot.q_limits), np.asarray(robot.dh)
+    q = lim[:, 0] + rng.uniform(size=(3, 40, 6)) * (lim[:, 1] - lim[:, 0])
+    tracker = frame([3000.0, 500.0, -200.0], [0.0, 0.0, 0.7])
+    points = []
+    for r in range(3):
+        x = np.concatenate([rng.normal(size=24) * np.tile([0.005, 0.05, 0.05, 0.005], 6), rng.normal(size=12)])
+        x[27:30] *= 0.01
+        x[33:36] *= 0.01
+        base, tool = frame(x[24:27], x[27:30]), frame(x[30:33], x[33:36])
+        T = dh_fk(dh0 + x[:24].reshape(6, 4), q[r], base=tracker @ base, tool=tool)
+        points.append(T[:, :3, 3] + 0.02 * rng.normal(size=(40, 3)))
+    points = np.array(points)
+    points[1, [5, 17, 30]] = 0.0
+    batch = calibrate_batch(robot, q, points)
+    single = calibrate(robot, q[1], points[1])
+    assert batch.outliers(1) == single.outliers == (5, 17, 30)
+    assert batch.outliers(0) == batch.outliers(2) == () and batch.converged.all()
+    np.testing.assert_allclose(batch.x[1], single.x, atol=1e-6)
