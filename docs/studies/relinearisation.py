@@ -70,6 +70,8 @@ def main():
     franka = jaxcal.read_measurements(franka_csv_path(), r, length_unit="m")
     print(f"  Franka, poses: {gaps(r, franka)[0]:.3f}")
     print(f"  Franka, poses, --camera-model auto: {gaps(r, franka, camera='auto')[0]:.3f}")
+    quadratic = ", ".join(f"{g:.3g}" for g in gaps(r, franka, camera="quadratic"))
+    print(f"  Franka, poses, --camera-model quadratic: {quadratic}")
     print()
     print("simulated Panda: held-out (nested) and true error on 40 new poses, mm")
     head = ("DH errors", "largest angle (deg)", "gaps", "linearised once", "with the rule")
