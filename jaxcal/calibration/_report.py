@@ -280,8 +280,9 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
             "outlier_sigmas": opts.outlier_sigmas,
             "false_alarm_per_pose": outliers.false_alarm(opts.outlier_sigmas),
             "threshold_sigmas": float(outliers.thresholds(p.layout.rows, opts.outlier_sigmas)),
-            "noise_pos_mm": float(det.noise[0, 0]),
-            "noise_rot_deg": float(np.degrees(det.noise[0, 1])) if rot else None,
+            # the noise of the final model's residual, in which the listed sigmas are measured
+            "noise_pos_mm": float(last.scale[0, 0] * fr.sig[-1, 0]),
+            "noise_rot_deg": float(np.degrees(last.scale[0, 1] * fr.sig[-1, 1])) if rot else None,
             "max_outlier_fraction": opts.max_outlier_fraction,
             "heldout_rms_mm_all_poses": _rms(h["pe"]),  # the flagged poses too: what leaving them out hides
         },

@@ -390,6 +390,18 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             det = _outliers_found(dataclasses.replace(p, valid=np.ones(len(p.q), bool)), fr)
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)
+    lin, final, per_fold, fits = _fitted(p, fr)
+    back = _readmitted(p, fits)
+    if back.any():  # poses the detector's model could not fit but the calibrated one predicts
+        p = dataclasses.replace(p, valid=p.valid | back)
+        fr = _frames(p)
+        lin, final, per_fold, fits = _fitted(p, fr)
+    return report_of(p, fr, det, lin, final, per_fold, fits)
+
+
+def _fitted(p: _Problem, fr: _Frames):
+    """Stages 4-6 on the problem linearised at the frames-only fit, and again at the final fit while
+    that linearisation misses it (:data:`RELINEARISE`)."""
     lin, J = _linear(p, fr.member(-1), fr.sig[[-1]])
     final, per_fold, fits = _chosen(p, fr, lin, J)
     chooses = len(p.candidates) > 1 or p.auto  # a fixed set has nothing the linearisation decides
@@ -398,4 +410,17 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             break
         lin, J = _linear(p, core.member(fits["model"], -1), fr.sig[[-1]], fits["x"][-1])
         final, per_fold, fits = _chosen(p, fr, lin, J)
-    return report_of(p, fr, det, lin, final, per_fold, fits)
+    return lin, final, per_fold, fits
+
+
+def _readmitted(p: _Problem, fits) -> np.ndarray:
+    """``(K,)`` the poses left out as outliers that the final model, fitted without them, predicts
+    within the outlier threshold: the detector's model (held by its prior) could not fit an arm far
+    from its nominal, and its residual made clean poses look gross."""
+    if p.valid.all():
+        return np.zeros(len(p.q), bool)
+    opts = p.opts
+    fin = {k: np.asarray(fits[k])[-1:] for k in ("pos_norms", "rot_norms")}
+    found = dict(poses=p.n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+    last = outliers.assess(fin, p.valid[None], outliers.position_rows(p.target), **found)
+    return ~p.valid & ~(last.sigmas[0] > last.threshold[0])
