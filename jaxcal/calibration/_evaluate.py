@@ -190,7 +190,13 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             for n, lo, hi in zip(model.robot.joint_names, training.q.min(0), training.q.max(0))
         }
     rot_rms = 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
-    out["warnings"] = _zeros(meas) + _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
+    far = _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
+    if far and ranges is None and training is None:  # a model file calibrate wrote records its ranges
+        far[0] += (
+            "; if this model was never calibrated (a nominal table or URDF), errors of this size can be "
+            "the arm's own geometric errors: calibrate it first"
+        )
+    out["warnings"] = _zeros(meas) + far
     if ranges is not None:
         away = outside(model.robot, meas.q, ranges)
         share = float(away.mean()) if len(away) else 0.0

@@ -133,6 +133,9 @@ def test_a_misread_file_is_refused_or_named():
     moved[:, :3, 3] += [300.0, 0.0, 0.0]
     (w,) = evaluate(true, Measurements(q, moved))["warnings"]
     assert "no common input mistake explains it" in w and "the model's base is the identity" in w
+    assert "if this model was never calibrated" in w  # no training ranges: it may be a nominal table
+    ranged = evaluate(true, Measurements(q, moved), ranges={n: (-np.pi, np.pi) for n in ur5.joint_names})
+    assert "never calibrated" not in ranged["warnings"][0]  # a calibrated model's file records its ranges
     zero = T.copy()  # row 4 a lost marker written as zeros: named, not blamed on a frame
     zero[3, :3, 3] = 0.0
     w = evaluate(true, Measurements(q, zero))["warnings"]
