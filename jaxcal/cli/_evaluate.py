@@ -17,7 +17,9 @@ def _fmt(v):
 
 @app.command()
 def evaluate(
-    model: Path = typer.Argument(..., help="a saved model: calibrate --out-model (URDF or TOML) or a robot file"),
+    model: Path = typer.Argument(
+        ..., help="a saved model: calibrate --out-model (URDF or TOML), a robot file or a preset name"
+    ),
     data: Path = typer.Argument(..., help="measurement CSV, as for calibrate"),
     training: Path = typer.Option(
         None, help="the training CSV: errors by posture group (repeated / new / out of range)"
@@ -43,7 +45,10 @@ def evaluate(
 
     if json_out is not None:
         check_writable(json_out, "json_out")
-    m = load_model(model, base_link=base_link, tip_link=tip_link)
+    from ..robot import PRESETS, preset, read_training_ranges
+
+    nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
+    m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
     meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit)
     train = None
     if training is not None:
@@ -53,9 +58,7 @@ def evaluate(
         if m.n_points > 1 and m.n_points == meas.n_points:  # the model's points are the file's
             m = Model(m.robot, np.asarray(m.points)[[p - 1 for p in chosen]], m.camera_params, camera=m.camera)
         meas = meas.select_points(chosen)
-    from ..robot import read_training_ranges
-
-    rep = run(m, meas, training=train, ranges=read_training_ranges(model))
+    rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
     table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
     for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
         table.add_column(col, justify="right")

@@ -205,3 +205,7 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     assert code in (0, None), err
     train = json.loads((tmp_path / "rep.json").read_text())["train_rms_mm"]
     assert json.loads((tmp_path / "ev.json").read_text())["position_rms_mm"] == pytest.approx(train, rel=1e-6)
+    # the preset itself, as calibrate takes it: its errors may be the arm's own, never calibrated
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", "ur5", data, "--points", "1")
+    assert code in (0, None), err
+    assert "if this model was never calibrated" in " ".join((out + err).split())
