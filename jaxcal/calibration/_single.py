@@ -515,7 +515,7 @@ def calibrate_batch(
     # a given set is the caller's: only its count is judged, and a data set that cannot separate it
     # stays unconverged (Levenberg-Marquardt's damping would hold it and call it converged)
     mine = given_ident is None
-    alone = (still & ~still[r0] & mine) | still.all(-1, keepdims=True)  # and no joint moving is never a set
+    alone = (still & ~still[r0] & mine) | still.all(-1, keepdims=True)  # no joint moving: it identifies nothing
     problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), K)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
