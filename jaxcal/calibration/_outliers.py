@@ -203,6 +203,17 @@ def assess(fit: dict, masks, dof_pos, *, poses: bool, sigmas: float, loss_scale=
     return Detection(flags, u, scale, thr, fit)
 
 
+def judged(fit: dict, target, n_points: int, opts, excluded=None) -> Detection:
+    """The poses of one fit of every pose (``fit`` with a leading member axis of 1) as the rule
+    judges them, in the robust noise of all of them: what the report lists, and what the workflow's
+    second look goes by (``excluded``: the poses left out, as :func:`assess`)."""
+    K = np.shape(fit["pos_norms"])[-1]
+    return assess(
+        fit, np.ones((1, K), bool), position_rows(target), poses=n_points == 0, sigmas=opts.outlier_sigmas,
+        loss_scale=opts.loss_scale, excluded=excluded,
+    )  # fmt: skip
+
+
 def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5) -> str:
     """Empty when at most ``limit`` (a fraction) of the poses are outliers; else what a refusal
     says: how many, the limit, and the ``worst`` rows (file row, position error mm, sigmas)."""

@@ -297,11 +297,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
     f = _final(p, fr, final, fits)
     fin, names = f.fit, layout.names()
     train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], p.valid, n_points=p.n_points)
-    found = dict(poses=p.n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
-    excluded = None if opts.keep_outliers else ~p.valid[None]
-    last = outliers.assess(
-        fin, np.ones((1, len(q)), bool), outliers.position_rows(p.target), excluded=excluded, **found
-    )
+    last = outliers.judged(fin, p.target, p.n_points, opts, None if opts.keep_outliers else ~p.valid[None])
     pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
     many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
     if many:

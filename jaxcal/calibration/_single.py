@@ -577,7 +577,8 @@ def _still_joints(robot: Robot, q) -> np.ndarray:
 
 def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_rows: int) -> tuple[str, ...]:
     """Why each data set cannot identify the ``needed`` parameters of the batch's set ("" where it
-    can): a joint that never moves in it alone (``still (R, n)``), or too few ``distinct`` poses."""
+    can): the joints ``still (R, n)`` that never move in it alone (all of them: no joint moves), or
+    too few ``distinct`` poses."""
     out = [""] * len(still)
     for r in np.flatnonzero(still.any(-1) | (distinct * rows < needed)):  # the data sets with a problem
         moves = not still[r].all()

@@ -419,8 +419,5 @@ def _readmitted(p: _Problem, fits) -> np.ndarray:
     from its nominal, and its residual made clean poses look gross."""
     if p.valid.all():
         return np.zeros(len(p.q), bool)
-    opts = p.opts
-    fin = {k: np.asarray(fits[k])[-1:] for k in ("pos_norms", "rot_norms")}
-    found = dict(poses=p.n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
-    last = outliers.assess(fin, p.valid[None], outliers.position_rows(p.target), **found)
-    return ~p.valid & ~(last.sigmas[0] > last.threshold[0])
+    fin = {k: np.asarray(fits[k])[-1:] for k in ("pos_norms", "rot_norms")}  # all poses' fit
+    return ~p.valid & ~outliers.judged(fin, p.target, p.n_points, p.opts).flags[0]
