@@ -174,3 +174,55 @@ def solve_keys(monkeypatch, program: str = "_members") -> dict:
     monkeypatch.setattr(store, "prepare", spy("prepared", store.prepare))
     monkeypatch.setattr(store, "call", spy("called", store.call))
     return keys
+
+
+def urdf_perturbed(text: str, rng, shift_m: float, turn_rad: float) -> str:
+    """The URDF ``text`` with every joint's ``<origin>`` moved by up to ``shift_m`` per axis and
+    turned by up to ``turn_rad`` per rpy angle (uniform): an arm that differs from its file."""
+    import re
+
+    def origin(m):
+        tag = m.group(0)
+        for attr, step in (("xyz", shift_m), ("rpy", turn_rad)):
+            old = re.search(attr + r'="([^"]*)"', tag)
+            v = np.array([float(x) for x in old.group(1).split()]) if old else np.zeros(3)
+            new = f'{attr}="' + " ".join(repr(float(x)) for x in v + rng.uniform(-step, step, 3)) + '"'
+            tag = tag.replace(old.group(0), new) if old else tag.replace("<origin", f"<origin {new}", 1)
+        return tag
+
+    def joint(m):
+        j = m.group(0)
+        if "<origin" not in j:
+            j = j.replace("</joint>", '<origin xyz="0 0 0" rpy="0 0 0"/></joint>')
+        return re.sub(r"<origin[^>]*>", origin, j)
+
+    return re.sub(r"<joint\s.*?</joint>", joint, text, flags=re.S)
+
+
+def load_urdf(path):
+    """A URDF read by yourdfpy (kinematics only): a forward kinematics apart from jaxcal's."""
+    import yourdfpy
+
+    return yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False, build_collision_scene_graph=False)
+
+
+def urdf_chain(urdf, base: str, tip: str):
+    """The movable joints from ``base`` to ``tip`` and their limits (file units), by yourdfpy."""
+    by_child = {j.child: j for j in urdf.robot.joints}
+    joints, link = [], tip
+    while link != base:
+        joints.append(by_child[link])
+        link = by_child[link].parent
+    moving = [j for j in joints[::-1] if j.type != "fixed"]
+    lim = [(-np.pi, np.pi) if j.type == "continuous" else (j.limit.lower, j.limit.upper) for j in moving]
+    return [j.name for j in moving], np.array(lim)
+
+
+def urdf_points(urdf, names, q, frame_from: str, frame_to: str, point=np.zeros(3)) -> np.ndarray:
+    """``point`` of ``frame_to`` in ``frame_from`` (mm) at each posture, by yourdfpy's scene graph."""
+    out = []
+    for row in q:
+        urdf.update_cfg(dict(zip(names, row)))
+        T = np.asarray(urdf.get_transform(frame_to=frame_to, frame_from=frame_from))
+        out.append((T[:3, :3] @ point + T[:3, 3]) * 1e3)
+    return np.array(out)

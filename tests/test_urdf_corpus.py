@@ -18,8 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yourdfpy
-from helpers import run_cli
+from helpers import load_urdf, run_cli, urdf_chain, urdf_perturbed, urdf_points
 from scipy.spatial.transform import Rotation
 
 from jaxcal import RobotFileError, load_model
@@ -40,57 +39,10 @@ CORPUS = {  # file: (base link option, tip link option); None: the command's def
 SLOW = {"panda", "ur5"}
 
 
-def _perturbed(text: str, rng) -> str:
-    """Every joint's ``<origin>`` moved by up to 1.5 mm and turned by up to 2.5 mrad in rpy."""
-
-    def origin(m):
-        tag = m.group(0)
-        for attr, step in (("xyz", 1.5e-3), ("rpy", 2.5e-3)):
-            old = re.search(attr + r'="([^"]*)"', tag)
-            v = np.array([float(x) for x in old.group(1).split()]) if old else np.zeros(3)
-            new = f'{attr}="' + " ".join(repr(float(x)) for x in v + rng.uniform(-step, step, 3)) + '"'
-            tag = tag.replace(old.group(0), new) if old else tag.replace("<origin", f"<origin {new}", 1)
-        return tag
-
-    def joint(m):
-        j = m.group(0)
-        if "<origin" not in j:
-            j = j.replace("</joint>", '<origin xyz="0 0 0" rpy="0 0 0"/></joint>')
-        return re.sub(r"<origin[^>]*>", origin, j)
-
-    return re.sub(r"<joint\s.*?</joint>", joint, text, flags=re.S)
-
-
-def _chain(urdf, base: str, tip: str):
-    """The movable joints from ``base`` to ``tip`` and their limits (file units), by yourdfpy."""
-    by_child = {j.child: j for j in urdf.robot.joints}
-    joints, link = [], tip
-    while link != base:
-        joints.append(by_child[link])
-        link = by_child[link].parent
-    moving = [j for j in joints[::-1] if j.type != "fixed"]
-    lim = [(-np.pi, np.pi) if j.type == "continuous" else (j.limit.lower, j.limit.upper) for j in moving]
-    return [j.name for j in moving], np.array(lim)
-
-
-def _points(urdf, names, q, frame_from: str, frame_to: str, point=np.zeros(3)) -> np.ndarray:
-    """``point`` of ``frame_to`` in ``frame_from`` (mm) at each posture, by yourdfpy's scene graph."""
-    out = []
-    for row in q:
-        urdf.update_cfg(dict(zip(names, row)))
-        T = np.asarray(urdf.get_transform(frame_to=frame_to, frame_from=frame_from))
-        out.append((T[:3, :3] @ point + T[:3, 3]) * 1e3)
-    return np.array(out)
-
-
 def _csv(path: Path, names, q, p_mm) -> None:
     rows = [",".join([*names, "x", "y", "z"])]
     rows += [",".join(repr(float(v)) for v in [*qk, *(pk / 1e3)]) for qk, pk in zip(q, p_mm)]
     path.write_text("\n".join(rows) + "\n")
-
-
-def _load(path) -> yourdfpy.URDF:
-    return yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False, build_collision_scene_graph=False)
 
 
 @pytest.fixture(scope="module")
@@ -105,17 +57,17 @@ def simulated(tmp_path_factory):
         d = tmp_path_factory.mktemp(name)
         rng = np.random.default_rng(sorted(CORPUS).index(name))
         base_opt, tip_opt = CORPUS[name]
-        (d / "true.urdf").write_text(_perturbed((DATA / f"{name}.urdf").read_text(), rng))
-        truth = _load(d / "true.urdf")
+        (d / "true.urdf").write_text(urdf_perturbed((DATA / f"{name}.urdf").read_text(), rng, 1.5e-3, 2.5e-3))
+        truth = load_urdf(d / "true.urdf")
         base = base_opt or truth.base_link
         tip = tip_opt or next(iter(set(truth.link_map) - {j.parent for j in truth.robot.joints}))
-        names, lim = _chain(truth, base, tip)
+        names, lim = urdf_chain(truth, base, tip)
         frame = np.eye(4)
         frame[:3, :3] = Rotation.random(random_state=rng).as_matrix()
         frame[:3, 3] = [1.2, -0.4, 0.3]
         point = np.array([0.03, -0.04, 0.085])  # m, on the tip link
         q = lim[:, 0] + rng.uniform(size=(2 * N_POSES, len(names))) * (lim[:, 1] - lim[:, 0])
-        p = _points(truth, names, q, base, tip, point) @ frame[:3, :3].T + frame[:3, 3] * 1e3
+        p = urdf_points(truth, names, q, base, tip, point) @ frame[:3, :3].T + frame[:3, 3] * 1e3
         p += rng.normal(scale=SIGMA_MM, size=p.shape)
         _csv(d / "train.csv", names, q[:N_POSES], p[:N_POSES])
         _csv(d / "val.csv", names, q[N_POSES:], p[N_POSES:])
@@ -149,11 +101,11 @@ def test_calibrate_save_reload_evaluate(monkeypatch, capsys, simulated, name):
     assert ev["position_rms_mm"] <= 2 * FLOOR_MM, (rep["choice"], ev["position_rms_mm"])
 
     # yourdfpy on the written file: the measurement frame to the point is the calibrated chain
-    written, nominal = _load(cal), _load(DATA / f"{name}.urdf")
+    written, nominal = load_urdf(cal), load_urdf(DATA / f"{name}.urdf")
     assert written.base_link == nominal.base_link  # the root is the nominal file's
     children = [j.child for j in written.robot.joints]
     assert len(children) == len(set(children))  # a tree: one parent per link
-    pred = _points(written, names, q[N_POSES:], "jaxcal_measurement_frame", "jaxcal_point1")
+    pred = urdf_points(written, names, q[N_POSES:], "jaxcal_measurement_frame", "jaxcal_point1")
     err_yourdfpy = np.linalg.norm(p[N_POSES:] - pred, axis=-1)
     np.testing.assert_allclose([row["error_mm"][0] for row in ev["poses"]], err_yourdfpy, rtol=0, atol=1e-6)
 
@@ -180,8 +132,8 @@ def test_compensate_takes_the_nominal_chain_from_the_record(monkeypatch, capsys,
     code, text, err = run_cli(monkeypatch, capsys, "compensate", cal, targets, "--nominal", nominal, "--out", out)
     assert code == 0 and "reached: 4/4" in text, err
     qc = np.array([[float(v) for v in row.split(",")[: len(names)]] for row in out.read_text().splitlines()[1:]])
-    got = _points(_load(cal), names, qc, base, "jaxcal_tool")
-    want = _points(_load(nominal), names, q[:4], base, tip)
+    got = urdf_points(load_urdf(cal), names, qc, base, "jaxcal_tool")
+    want = urdf_points(load_urdf(nominal), names, q[:4], base, tip)
     np.testing.assert_allclose(got, want, atol=1e-4)
 
 

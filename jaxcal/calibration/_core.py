@@ -477,6 +477,32 @@ def identify(J, layout: Layout, robot: Robot | None = None, *, rtol: float = 1e-
     return analyze(np.asarray(J).reshape(-1, layout.size), layout.names(), rtol=rtol, priority=frames + kin + cams)
 
 
+def reidentified(
+    ident: Identifiability, model: Model, layout: Layout, q, robot: Robot, max_condition: float
+) -> tuple[Identifiability, str] | None:
+    """The base set identified at ``model`` (a fit) and a note saying so, when ``ident``'s (decided
+    at the nominal) is not separable there: column-scaled condition above ``max_condition``. A fit
+    far from its nominal can run to where the nominal's set turns dependent (an origin offset
+    cancelled makes a shift one with two joint offsets); it stops there at a point of the
+    parameterisation, not of the arm. ``None`` otherwise."""
+    J = analyse(model, layout, q)[0].reshape(-1, layout.size)
+    cols = J[:, list(ident.base)]
+    s = np.linalg.svd(cols / np.maximum(np.linalg.norm(cols, axis=0), 1e-300), compute_uv=False)
+    if s[0] <= max_condition * s[-1]:
+        return None
+    again = identify(J, layout, robot)
+    if set(again.base) == set(ident.base):
+        return None
+    names = layout.names()
+    freed = [names[i] for i in again.base if i not in ident.base]
+    held = [names[i] for i in ident.base if i not in again.base]
+    return again, (
+        f"the parameters estimated were chosen again at the fit: those identifiable at the nominal model "
+        f"were not separable where the fit ran (condition {s[0] / s[-1]:.1e}), so {', '.join(freed)} "
+        f"{'is' if len(freed) == 1 else 'are'} estimated and {', '.join(held)} held instead"
+    )
+
+
 def kin_order(robot: Robot | None, layout: Layout) -> list[int]:
     """The kinematic parameters in the order the base set takes them. For a joint frame, the
     origin's turns least aligned with the joint's axis ``a`` come first (and a prismatic joint's

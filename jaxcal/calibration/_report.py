@@ -341,7 +341,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
         "plausible": not why,
         "implausible": why or None,
-        "notes": list(still_joint_notes(robot, q)),
+        "notes": list(still_joint_notes(robot, q)) + list(p.notes),
     }
     rep |= _outlier_section(p, fr, det, last, fin, h)
     if p.n_points:

@@ -347,7 +347,7 @@ def calibrate(
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
 
-    def stages(ref, masks):  # frames only (its residual gives the noise weights), then the set
+    def stages(ref, masks, x0=None):  # frames only (its residual gives the noise weights), then the set
         unit = core.weights_of(layout, np.array([core.UNIT_WEIGHTS]))
         frames_only = prior_of(layout, ident, None, frames_only=True)[None]
         a = core.run_members(cfg, ref, q, target, masks, unit, frames_only, **run, label="frames only")
@@ -358,11 +358,16 @@ def calibrate(
             sig[1] = opts.sigma_rot_rad
         w = core.weights_of(layout, sig[None])
         b = core.run_members(
-            cfg, a["model"], q, target, masks, w, prior[None], opts.loss_scale, **run, label="calibrating"
+            cfg, a["model"], q, target, masks, w, prior[None], opts.loss_scale, x0=x0, **run, label="calibrating"
         )
         return a, sig, w, b
 
     a, sig, weights, b = stages(ref, masks)
+    again = core.reidentified(ident, core.member(b["model"], 0), layout, q, robot, selection.MAX_CONDITION)
+    if again is not None:  # the fit ran where the nominal's base set is singular: the fit's, from the start
+        ident, reidentified = again
+        prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
+        a, sig, weights, b = stages(ref, masks, b["x"])
 
     def refit(w, x0):  # from the current stage's frames-only model and weights
         return core.run_members(
@@ -442,7 +447,7 @@ def calibrate(
         options=opts,
         plausible=not why,
         implausible=why,
-        notes=still_joint_notes(robot, q),
+        notes=still_joint_notes(robot, q) + ((reidentified,) if again is not None else ()),
     )
 
 

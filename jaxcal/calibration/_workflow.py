@@ -19,8 +19,10 @@ on the tool) with ``B0, X0`` from the closed-form guess of each training set
 4. **Selection** (:mod:`._selection`): on the problem linearised at the frames-only fit, every
    candidate is scored by held-out error on K-fold and range-end folds, the best (a simpler one
    within 1 % winning) is chosen, and its parameters pruned while the score holds. Where that
-   linearisation misses the final fit's residual (:data:`RELINEARISE`), stages 4-6 run again on
-   the problem linearised at the final fit.
+   linearisation misses the final fit's residual (:data:`RELINEARISE`), or the final fit ran to
+   where the parameters identifiable at the nominal are not separable
+   (:func:`._core.reidentified`: then those identifiable there), stages 4-6 run again on the
+   problem linearised at the final fit, each fit from its last.
 5. **Held-out figures**: the selection is made again inside every outer training set (K-fold
    folds: new postures; range-end folds: postures beyond the training ranges), each choice
    fitted in full on its training set and scored on the poses held out (nested
@@ -90,6 +92,8 @@ class _Problem:
     valid: np.ndarray
     """``(K,)`` the poses not found outliers."""
     nested: bool
+    notes: tuple[str, ...] = ()
+    """What the report should say about how the fit was made (:func:`_fitted`)."""
 
     @property
     def masks(self) -> np.ndarray:
@@ -331,9 +335,9 @@ def _linear(p: _Problem, model: Model, sig, x=None) -> tuple[selection.Linear, n
     return selection.linearise(J, r, core.weights_of(p.layout, sig)[0], p.n_points), J
 
 
-def _chosen(p: _Problem, fr: _Frames, lin: selection.Linear, J):
+def _chosen(p: _Problem, fr: _Frames, lin: selection.Linear, J, x0=None):
     """Stages 4-6: the choice on all poses and inside every outer training set, each fitted in
-    full (the last member: all poses)."""
+    full (the last member: all poses) from the frames-only fits, or from ``x0 (S, m)``."""
     opts = p.opts
     final = _select(p, lin, J, p.valid, opts.seed)
     train = p.masks[:-1]
@@ -348,6 +352,7 @@ def _chosen(p: _Problem, fr: _Frames, lin: selection.Linear, J):
         core.weights_of(p.layout, fr.sig),
         np.stack([s.prior for s in members]),
         opts.loss_scale,
+        x0=x0,
         **p.run,
         label="held-out and final fits",
     )
@@ -390,27 +395,34 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             det = _outliers_found(dataclasses.replace(p, valid=np.ones(len(p.q), bool)), fr)
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)
-    lin, final, per_fold, fits = _fitted(p, fr)
+    p, lin, final, per_fold, fits = _fitted(p, fr)
     back = _readmitted(p, fits)
     if back.any():  # poses the detector's model could not fit but the calibrated one predicts
         p = dataclasses.replace(p, valid=p.valid | back)
         fr = _frames(p)
-        lin, final, per_fold, fits = _fitted(p, fr)
+        p, lin, final, per_fold, fits = _fitted(p, fr)
     return report_of(p, fr, det, lin, final, per_fold, fits)
 
 
 def _fitted(p: _Problem, fr: _Frames):
-    """Stages 4-6 on the problem linearised at the frames-only fit, and again at the final fit while
-    that linearisation misses it (:data:`RELINEARISE`)."""
-    lin, J = _linear(p, fr.member(-1), fr.sig[[-1]])
+    """Stages 4-6 on the problem linearised at the frames-only fit; again where the final fit ran
+    to where the nominal's base set is singular, with the set identified there
+    (:func:`._core.reidentified`), and at the final fit while the linearisation misses it
+    (:data:`RELINEARISE`). Returns the problem with the base set it ended with."""
+    sig = fr.sig[[-1]]
+    lin, J = _linear(p, fr.member(-1), sig)
     final, per_fold, fits = _chosen(p, fr, lin, J)
     chooses = len(p.candidates) > 1 or p.auto  # a fixed set has nothing the linearisation decides
-    for _ in range(2 * chooses):  # large kinematic errors: linearised again at the fit
-        if _linear_gap(p, lin, fr.sig[[-1]], fits) <= RELINEARISE:
+    for k in range(3):
+        fit = core.member(fits["model"], -1)
+        again = core.reidentified(p.ident, fit, p.layout, p.q, p.robot, selection.MAX_CONDITION)
+        if again is not None:
+            p = dataclasses.replace(p, ident=again[0], notes=p.notes + (again[1],))
+        elif k >= 2 * chooses or _linear_gap(p, lin, sig, fits) <= RELINEARISE:
             break
-        lin, J = _linear(p, core.member(fits["model"], -1), fr.sig[[-1]], fits["x"][-1])
-        final, per_fold, fits = _chosen(p, fr, lin, J)
-    return lin, final, per_fold, fits
+        lin, J = _linear(p, fit, sig, fits["x"][-1])
+        final, per_fold, fits = _chosen(p, fr, lin, J, fits["x"])  # each from its last fit
+    return p, lin, final, per_fold, fits
 
 
 def _readmitted(p: _Problem, fits) -> np.ndarray:

@@ -18,6 +18,7 @@ FILES = {  # file: (member of ROBOTS, licence as the package's README states it)
     "kinova.urdf": ("kinova_description/robots/kinova.urdf", "BSD"),
     "xarm7.urdf": ("xarm_description/urdf/xarm7.urdf", "BSD-3-Clause"),
     "tiago.urdf": ("tiago_description/robots/tiago.urdf", "Apache-2.0"),
+    "so100.urdf": ("so_arm_description/urdf/so100.urdf", "Apache-2.0"),
 }
 JOINT_PARTS = ("parent", "child", "origin", "axis", "limit", "mimic")
 
