@@ -364,7 +364,7 @@ def calibrate(
 
     a, sig, weights, b = stages(ref, masks)
     again = core.reidentified(ident, core.member(b["model"], 0), layout, q, robot, selection.MAX_CONDITION)
-    if again is not None:  # the fit ran where the nominal's base set is singular: the fit's, from the start
+    if again is not None:  # the fit ran where the nominal's base set is singular: the fit's set, from the fit
         ident, reidentified = again
         prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
         a, sig, weights, b = stages(ref, masks, b["x"])
