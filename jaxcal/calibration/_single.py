@@ -364,7 +364,9 @@ def calibrate(
 
     a, sig, weights, b = stages(ref, masks)
     again = core.reidentified(ident, core.member(b["model"], 0), layout, q, robot, selection.MAX_CONDITION)
-    if again is not None:  # the fit ran where the nominal's base set is singular: the fit's set, from the fit
+    # the fit ran where the nominal's base set is singular: the fit's set, from the fit (and every
+    # refit without outliers from the last: that set may be singular at the nominal)
+    if again is not None:
         ident, reidentified = again
         prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
         a, sig, weights, b = stages(ref, masks, b["x"])
@@ -377,11 +379,11 @@ def calibrate(
     det = outliers.found(b, refit, masks, target, opts)
     if det.flags.any() and not opts.keep_outliers:  # the whole fit again without them: start, frames, set
         first, kept = sig, masks * ~det.flags
-        a, sig, weights, b = stages(start(kept), kept)
+        a, sig, weights, b = stages(start(kept), kept, b["x"] if again is not None else None)
         if sig[0] < outliers.REDETECT_SIGMA * first[0]:  # gross outliers set the weights: once more
             det = outliers.found(refit(masks, b["x"]), refit, masks, target, opts)
             kept = masks * ~det.flags
-            a, sig, weights, b = stages(start(kept), kept)
+            a, sig, weights, b = stages(start(kept), kept, b["x"] if again is not None else None)
         found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
         det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     if not np.all(np.isfinite(b["x"][0])):

@@ -400,18 +400,20 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     if back.any():  # poses the detector's model could not fit but the calibrated one predicts
         p = dataclasses.replace(p, valid=p.valid | back)
         fr = _frames(p)
-        p, lin, final, per_fold, fits = _fitted(p, fr)
+        p, lin, final, per_fold, fits = _fitted(p, fr, fits["x"] if p.notes else None)
     return report_of(p, fr, det, lin, final, per_fold, fits)
 
 
-def _fitted(p: _Problem, fr: _Frames):
+def _fitted(p: _Problem, fr: _Frames, x0=None):
     """Stages 4-6 on the problem linearised at the frames-only fit; again where the final fit ran
     to where the nominal's base set is singular, with the set identified there
     (:func:`._core.reidentified`), and at the final fit while the linearisation misses it
-    (:data:`RELINEARISE`). Returns the problem with the base set it ended with."""
+    (:data:`RELINEARISE`). The fits start from the frames-only fits, or from ``x0 (S, m)`` (a set
+    chosen at an earlier fit may be singular at the nominal). Returns the problem with the base
+    set it ended with."""
     sig = fr.sig[[-1]]
     lin, J = _linear(p, fr.member(-1), sig)
-    final, per_fold, fits = _chosen(p, fr, lin, J)
+    final, per_fold, fits = _chosen(p, fr, lin, J, x0)
     chooses = len(p.candidates) > 1 or p.auto  # a fixed set has nothing the linearisation decides
     for k in range(3):
         fit = core.member(fits["model"], -1)

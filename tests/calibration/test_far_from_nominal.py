@@ -49,6 +49,16 @@ def test_calibrate_does_not_stop_where_the_nominal_set_is_singular(far_arm):
     assert _error_on_new_postures(r.model, q, truth) < 0.03  # the noise is 0.02 mm per coordinate
 
 
+def test_the_refits_without_outliers_keep_the_set_chosen_at_the_fit(far_arm):
+    """That set may be singular at the nominal: the refits without the outliers start from the fit."""
+    robot, q, measured, truth = far_arm
+    gross = measured[:N_TRAIN].copy()
+    gross[[5, 17, 33]] += [4.0, -3.0, 5.0]
+    r = calibrate(robot, q[:N_TRAIN], gross)
+    assert r.converged and r.plausible and r.outliers == (5, 17, 33)
+    assert _error_on_new_postures(r.model, q, truth) < 0.03
+
+
 def test_calibrate_data_does_not_stop_where_the_nominal_set_is_singular(far_arm):
     robot, q, measured, truth = far_arm
     r = calibrate_data(robot, Measurements(q=q[:N_TRAIN], measured=measured[:N_TRAIN, None]), params="all", folds=2)
