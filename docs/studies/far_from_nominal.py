@@ -53,7 +53,8 @@ def main():
     robot = jaxcal.load_robot(FILE)
     moved = core.reidentified
     print("error on 40 new postures of the true arm (mm); 'yes': the set was chosen again at the fit")
-    print(f"{'shift':>6} {'seed':>4} | {'calibrate: nominal':>18} {'at the fit':>10} | {'default command: nominal':>24} {'at the fit':>10}")
+    head = f"{'shift':>6} {'seed':>4} | {'calibrate: nominal':>18} {'at the fit':>10}"
+    print(head + f" | {'default command: nominal':>24} {'at the fit':>10}")
     with tempfile.TemporaryDirectory() as tmp:
         for shift in (8e-3, 15e-3):
             for seed in range(10):
@@ -63,13 +64,18 @@ def main():
                     core.reidentified = fn
                     try:
                         r = jaxcal.calibrate(robot, q[:N_TRAIN], meas[:N_TRAIN])
-                        d = jaxcal.calibrate_data(robot, jaxcal.Measurements(q=q[:N_TRAIN], measured=meas[:N_TRAIN, None]))
+                        d = jaxcal.calibrate_data(
+                            robot, jaxcal.Measurements(q=q[:N_TRAIN], measured=meas[:N_TRAIN, None])
+                        )
                     finally:
                         core.reidentified = moved
                     again = ("yes" if r.notes else "no", "yes" if d.report["notes"] else "no")
                     out[label] = (error(r.model, q, truth), error(d.model, q, truth), again)
                 (a, b, _), (c, e, (u, v)) = out["nominal"], out["fit"]
-                print(f"{shift * 1e3:>4.0f}mm {seed:>4} | {a:>18.4f} {c:>6.4f} {u:>3} | {b:>24.4f} {e:>6.4f} {v:>3}", flush=True)
+                print(
+                    f"{shift * 1e3:>4.0f}mm {seed:>4} | {a:>18.4f} {c:>6.4f} {u:>3} | {b:>24.4f} {e:>6.4f} {v:>3}",
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":
