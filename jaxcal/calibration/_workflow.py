@@ -415,12 +415,18 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
     lin, J = _linear(p, fr.member(-1), sig)
     final, per_fold, fits = _chosen(p, fr, lin, J, x0)
     chooses = len(p.candidates) > 1 or p.auto  # a fixed set has nothing the linearisation decides
-    for k in range(3):
+    relinearised = reidentified = 0
+    while True:  # every refit is checked again; at most two passes of each kind
         fit = core.member(fits["model"], -1)
-        again = core.reidentified(p.ident, fit, p.layout, p.q, p.robot, selection.MAX_CONDITION)
+        again = None
+        if reidentified < 2:
+            again = core.reidentified(p.ident, fit, p.layout, p.q, p.robot, selection.MAX_CONDITION)
         if again is not None:
+            reidentified += 1
             p = dataclasses.replace(p, ident=again[0], notes=p.notes + (again[1],))
-        elif k >= 2 * chooses or _linear_gap(p, lin, sig, fits) <= RELINEARISE:
+        elif relinearised < 2 * chooses and _linear_gap(p, lin, sig, fits) > RELINEARISE:
+            relinearised += 1
+        else:
             break
         lin, J = _linear(p, fit, sig, fits["x"][-1])
         final, per_fold, fits = _chosen(p, fr, lin, J, fits["x"])  # each from its last fit
