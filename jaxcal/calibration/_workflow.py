@@ -21,8 +21,9 @@ on the tool) with ``B0, X0`` from the closed-form guess of each training set
    within 1 % winning) is chosen, and its parameters pruned while the score holds. Where that
    linearisation misses the final fit's residual (:data:`RELINEARISE`), or the final fit ran to
    where the parameters identifiable at the nominal are not separable
-   (:func:`._core.reidentified`: then those identifiable there), stages 4-6 run again on the
-   problem linearised at the final fit, each fit from its last.
+   (:func:`._core.reidentified`), or more are identifiable there and fit materially better
+   (:func:`_wider`: then those identifiable there), stages 4-6 run again on the problem
+   linearised at the final fit, each fit from its last.
 5. **Held-out figures**: the selection is made again inside every outer training set (K-fold
    folds: new postures; range-end folds: postures beyond the training ranges), each choice
    fitted in full on its training set and scored on the poses held out (nested
@@ -421,6 +422,7 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
         again = None
         if reidentified < 2:
             again = core.reidentified(p.ident, fit, p.layout, p.q, p.robot, selection.MAX_CONDITION)
+            again = again or _wider(p, fit, sig)
         if again is not None:
             reidentified += 1
             p = dataclasses.replace(p, ident=again[0], notes=p.notes + (again[1],))
@@ -431,6 +433,41 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
         lin, J = _linear(p, fit, sig, fits["x"][-1])
         final, per_fold, fits = _chosen(p, fr, lin, J, fits["x"])  # each from its last fit
     return p, lin, final, per_fold, fits
+
+
+WIDER_SHARE = 0.5
+"""A larger set identifiable at the fit than at the nominal is taken when one linear step with it
+leaves less than this share of the weighted residual that the nominal's set leaves: a gain that
+no tilt of the axes within the noise gives."""
+
+
+def _wider(p: _Problem, fit: Model, sig):
+    """The base set identified at the final fit and a note, when it is larger than the nominal's and
+    fits materially better (:data:`WIDER_SHARE`): a length held because two axes are parallel in
+    the robot's file, while the arm's are tilted by degrees. ``None`` otherwise. Only here, where
+    the model is chosen from the data; :func:`jaxcal.calibrate` fits the set the nominal gives."""
+    lin, J = _linear(p, fit, sig)
+    again = core.identify(J, p.layout, p.robot)
+    if again.rank <= p.ident.rank:
+        return None
+    ok = (lin.seen & p.valid[:, None])[..., None]
+    A, b = np.where(ok, lin.J, 0.0).reshape(-1, p.layout.size), np.where(ok[..., 0], lin.r, 0.0).ravel()
+
+    def left(base) -> float:  # the weighted residual after one linear step in the parameters ``base``
+        sub = A[:, list(base)]
+        return float(np.sum((b - sub @ np.linalg.lstsq(sub, b, rcond=None)[0]) ** 2))
+
+    share = left(again.base) / max(left(p.ident.base), 1e-300)
+    if not share < WIDER_SHARE:
+        return None
+    names = p.layout.names()
+    freed = [names[i] for i in again.base if i not in p.ident.base]
+    return again, (
+        f"the parameters estimated were chosen again at the fit: {', '.join(freed)}, held at the nominal "
+        f"model (axes parallel in the robot's file), {'is' if len(freed) == 1 else 'are'} identifiable at "
+        f"the fit, where {'it cuts' if len(freed) == 1 else 'they cut'} the residual a step leaves to "
+        f"{share:.0%}, so {'it is' if len(freed) == 1 else 'they are'} estimated"
+    )
 
 
 def _readmitted(p: _Problem, fits) -> np.ndarray:

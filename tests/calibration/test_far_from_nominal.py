@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import load_urdf, random_transform, urdf_chain, urdf_perturbed, urdf_points
+from helpers import dh_fk, load_urdf, random_transform, urdf_chain, urdf_perturbed, urdf_points
 
-from jaxcal import Measurements, calibrate, calibrate_data, load_robot
+from jaxcal import Measurements, calibrate, calibrate_data, load_robot, preset
 from jaxcal.model import predict
 
 FILE = Path(__file__).resolve().parents[1] / "data" / "urdf" / "so100.urdf"
@@ -66,3 +66,24 @@ def test_calibrate_data_does_not_stop_where_the_nominal_set_is_singular(far_arm)
     assert any(MOVED in n for n in r.report["notes"])
     assert r.report["heldout_rms_mm"] < 0.06
     assert _error_on_new_postures(r.model, q, truth) < 0.03
+
+
+def test_a_length_held_for_axes_parallel_in_the_file_is_estimated_where_the_arm_tilts_them():
+    """paper-6r's joints 2 and 3 are parallel in its table, so d3 is held (d2 carries it). This
+    arm's alpha2 is 3.4 degrees off, so its d3 (15 mm off) moves the point off d2's direction."""
+    robot = preset("paper-6r")
+    true_dh = np.array(robot.dh, float)
+    true_dh[1, 3] += 0.06
+    true_dh[2, 1] += 15.0
+    rng = np.random.default_rng(0)
+    lim = np.asarray(robot.q_limits)
+    q = lim.mean(1) + rng.uniform(-0.45, 0.45, (90, 6)) * (lim[:, 1] - lim[:, 0])
+    tool = np.eye(4)
+    tool[:3, 3] = [20.0, -10.0, 60.0]
+    truth = dh_fk(true_dh, q, base=random_transform(rng, 1000.0), tool=tool)[:, :3, 3]
+    measured = truth + rng.normal(scale=0.02, size=truth.shape)
+    r = calibrate_data(robot, Measurements(q=q[:50], measured=measured[:50, None]), params="all", folds=2)
+    assert r.report["converged"] and "d3" in r.report["parameters"]
+    assert any(MOVED in n and "d3" in n for n in r.report["notes"])
+    pred = np.asarray(predict(r.model, q[50:])).reshape(-1, 3)
+    assert np.sqrt(np.mean(np.sum((pred - truth[50:]) ** 2, -1))) < 0.03  # d3 held: 0.06 mm
