@@ -424,19 +424,29 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols) -> None:
     ~1000x closer to / farther from the measurement origin than the median row (metres among
     millimetres or the reverse), or a minority of rows with revolute joint values beyond both
     2*pi and the joint limits (degrees among radians)."""
-    r = np.linalg.norm(pos, axis=-1)
-    if r.ndim > 1:
-        r = np.nanmax(r, -1)  # a lost point (NaN) left out; every row has one point seen
+    per_point = np.linalg.norm(pos, axis=-1)
+    r = np.nanmax(per_point, -1) if per_point.ndim > 1 else per_point  # lost points (NaN) left out
     med = float(np.median(r))
     if len(r) >= 3 and med > 0:
         # a row at exactly 0, 0, 0 is a lost marker exported as zeros, not another unit: an outlier
         odd = np.flatnonzero(((r * 100 < med) & (r > 0)) | (r > 100 * med))
         if 0 < odd.size < len(r) / 2:
             k = odd[0]
+            pts = np.atleast_1d(per_point[k])
+            far = np.flatnonzero(pts > 100 * med)
+            if len(pts) > 1 and 0 < far.size < np.isfinite(pts).sum():  # another unit moves every point
+                j = int(far[0])
+                raise DataError(
+                    f"{src}: row {rows[k]}, point {j + 1}: position norm {pts[j]:.4g} mm while the row's other "
+                    f"points and the median row are near {med:.4g} mm: a lost marker written as a sentinel "
+                    f"value (such as -9999)? Write lost markers as empty cells ({odd.size} such row(s): "
+                    f"{', '.join(str(rows[i]) for i in odd[:5])})"
+                )
             raise DataError(
                 f"{src}: mixed length units? row {rows[k]}: position norm {r[k]:.4g} mm vs a median "
                 f"of {med:.4g} mm over all rows ({odd.size} such row(s): "
-                f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit"
+                f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit, and lost "
+                f"markers as empty cells"
             )
     revolute = np.array([t == "R" for t in robot.joint_types])
     if revolute.any() and len(q) >= 3:

@@ -347,6 +347,17 @@ def _mixed_m(lines):
     return out
 
 
+def _sentinel(lines):
+    """Two points per row (the second 50 mm off the first); data row 3's second point written as the
+    lost-marker sentinel 1e10."""
+    out = [lines[0].replace("x,y,z", "x1,y1,z1,x2,y2,z2")]
+    for i, line in enumerate(lines[1:], start=1):
+        v = line.split(",")
+        second = ["1e10"] * 3 if i == 3 else [repr(float(c) + 50.0) for c in v[6:]]
+        out.append(",".join(v + second))
+    return out
+
+
 def _mixed_deg(lines):
     out = list(lines)
     vals = out[5].split(",")
@@ -383,6 +394,7 @@ CSV = {
     ),
     "ragged row": (LINES[:3] + [LINES[3].rsplit(",", 1)[0]] + LINES[4:], "row 3 (line 4): 8 fields"),
     "mixed units m among mm": (_mixed_m(LINES), "mixed length units? row 3"),
+    "a lost marker written as 1e10": (_sentinel(LINES), "row 3, point 2: position norm 1.732e+10 mm while"),
     "mixed units deg among rad": (_mixed_deg(LINES), "mixed angle units? row 5, column 'q2'"),
 }
 

@@ -113,6 +113,33 @@ def _far(model: Model, meas, pos, rot) -> list[str]:
     ]
 
 
+def _few(model: Model, meas, pos) -> list[str]:
+    """A warning naming the few rows whose errors (``pos (K, M)`` mm) are far beyond a
+    calibration's while the median row's are within one: outliers of the file (a lost marker
+    written as a number, swapped marker labels, a knock), which no mistake of :func:`_far` (every
+    row read wrong) explains, and the RMS over all rows hides."""
+    limit = RESIDUAL_SHARE * model.robot.reach(np.asarray(meas.q))
+    worst = np.nanmax(pos, -1)
+    if not (np.sqrt(np.nanmean(pos**2)) > limit >= np.median(worst)):
+        return []
+    bad = np.flatnonzero(worst > limit)
+    bad = bad[np.argsort(-worst[bad])]
+    numbers = list(getattr(meas, "point_numbers", ()) or range(1, pos.shape[1] + 1))
+    rows = meas.rows if getattr(meas, "rows", None) is not None else np.arange(1, len(worst) + 1)
+    where = [
+        f"row {rows[k]}" + (f" point {numbers[int(np.nanargmax(pos[k]))]}" if pos.shape[1] > 1 else "")
+        + f" ({worst[k]:.3g} mm)"
+        for k in bad[:5]
+    ]  # fmt: skip
+    rest = np.sqrt(np.nanmean(np.delete(pos, bad, 0) ** 2))
+    return [
+        f"{len(bad)} row(s) err far beyond a calibration's ({limit:.3g} mm): {', '.join(where)}"
+        + (", ..." if len(bad) > 5 else "")
+        + f"; the other rows score {rest:.3g} mm RMS. Outliers in this file (a lost marker written as a "
+        f"number, swapped marker labels, a knock)?"
+    ]
+
+
 def _zeros(meas) -> list[str]:
     """A warning naming the rows with a position at exactly 0, 0, 0: a lost marker the export
     wrote as zeros, scored as a measurement."""
@@ -190,13 +217,14 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             for n, lo, hi in zip(model.robot.joint_names, training.q.min(0), training.q.max(0))
         }
     rot_rms = 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
-    far = _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
+    few = _few(model, meas, pos)
+    far = [] if few else _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
     if far and ranges is None and training is None:  # a model file calibrate wrote records its ranges
         far[0] += (
             "; if this model was never calibrated (a nominal table or URDF), errors of this size can be "
             "the arm's own geometric errors: calibrate it first"
         )
-    out["warnings"] = _zeros(meas) + far
+    out["warnings"] = _zeros(meas) + few + far
     if ranges is not None:
         away = outside(model.robot, meas.q, ranges)
         share = float(away.mean()) if len(away) else 0.0

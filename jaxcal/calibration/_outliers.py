@@ -254,14 +254,23 @@ def pose_position_mm(pos_err) -> np.ndarray:
         return np.sqrt(np.nanmean(pos_err**2, -1))
 
 
-def describe(det: Detection, member: int, pos_err, rot_err_deg, rows, *, excluded: bool) -> list[dict]:
+def describe(
+    det: Detection, member: int, pos_err, rot_err_deg, rows, *, excluded: bool, point_numbers=()
+) -> list[dict]:
     """JSON entries of the flagged poses of one member, worst first: ``row`` (the file's),
-    ``position_mm``, ``rotation_deg`` (poses), ``sigmas``, ``threshold_sigmas``, ``excluded``."""
+    ``position_mm``, ``rotation_deg`` (poses), ``sigmas``, ``threshold_sigmas``, ``excluded``;
+    with several points, ``worst_point`` (its number in the file, ``point_numbers``, else 1..M)
+    and ``worst_point_mm``: the marker to look at (``position_mm`` is the RMS over the points)."""
     f, u, t = det.flags[member], det.sigmas[member], det.threshold[member]
     pos = pose_position_mm(pos_err)
+    per_point = np.asarray(pos_err, float)
+    numbers = (list(point_numbers) or list(range(1, per_point.shape[-1] + 1))) if per_point.ndim > 1 else []
     out = []
     for k in np.flatnonzero(f)[np.argsort(-u[f])]:
         e = {"row": int(rows[k]), "position_mm": float(pos[k])}
+        if len(numbers) > 1:
+            j = int(np.nanargmax(per_point[k]))
+            e |= {"worst_point": int(numbers[j]), "worst_point_mm": float(per_point[k, j])}
         if rot_err_deg is not None:
             e["rotation_deg"] = float(rot_err_deg[k])
         e |= {"sigmas": float(u[k]), "threshold_sigmas": float(t[k]), "excluded": excluded}

@@ -128,6 +128,32 @@ def _heldout(fits, fr, p):
     return out
 
 
+ODD_POINT = 3.0
+"""A measured point whose held-out error is more than this many times the median of the other
+points' is named in the report's notes. Points farther from the flange err more by their lever
+alone, by well under this; a marker that slipped on the tool or one much noisier than the rest
+errs several times more, and one noise weight for all points hides it."""
+
+
+def _odd_point(p, pe) -> str:
+    """A note naming the point whose held-out error ``pe (K, M)`` stands far above the other
+    points' (:data:`ODD_POINT`; three points or more), or ``""``."""
+    if p.n_points < 3:
+        return ""
+    v = np.sqrt(np.nanmean(pe[p.valid] ** 2, 0))
+    j = int(np.nanargmax(v))
+    m = float(np.nanmedian(np.delete(v, j)))
+    if not v[j] > ODD_POINT * m:
+        return ""
+    nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
+    keep = ",".join(str(n) for k, n in enumerate(nums) if k != j)
+    return (
+        f"point {nums[j]} errs {v[j]:.3g} mm RMS on held-out poses, {v[j] / m:.1f} times the other points' "
+        f"median ({m:.3g} mm): a marker that moved on the tool during the session, or a noisy or mislabelled "
+        f"one? Calibrate without it (--points {keep}) and compare the held-out figures"
+    )
+
+
 def _failure(condition: float) -> str:
     """Why a candidate failed: its parameters are not separable on these poses."""
     from ._selection import MAX_CONDITION
@@ -274,6 +300,7 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
             np.degrees(fin["rot_err"][0]) if rot else None,
             p.rows,
             excluded=not opts.keep_outliers,
+            point_numbers=getattr(p.data, "point_numbers", ()),
         ),  # fmt: skip
         "outlier_detection": {
             "excluded": not opts.keep_outliers,
@@ -341,7 +368,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
         "plausible": not why,
         "implausible": why or None,
-        "notes": list(still_joint_notes(robot, q)) + list(p.notes),
+        "notes": list(still_joint_notes(robot, q)) + list(p.notes) + [n for n in [_odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h)
     if p.n_points:

@@ -381,11 +381,13 @@ def show_outliers(rep: dict) -> None:
         console.print(f"outliers: none ({rule})")
         return
     t = Table(title=f"{len(found)} outlier pose(s)")
-    rot = "rotation_deg" in found[0]
-    for col in ("row", "position error (mm)") + (("rotation error (deg)",) if rot else ()) + ("sigmas",):
+    rot, worst = "rotation_deg" in found[0], "worst_point" in found[0]
+    cols = ("row", "position error (mm)") + (("rotation error (deg)",) if rot else ())
+    for col in cols + (("worst point: error (mm)",) if worst else ()) + ("sigmas",):
         t.add_column(col, justify="right")
     for o in found:
         cells = [str(o["row"]), f"{o['position_mm']:.3f}"] + ([f"{o['rotation_deg']:.3f}"] if rot else [])
+        cells += [f"{o['worst_point']}: {o['worst_point_mm']:.3f}"] if worst else []
         t.add_row(*cells, f"{o['sigmas']:.1f}")
     console.print(t)
     if d["excluded"]:

@@ -198,6 +198,7 @@ def test_a_marker_written_as_zero_is_named_and_the_rest_found_as_without_it():
     b = jaxcal.calibrate_data(robot, bad, **kw).report
     without = jaxcal.calibrate_data(robot, clean.subset(np.arange(len(clean.q)) != 4), **kw).report
     assert sorted(o["row"] for o in b["outliers"]) == sorted([o["row"] for o in without["outliers"]] + [5])
+    assert next(o for o in b["outliers"] if o["row"] == 5)["worst_point"] == 2  # the marker, not only the row
     assert b["train_rms_mm"] == pytest.approx(without["train_rms_mm"], rel=1e-6)
     # the same in a single fit
     kw = dict(params="all", ridge_mm=3.0)
