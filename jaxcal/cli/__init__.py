@@ -14,7 +14,7 @@ from . import (  # noqa: F401  (register commands)
     _reproduce,
     _verify,
 )
-from ._app import app, err_console, say_error
+from ._app import COMMAND_FLAGS, app, err_console, say_error
 
 
 def main():
@@ -24,6 +24,7 @@ def main():
 
     try:
         use_compilation_cache()
+        COMMAND_FLAGS.clear()  # a command sets its own spellings; none carried from an earlier run in-process
         app()
     except SystemExit as e:
         if e.code == 130:  # typer's exit for Ctrl-C, silent by itself

@@ -20,10 +20,13 @@ err_console = Console(stderr=True)
 
 FLAGS = {"camera": "--camera-model", "json_out": "--json", "data": "DATA", "robot": "ROBOT"}
 """Library option names whose command-line spelling is not ``--`` + the name with dashes."""
+COMMAND_FLAGS: dict[str, str] = {}
+"""The running command's own spellings of library option names (set by the command: ``design``
+says ``--poses`` for ``n_poses``)."""
 
 
 def flag(option: str) -> str:
-    return FLAGS.get(option, "--" + option.replace("_", "-"))
+    return COMMAND_FLAGS.get(option) or FLAGS.get(option, "--" + option.replace("_", "-"))
 
 
 def say_error(message: str, option: str | None) -> str:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg
+from ._app import BASE_LINK_HELP, COMMAND_FLAGS, TIP_LINK_HELP, app, console, load_robot_arg
 from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, numbers, read_poses_for, region_arg, view_arg
 
 
@@ -71,6 +71,10 @@ def design(
     from ..design import design_problem, optimal_poses, select_poses, write_poses
     from ..errors import DataError
 
+    COMMAND_FLAGS.update(
+        n_poses="--poses", sigma_pos_mm="--noise-mm", sigma_rot_rad="--noise-rad", n_random="--random-sets",
+        n_val="--val-poses",
+    )  # fmt: skip
     check_writable(out, "out")
     if json_out is not None:
         check_writable(json_out, "json_out")

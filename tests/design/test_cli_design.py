@@ -37,6 +37,15 @@ def test_design_bad_region_names_the_flag(monkeypatch, capsys, tmp_path):
     assert code == 2 and "--region" in err and not (tmp_path / "p.csv").exists()
 
 
+@pytest.mark.parametrize(
+    "args,said", [(("--poses", "4"), "--poses: 4 poses"), (("--poses", "8", "--noise-mm", "0"), "--noise-mm must be")]
+)
+def test_errors_name_the_design_commands_own_flags(monkeypatch, capsys, tmp_path, args, said):
+    """The library's n_poses and sigma_pos_mm are said as the flags design has (--poses, --noise-mm)."""
+    code, _, err = run_cli(monkeypatch, capsys, "design", "paper-6r", *args, "--out", tmp_path / "p.csv")
+    assert code == 2 and said in err and "--n-poses" not in err and "--sigma-pos-mm" not in err
+
+
 def _pose_file(path, q):
     """A pose file written with NumPy (header q1..qN, rad)."""
     path.write_text(
