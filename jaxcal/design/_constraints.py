@@ -264,8 +264,8 @@ class PoseSampler:
             shape = " and the ".join(n for n, on in (("box", cons.has_box), ("view cone", cons.has_view)) if on)
             raise DataError(
                 f"{option}: only {found} of {tried} random configurations within the joint limits keep the "
-                f"tool in the {shape}, too few for {self.n_poses} poses; check it (mm, in the frame the robot's base "
-                f"is given in)",
+                f"tool in the {shape}, too few to draw {self.n_poses} poses there; give candidate poses inside it "
+                f"(--pool; select_poses), or check it (mm, in the frame the robot's base is given in)",
                 option=option,
             )
         need = (self.n_poses + 4 * np.sqrt(self.n_poses) + 8) / self.acceptance

@@ -81,7 +81,12 @@ class PoseDesign:
                 f"{LABELS[c]:<44} {value(c, self.values):>12.5g} {med:>14.5g} "
                 f"{self.random_fraction_better(c):>13.1%} {self.equivalent_random_poses(c):>22.1f}"
             )
-        lines.append(f"(random: {R} sets of {N} poses within the joint limits, region and view if given)")
+        lines.append(
+            f"(random: {R} sets of {N} of the pool's poses in the region and view: random configurations within "
+            f"the joint limits rarely reach it)"
+            if self.details.get("random_from") == "pool"
+            else f"(random: {R} sets of {N} poses within the joint limits, region and view if given)"
+        )
         return "\n".join(lines)
 
     def to_dict(self) -> dict:

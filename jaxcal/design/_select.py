@@ -204,11 +204,15 @@ def select_poses(
     q = pool[chosen]
     values = values_of(measures_batch(problem, q[None])[0])
     rng = np.random.default_rng([seed, 3])
+    try:
+        rand, drawn_from = random_values(problem, cons, n_poses, n_random, rng), "joint limits"
+    except DataError:  # a region random configurations rarely reach, which the pool's rows do
+        rand, drawn_from = _pool_random_values(problem, cons, pool, n_poses, n_random, rng), "pool"
     return PoseDesign(
         q=frozen(q),
         criterion=problem.criterion,
         values=values,
-        random_values=random_values(problem, cons, n_poses, n_random, rng),
+        random_values=rand,
         method="pool",
         base_names=problem.base_names(),
         feasible=feasible(problem, cons, q),
@@ -219,5 +223,19 @@ def select_poses(
             "usable": usable,
             "swaps": int(swaps),
             "select_seconds": seconds,
+            "random_from": drawn_from,
         },
     )
+
+
+def _pool_random_values(problem: DesignProblem, cons, pool, n_poses: int, n_random: int, rng) -> dict:
+    """The criteria of ``n_random`` random sets of ``n_poses`` of the pool's rows in the region and
+    view: the comparison when random configurations within the joint limits cannot be drawn
+    there."""
+    ok = np.flatnonzero(in_region(cons, positions(problem, pool)) if cons.has_region else np.ones(len(pool), bool))
+    sets = np.stack([rng.choice(ok, n_poses, replace=False) for _ in range(n_random)])
+    m = measures_batch(problem, pool[sets])
+    out = {k: np.array([values_of(r)[k] for r in m]) for k in ("log_det", "a_trace", "validation_rms_mm")}
+    for v in out.values():
+        v.flags.writeable = False
+    return out

@@ -323,3 +323,29 @@ def test_design_bound_holds_for_every_design_of_the_candidates(robot, problem, c
         assert all(b["bound"] >= v[key] for v in [*subsets, chosen])
         assert b["bound"] >= b["relaxed"][key] >= max(uniform, chosen[key])
         assert b["relaxed"][key] >= b["bound"] - 1e-4
+
+
+def test_a_pool_in_a_box_random_poses_rarely_reach_is_compared_with_its_own_rows(robot, problem):
+    """A 20 mm box: random configurations within the joint limits almost never put the tool there,
+    so the random comparison draws sets of the pool's rows instead of refusing the box. The pool
+    comes from an IK on an independent FK (NumPy DH products)."""
+    from helpers import dh_fk
+    from scipy.optimize import least_squares
+
+    dh, lim = np.asarray(robot.dh), np.asarray(robot.q_limits)
+    rng = np.random.default_rng(0)
+    centre = dh_fk(dh, rng.uniform(lim[:, 0], lim[:, 1])[None])[0, :3, 3]
+    lo, hi = centre - 10.0, centre + 10.0
+    pool = []
+    while len(pool) < 30:
+        target = rng.uniform(lo + 2.0, hi - 2.0)
+        fit = least_squares(
+            lambda q, t=target: dh_fk(dh, q[None])[0, :3, 3] - t, rng.uniform(lim[:, 0], lim[:, 1]), bounds=lim.T
+        )
+        if fit.cost < 1e-10:
+            pool.append(fit.x)
+    d = design.select_poses(problem, np.array(pool), N, region=(lo, hi), n_random=20)
+    assert d.details["random_from"] == "pool" and d.feasible and "of the pool's poses" in d.report()
+    tool = dh_fk(dh, d.q)[:, :3, 3]
+    assert np.all((tool >= lo) & (tool <= hi))
+    assert len(d.random_values["validation_rms_mm"]) == 20
