@@ -143,7 +143,7 @@ def _odd_point(p, pe) -> str:
     v = np.sqrt(np.nanmean(pe[p.valid] ** 2, 0))
     j = int(np.nanargmax(v))
     m = float(np.nanmedian(np.delete(v, j)))
-    if not v[j] > ODD_POINT * m:
+    if not (v[j] > ODD_POINT * m and v[j] > 1e-3):  # 1 um: below any tracker's noise (noise-free data)
         return ""
     nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
     keep = ",".join(str(n) for k, n in enumerate(nums) if k != j)
