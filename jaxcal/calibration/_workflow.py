@@ -387,6 +387,7 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     """
     opts = make_options(options, kw, camera_auto=True)
     p = _prepare(robot, data, opts, progress)
+    nominal_set = p.ident
     fr = _frames(p)
     det = _outliers_found(p, fr)
     if det.flags.any() and not opts.keep_outliers:  # everything again without them
@@ -401,7 +402,8 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     if back.any():  # poses the detector's model could not fit but the calibrated one predicts
         p = dataclasses.replace(p, valid=p.valid | back)
         fr = _frames(p)
-        p, lin, final, per_fold, fits = _fitted(p, fr, fits["x"] if p.notes else None)
+        # a set chosen at the fit may be singular at the nominal: from the last fit
+        p, lin, final, per_fold, fits = _fitted(p, fr, fits["x"] if p.ident is not nominal_set else None)
     return report_of(p, fr, det, lin, final, per_fold, fits)
 
 

@@ -342,7 +342,11 @@ def random_feasible(space, cons: Constraints, shape: tuple[int, int], rng) -> np
 
 def random_values(problem: DesignProblem, cons: Constraints, n_poses: int, n_random: int, rng) -> dict:
     """All three criteria of ``n_random`` random feasible pose sets of ``n_poses``, ``(R,)`` each."""
-    q = random_feasible(problem, cons, (n_random, n_poses), rng)
+    return criteria_of_sets(problem, random_feasible(problem, cons, (n_random, n_poses), rng))
+
+
+def criteria_of_sets(problem: DesignProblem, q) -> dict:
+    """All three criteria of the pose sets ``q (R, K, n)``, ``(R,)`` each (read-only)."""
     m = measures_batch(problem, q)
     out = {k: np.array([values_of(r)[k] for r in m]) for k in ("log_det", "a_trace", "validation_rms_mm")}
     for v in out.values():
@@ -356,6 +360,7 @@ __all__ = [
     "Workspace",
     "workspace",
     "constraints",
+    "criteria_of_sets",
     "feasible",
     "in_region",
     "min_distance",

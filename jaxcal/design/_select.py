@@ -25,7 +25,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._config import as_f64
 from ..errors import DataError
-from ._constraints import constraints, feasible, in_region, min_distance, positions, random_values
+from ._constraints import constraints, criteria_of_sets, feasible, in_region, min_distance, positions, random_values
 from ._problem import DesignProblem, count, measures_batch, pose_blocks, values_of
 from ._result import PoseDesign, frozen
 
@@ -234,8 +234,4 @@ def _pool_random_values(problem: DesignProblem, cons, pool, n_poses: int, n_rand
     there."""
     ok = np.flatnonzero(in_region(cons, positions(problem, pool)) if cons.has_region else np.ones(len(pool), bool))
     sets = np.stack([rng.choice(ok, n_poses, replace=False) for _ in range(n_random)])
-    m = measures_batch(problem, pool[sets])
-    out = {k: np.array([values_of(r)[k] for r in m]) for k in ("log_det", "a_trace", "validation_rms_mm")}
-    for v in out.values():
-        v.flags.writeable = False
-    return out
+    return criteria_of_sets(problem, pool[sets])
