@@ -57,15 +57,10 @@ def mc(robot, setting, args, **kw) -> float:
 
 def matching(ks, rms, target) -> str:
     """Random poses whose interpolated validation RMS equals ``target`` (log-log)."""
-    lk, lr = np.log(ks), np.log(rms)
     if target >= rms[0]:
         return f"<= {ks[0]}"
-    for i in range(len(ks) - 1):
-        if rms[i + 1] <= target:
-            t = (np.log(target) - lr[i]) / (lr[i + 1] - lr[i])
-            return f"{np.exp(lk[i] + t * (lk[i + 1] - lk[i])):.0f}"
-    slope = (lr[-1] - lr[-2]) / (lk[-1] - lk[-2])
-    return f"> {ks[-1]} (extrapolated {np.exp(lk[-1] + (np.log(target) - lr[-1]) / slope):.0f})"
+    k = design.matching_count(ks, -np.log(rms), -np.log(target))
+    return f"{k:.0f}" if target >= rms[-1] else f"> {ks[-1]} (extrapolated {k:.0f})"
 
 
 def validate(args) -> None:

@@ -71,10 +71,7 @@ def problem_of(robot, setting: dict, q_val):
 
 def matching(ks, rms, target) -> float:
     """Random poses whose interpolated RMS equals ``target`` (log-log; extrapolated beyond)."""
-    lk, lr = np.log(ks), np.log(rms)
-    i = int(np.clip(np.searchsorted(-lr, -np.log(target)) - 1, 0, len(ks) - 2))
-    t = (np.log(target) - lr[i]) / (lr[i + 1] - lr[i])
-    return float(np.exp(lk[i] + t * (lk[i + 1] - lk[i])))
+    return design.matching_count(ks, -np.log(rms), -np.log(target))
 
 
 def study(args, robot, cond: str, where: dict, label: str, setting: dict, out: dict) -> None:

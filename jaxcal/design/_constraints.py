@@ -14,7 +14,16 @@ from .._config import as_f64
 from ..errors import DataError
 from ..model import Layout, Model
 from ..robot import Robot
-from ._problem import DesignProblem, measures_batch, reference, tool_positions, uniform_poses, values_of
+from ._problem import (
+    DesignProblem,
+    measures_batch,
+    measures_of_information,
+    pose_blocks,
+    reference,
+    tool_positions,
+    uniform_poses,
+    values_of,
+)
 
 
 class Constraints(eqx.Module):
@@ -345,6 +354,53 @@ def random_values(problem: DesignProblem, cons: Constraints, n_poses: int, n_ran
     return criteria_of_sets(problem, random_feasible(problem, cons, (n_random, n_poses), rng))
 
 
+MATCH_COUNTS = 2.0 ** (np.arange(-2, 7) / 2)
+"""Pose counts, as multiples of a design's, of the random sets that say how many random poses
+match it (:meth:`PoseDesign.equivalent_random_poses`): from half to eight times."""
+MATCH_SETS = 50
+"""Random sets drawn for those counts (each cut to every count: nested sets)."""
+
+
+def match_counts(problem: DesignProblem, n_poses: int) -> np.ndarray:
+    """The counts of :data:`MATCH_COUNTS` for a design of ``n_poses``, without those too few to
+    identify the base parameters."""
+    ks = np.unique(np.round(n_poses * MATCH_COUNTS).astype(int))
+    return ks[ks * problem.layout.rows >= problem.n_base]
+
+
+def criteria_by_count(problem: DesignProblem, q, counts) -> dict:
+    """The median of each criterion over the pose sets ``q (R, K, n)`` cut to their first ``k``
+    poses, for each ``k`` of ``counts`` (increasing, at most ``K``): ``{"counts": (C,), name:
+    (C,)}``. The information of a set is the sum of its poses', so one Jacobian per pose
+    serves every count."""
+    q = np.asarray(q)
+    R, K = q.shape[:2]
+    L = pose_blocks(problem, q.reshape(R * K, -1)).reshape(R, K, -1, problem.n_base)
+    M = np.broadcast_to(np.diag(np.asarray(problem.prior)), (R, problem.n_base, problem.n_base)).copy()
+    rows, done = [], 0
+    for k in counts:
+        M += np.einsum("rkab,rkac->rbc", L[:, done:k], L[:, done:k])
+        done = k
+        m = [values_of(r) for r in measures_of_information(problem, M)]
+        rows.append({name: float(np.median([v[name] for v in m])) for name in m[0]})
+    return {"counts": [int(k) for k in counts]} | {name: [r[name] for r in rows] for name in rows[0]}
+
+
+def random_by_count(problem: DesignProblem, cons: Constraints, n_poses: int, rng) -> dict:
+    """:func:`criteria_by_count` of :data:`MATCH_SETS` random feasible sets at the
+    :func:`match_counts` of ``n_poses``; under a spread the largest sets random configurations
+    cannot fill are left out."""
+    counts = match_counts(problem, n_poses)
+    while len(counts):
+        try:
+            q = random_feasible(problem, cons, (MATCH_SETS, int(counts[-1])), rng)
+        except DataError:
+            counts = counts[:-1]
+            continue
+        return criteria_by_count(problem, q, counts)
+    return {"counts": []}
+
+
 def criteria_of_sets(problem: DesignProblem, q) -> dict:
     """All three criteria of the pose sets ``q (R, K, n)``, ``(R,)`` each (read-only)."""
     m = measures_batch(problem, q)
@@ -360,10 +416,13 @@ __all__ = [
     "Workspace",
     "workspace",
     "constraints",
+    "criteria_by_count",
     "criteria_of_sets",
     "feasible",
     "in_region",
     "min_distance",
+    "match_counts",
+    "random_by_count",
     "random_feasible",
     "random_poses",
     "random_values",

@@ -152,7 +152,13 @@ def measures_batch(problem: DesignProblem, q) -> np.ndarray:
     """:func:`measures` of many pose sets ``q (R, K, n)`` at once, ``(R, 3)``."""
     q = np.asarray(q)
     L = pose_blocks(problem, q.reshape(-1, q.shape[-1])).reshape(q.shape[:2] + (-1, problem.n_base))
-    M = np.einsum("rkab,rkac->rbc", L, L) + np.diag(np.asarray(problem.prior))
+    return measures_of_information(problem, np.einsum("rkab,rkac->rbc", L, L) + np.diag(np.asarray(problem.prior)))
+
+
+def measures_of_information(problem: DesignProblem, M) -> np.ndarray:
+    """:func:`measures` of many information matrices ``M (R, b, b)`` at once, ``(R, 3)``, in
+    chunks of :data:`MEASURES_CHUNK`: one compiled program whatever ``R``."""
+    M = np.asarray(M)
     R = len(M)
     padded = np.concatenate([M, np.broadcast_to(np.eye(M.shape[-1]), (-R % MEASURES_CHUNK,) + M.shape[1:])])
     n = MEASURES_CHUNK

@@ -36,6 +36,9 @@ class PoseDesign:
     """Smallest joint-space distance between two chosen configurations."""
     details: dict = dataclasses.field(default_factory=dict)
     """Method-specific figures: starts, steps, convergence, exchanges, pool indices."""
+    random_by_count: dict = dataclasses.field(default_factory=dict)
+    """Median criteria of random pose sets of other counts (``"counts"`` and one list per
+    criterion), drawn under the same conditions: how many random poses match the design."""
 
     @property
     def value(self) -> float:
@@ -51,18 +54,22 @@ class PoseDesign:
         return float(np.mean(r > v) if c == "d" else np.mean(r < v))
 
     def equivalent_random_poses(self, criterion: str | None = None) -> float:
-        """How many random poses would match the design on ``criterion``, estimated from the
-        median random set of the same count, with the information growing in proportion to the
-        number of poses (the variances as ``1/K``, ``log det`` as ``b log K``)."""
+        """How many random poses, drawn under the design's conditions, would match the design
+        on ``criterion`` (default its own): the median random set's value interpolated against
+        the pose count (log-log; :func:`matching_count`) over :attr:`random_by_count`, with the
+        comparison's own median at the design's count. NaN without those sets."""
         c = criterion or self.criterion
-        N = self.q.shape[0]
-        med = float(np.median(self.random_values[_key(c)]))
+        key, N = _key(c), self.q.shape[0]
+        counts = list(self.random_by_count.get("counts", []))
+        if not counts:
+            return float("nan")
+        med = list(self.random_by_count[key])
+        if N in counts:
+            med[counts.index(N)] = float(np.median(self.random_values[key]))
+        sign = 1.0 if c == "d" else -1.0  # larger is better in what is interpolated
+        y = [sign * (m if c == "d" else np.log(m)) for m in med]
         v = value(c, self.values)
-        if c == "d":
-            return float(N * np.exp((v - med) / len(self.base_names)))
-        if c == "validation":
-            return float(N * (med / v) ** 2)
-        return float(N * med / v)
+        return matching_count(counts, y, sign * (v if c == "d" else np.log(v)))
 
     def report(self) -> str:
         """A table of the design's criteria against the random pose sets."""
@@ -99,12 +106,31 @@ class PoseDesign:
             "random_median": {k: float(np.median(v)) for k, v in self.random_values.items()},
             "random_fraction_better": {c: self.random_fraction_better(c) for c in CRITERIA},
             "equivalent_random_poses": {c: self.equivalent_random_poses(c) for c in CRITERIA},
+            "random_median_by_count": self.random_by_count,
             "feasible": self.feasible,
             "min_distance": self.min_distance,
             "base_names": list(self.base_names),
             "details": self.details,
             "q": self.q.tolist(),
         }
+
+
+def matching_count(counts, y, target: float) -> float:
+    """The count at which ``y``, a figure growing with the pose count (such as minus the log of
+    an RMS), reaches ``target``: interpolated linearly in ``log count`` between the first two
+    counts that bracket it, extrapolated from the end segments beyond them. Counts with a
+    non-finite figure (sets too small to identify the parameters) are left out; NaN when fewer
+    than two remain."""
+    k, y = np.log(np.asarray(counts, dtype=np.float64)), np.asarray(y, dtype=np.float64)
+    keep = np.isfinite(y)
+    k, y = k[keep], y[keep]
+    if len(k) < 2 or not np.isfinite(target):
+        return float("nan")
+    above = np.flatnonzero(y[1:] >= target)
+    i = int(above[0]) if len(above) else len(k) - 2
+    if y[i + 1] == y[i]:
+        return float(np.exp(k[i + 1]))
+    return float(np.exp(k[i] + (target - y[i]) / (y[i + 1] - y[i]) * (k[i + 1] - k[i])))
 
 
 def _key(c: str) -> str:

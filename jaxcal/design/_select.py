@@ -25,7 +25,19 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._config import as_f64
 from ..errors import DataError
-from ._constraints import constraints, criteria_of_sets, feasible, in_region, min_distance, positions, random_values
+from ._constraints import (
+    MATCH_SETS,
+    constraints,
+    criteria_by_count,
+    criteria_of_sets,
+    feasible,
+    in_region,
+    match_counts,
+    min_distance,
+    positions,
+    random_by_count,
+    random_values,
+)
 from ._problem import DesignProblem, count, measures_batch, pose_blocks, values_of
 from ._result import PoseDesign, frozen
 
@@ -206,13 +218,16 @@ def select_poses(
     rng = np.random.default_rng([seed, 3])
     try:
         rand, drawn_from = random_values(problem, cons, n_poses, n_random, rng), "joint limits"
+        by_count = random_by_count(problem, cons, n_poses, rng)
     except DataError:  # a region random configurations rarely reach, which the pool's rows do
-        rand, drawn_from = _pool_random_values(problem, cons, pool, n_poses, n_random, rng), "pool"
+        rand, by_count = _pool_random_values(problem, cons, pool, n_poses, n_random, rng)
+        drawn_from = "pool"
     return PoseDesign(
         q=frozen(q),
         criterion=problem.criterion,
         values=values,
         random_values=rand,
+        random_by_count=by_count,
         method="pool",
         base_names=problem.base_names(),
         feasible=feasible(problem, cons, q),
@@ -228,10 +243,14 @@ def select_poses(
     )
 
 
-def _pool_random_values(problem: DesignProblem, cons, pool, n_poses: int, n_random: int, rng) -> dict:
+def _pool_random_values(problem: DesignProblem, cons, pool, n_poses: int, n_random: int, rng) -> tuple[dict, dict]:
     """The criteria of ``n_random`` random sets of ``n_poses`` of the pool's rows in the region and
-    view: the comparison when random configurations within the joint limits cannot be drawn
+    view, and their medians at other counts (:func:`criteria_by_count`, as many rows as there
+    are): the comparison when random configurations within the joint limits cannot be drawn
     there."""
     ok = np.flatnonzero(in_region(cons, positions(problem, pool)) if cons.has_region else np.ones(len(pool), bool))
     sets = np.stack([rng.choice(ok, n_poses, replace=False) for _ in range(n_random)])
-    return criteria_of_sets(problem, pool[sets])
+    counts = match_counts(problem, n_poses)
+    counts = counts[counts <= len(ok)]
+    nested = np.stack([rng.permutation(ok)[: counts[-1]] for _ in range(MATCH_SETS)])
+    return criteria_of_sets(problem, pool[sets]), criteria_by_count(problem, pool[nested], counts)

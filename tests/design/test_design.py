@@ -349,3 +349,34 @@ def test_a_pool_in_a_box_random_poses_rarely_reach_is_compared_with_its_own_rows
     tool = dh_fk(dh, d.q)[:, :3, 3]
     assert np.all((tool >= lo) & (tool <= hi))
     assert len(d.random_values["validation_rms_mm"]) == 20
+    assert d.random_by_count["counts"][-1] <= 30 and np.isfinite(d.equivalent_random_poses())
+
+
+def test_random_poses_to_match_a_small_design_are_counted_not_extrapolated(robot, problem):
+    """A design of 5 poses for 23 base parameters: random sets of 5 are nearly singular, so
+    letting the information grow in proportion to the pose count from them gives some 28 random
+    poses. The count is checked against the median of random sets of each count drawn here
+    (uniform within the limits, evaluated one by one), interpolated where it crosses the
+    design's value."""
+    d = design.optimal_poses(problem, 5, starts=STARTS, seed=0, n_random=40)
+    target = d.values["validation_rms_mm"]
+    ks = np.arange(6, 13)
+    med = np.array([np.median([design.evaluate(problem, _random_q(robot, k, 100 * k + s))["validation_rms_mm"]
+                               for s in range(40)]) for k in ks])  # fmt: skip
+    assert med[0] > target > med[-1]
+    i = int(np.flatnonzero(med <= target)[0])
+    t = np.log(med[i - 1] / target) / np.log(med[i - 1] / med[i])
+    expected = ks[i - 1] * (ks[i] / ks[i - 1]) ** t
+    assert d.equivalent_random_poses() == pytest.approx(expected, rel=0.15)
+    assert d.to_dict()["equivalent_random_poses"]["validation"] == d.equivalent_random_poses()
+
+
+def test_matching_count_interpolates_and_extrapolates_in_log_count():
+    """RMS proportional to K^-1/2: the count where it reaches a target is exact inside the
+    counts and beyond them; counts with no finite figure (singular sets) are left out."""
+    ks = np.array([2, 4, 8, 16, 32])
+    y = 0.5 * np.log(ks.astype(float))
+    y[0] = -np.inf
+    for k in (5.0, 11.0, 100.0, 3.0):
+        assert design.matching_count(ks, y, 0.5 * np.log(k)) == pytest.approx(k, rel=1e-12)
+    assert np.isnan(design.matching_count(ks[:2], y[:2], 1.0))
