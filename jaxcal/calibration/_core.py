@@ -340,16 +340,16 @@ GENERIC_POINT_MM = 100.0
 """Distance of :func:`generic_model`'s measured points from the tool origin."""
 
 
-def generic_model(robot: Robot, layout: Layout) -> Model:
-    """:func:`nominal_model` with its measured points at seeded generic offsets about
-    :data:`GENERIC_POINT_MM` from the tool origin: a point on the last joint's axis (or several at
-    one place) hides parameters that real markers reveal, so what a pose set must identify is
-    judged at generic points. Points that are not estimated (a known tool) stay at the tool origin."""
+def generic_model(robot: Robot, layout: Layout, distance_mm: float = GENERIC_POINT_MM) -> Model:
+    """:func:`nominal_model` with its measured points at seeded generic offsets ``distance_mm``
+    from the tool origin: a point on the last joint's axis (or several at one place) hides
+    parameters that real markers reveal, so what a pose set must identify is judged at generic
+    points. Points that are not estimated (a known tool) stay at the tool origin."""
     model = nominal_model(robot, layout)
     if not layout.n_points or not layout.tool:
         return model
     pts = np.random.default_rng(0).normal(size=(layout.n_points, 3))
-    pts *= GENERIC_POINT_MM / np.linalg.norm(pts, axis=-1, keepdims=True)
+    pts *= distance_mm / np.linalg.norm(pts, axis=-1, keepdims=True)
     return eqx.tree_at(lambda m: m.points, model, pts)
 
 

@@ -67,8 +67,10 @@ def design(
 ):
     """Design calibration poses: optimised by gradient through the identification Jacobian, or
     chosen from a pool; compared with random poses of the same count."""
+    import numpy as np
+
     from .._io import check_writable, write_atomic
-    from ..design import design_problem, optimal_poses, select_poses, write_poses
+    from ..design import DEFAULT_POINT_MM, design_problem, optimal_poses, select_poses, write_poses
     from ..errors import DataError
 
     COMMAND_FLAGS.update(
@@ -105,6 +107,19 @@ def design(
             result = select_poses(problem, candidates, poses, **common)
         else:
             result = optimal_poses(problem, poses, starts=starts, **common)
+    measured = None if problem.model.points is None else np.asarray(problem.model.points)
+    if points is None and measured is not None and np.any(measured):
+        console.print(
+            f"measured point: not given (--point); designed for a point {DEFAULT_POINT_MM:g} mm from the tool "
+            "origin, off the last joint's axis as a real marker is"
+            + (
+                ""
+                if criterion == "validation"
+                else f"; criterion {criterion} weighs the last joint's parameters through that lever: give --point"
+            ),
+            highlight=False,
+            markup=False,
+        )
     if q_val is not None:
         console.print(f"validation poses: {len(q_val)} from {validation}", highlight=False, markup=False)
     if params_from is not None:
@@ -125,5 +140,6 @@ def design(
             {"file": str(validation), "count": len(q_val)} if q_val is not None else {"random": val_poses, "seed": seed}
         )
         summary["params_from"] = None if params_from is None else str(params_from)
+        summary["points_mm"] = None if measured is None else measured.tolist()
         write_atomic(json_out, json.dumps(summary, indent=2))
         console.print(f"wrote {json_out}")

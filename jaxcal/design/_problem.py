@@ -33,7 +33,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import as_f64, jit
-from ..calibration import Options, kin_order, lever, make_layout, nominal_model, parse_params
+from ..calibration import Options, generic_model, kin_order, lever, make_layout, nominal_model, parse_params
 from ..errors import DataError
 from ..identifiability import analyze
 from ..kinematics import check_q
@@ -44,6 +44,10 @@ from ._report import report_options
 CRITERIA = ("d", "a", "validation")
 DEFAULT_SIGMA_POS_MM = 0.02
 DEFAULT_SIGMA_ROT_RAD = 2e-5
+DEFAULT_POINT_MM = 1.0
+"""Distance of the measured points from the tool origin when none are given (generic
+directions): off the last joint's axis, as a real marker is, yet where the tool origin is for
+a region or a view."""
 
 
 class DesignProblem(eqx.Module):
@@ -293,8 +297,11 @@ def design_problem(
       position rows).
     * ``criterion``: ``"validation"`` (default), ``"d"`` or ``"a"`` (module docstring).
     * ``n_points``: 0 to measure the tool's pose, ``M >= 1`` to measure ``M`` points on the tool
-      (position only); ``points (M, 3)`` their positions in the tool frame (mm; default: all at
-      the tool origin).
+      (position only); ``points (M, 3)`` their positions in the tool frame (mm; default:
+      :data:`DEFAULT_POINT_MM` from the tool origin in generic directions when the tool is
+      estimated, as no real marker lies on the last joint's axis, where a point at the origin
+      would hide that joint's parameters and make the criteria optimistic; at the origin of a
+      known tool).
     * ``q_val (V, n)``: the validation poses; default ``n_val`` poses uniform within the joint
       limits, drawn with ``seed``. They also fix the base set and the column scale.
     * ``params_from``: a ``jaxcal calibrate --json`` report (path or dict): design for the
@@ -318,9 +325,10 @@ def design_problem(
             raise DataError(f"n_points is {n_points} but points has {points.shape[0]} rows", option="points")
         n_points = points.shape[0]
     layout = make_layout(robot, opts, int(n_points))
-    model = nominal_model(robot, layout)
-    if points is not None:
-        model = eqx.tree_at(lambda m: m.points, model, jnp.asarray(points))
+    if points is None:
+        model = generic_model(robot, layout, DEFAULT_POINT_MM)
+    else:
+        model = eqx.tree_at(lambda m: m.points, nominal_model(robot, layout), jnp.asarray(points))
     if q_val is None:
         q_val = uniform_poses(robot, int(n_val), np.random.default_rng([int(seed), 1]))
     q_val = np.asarray(check_q(robot, as_f64(q_val, "q_val")))

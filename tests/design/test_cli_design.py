@@ -175,3 +175,17 @@ def test_a_box_too_small_for_the_default_start_pool_still_gives_the_poses(monkey
     assert len(p) == 12 and np.all(
         (p >= [300 - 1e-6, 300 - 1e-6, 200 - 1e-6]) & (p <= [420 + 1e-6, 420 + 1e-6, 320 + 1e-6])
     )
+
+
+def test_a_position_only_design_says_which_point_it_is_for(monkeypatch, capsys, tmp_path):
+    js = tmp_path / "d.json"
+    common = ("design", "paper-6r", "--poses", "10", "--position-only", "--starts", "1", "--random-sets", "10")
+    code, stdout, err = run_cli(monkeypatch, capsys, *common, "--out", tmp_path / "p.csv", "--json", js)
+    assert code in (0, None), err
+    assert "measured point: not given (--point)" in " ".join(stdout.split())
+    assert np.linalg.norm(json.loads(js.read_text())["points_mm"]) == pytest.approx(1.0)
+    code, stdout, err = run_cli(
+        monkeypatch, capsys, *common, "--point", "0,40,30", "--out", tmp_path / "q.csv", "--json", js
+    )  # fmt: skip
+    assert code in (0, None), err
+    assert "not given" not in stdout and json.loads(js.read_text())["points_mm"] == [[0.0, 40.0, 30.0]]

@@ -380,3 +380,20 @@ def test_matching_count_interpolates_and_extrapolates_in_log_count():
     for k in (5.0, 11.0, 100.0, 3.0):
         assert design.matching_count(ks, y, 0.5 * np.log(k)) == pytest.approx(k, rel=1e-12)
     assert np.isnan(design.matching_count(ks[:2], y[:2], 1.0))
+
+
+def test_a_position_only_design_without_a_point_is_for_a_marker_off_the_last_axis(robot):
+    """The tool origin of a DH flange lies on the last joint's axis, where a point hides that
+    joint's parameters (22 base parameters instead of 26) and the bound is some 20 % optimistic
+    for any real marker. Without a point the design takes one just off the axis: the set and the
+    bound of a marker 5 mm off it (the bound moves a few % with the marker's direction)."""
+    kw = dict(estimate_base=True, estimate_tool=True, q_val=_random_q(robot, 60, 1))
+    default = design.design_problem(robot, n_points=1, **kw)
+    on_axis = design.design_problem(robot, points=[[0.0, 0.0, 0.0]], **kw)
+    off_axis = design.design_problem(robot, points=[[3.0, -4.0, 0.0]], **kw)
+    assert default.n_base == off_axis.n_base == 26 and on_axis.n_base == 22
+    assert np.linalg.norm(np.asarray(default.model.points)) == pytest.approx(design.DEFAULT_POINT_MM)
+    q = _random_q(robot, 12, 8)
+    rms = [design.evaluate(p, q)["validation_rms_mm"] for p in (default, off_axis)]
+    assert rms[0] == pytest.approx(rms[1], rel=0.05)
+    assert design.evaluate(on_axis, q)["validation_rms_mm"] < 0.85 * rms[1]
