@@ -122,6 +122,13 @@ def design(
         )
     if q_val is not None:
         console.print(f"validation poses: {len(q_val)} from {validation}", highlight=False, markup=False)
+    elif box is not None or cone is not None:  # the criterion is not where the poses are drawn
+        console.print(
+            f"validation poses: {val_poses} random within the joint limits, not only in the "
+            f"{'region' if box is not None else 'view'}; --validation FILE for where the arm will work",
+            highlight=False,
+            markup=False,
+        )
     if params_from is not None:
         console.print(f"parameters of {params_from}: {', '.join(result.base_names)}", highlight=False, markup=False)
     console.print(result.report(), highlight=False, markup=False, soft_wrap=True)
@@ -137,7 +144,9 @@ def design(
     if json_out is not None:
         summary = result.to_dict()
         summary["validation_poses"] = (
-            {"file": str(validation), "count": len(q_val)} if q_val is not None else {"random": val_poses, "seed": seed}
+            {"file": str(validation), "count": len(q_val)}
+            if q_val is not None
+            else {"random": val_poses, "seed": seed, "within": "joint limits"}
         )
         summary["params_from"] = None if params_from is None else str(params_from)
         summary["points_mm"] = None if measured is None else measured.tolist()

@@ -358,7 +358,9 @@ MATCH_COUNTS = 2.0 ** (np.arange(-2, 7) / 2)
 """Pose counts, as multiples of a design's, of the random sets that say how many random poses
 match it (:meth:`PoseDesign.equivalent_random_poses`): from half to eight times."""
 MATCH_SETS = 50
-"""Random sets drawn for those counts (each cut to every count: nested sets)."""
+"""Random sets at those counts (nested: each count's set holds the smaller ones')."""
+MATCH_POOL = 4
+"""The random configurations they are taken from, as a multiple of the largest count."""
 
 
 def match_counts(problem: DesignProblem, n_poses: int) -> np.ndarray:
@@ -368,37 +370,33 @@ def match_counts(problem: DesignProblem, n_poses: int) -> np.ndarray:
     return ks[ks * problem.layout.rows >= problem.n_base]
 
 
-def criteria_by_count(problem: DesignProblem, q, counts) -> dict:
-    """The median of each criterion over the pose sets ``q (R, K, n)`` cut to their first ``k``
-    poses, for each ``k`` of ``counts`` (increasing, at most ``K``): ``{"counts": (C,), name:
-    (C,)}``. The information of a set is the sum of its poses', so one Jacobian per pose
-    serves every count."""
-    q = np.asarray(q)
-    R, K = q.shape[:2]
-    L = pose_blocks(problem, q.reshape(R * K, -1)).reshape(R, K, -1, problem.n_base)
-    M = np.broadcast_to(np.diag(np.asarray(problem.prior)), (R, problem.n_base, problem.n_base)).copy()
-    rows, done = [], 0
+def criteria_by_count(problem: DesignProblem, rows, counts, rng) -> dict:
+    """The median of each criterion over :data:`MATCH_SETS` random sets of the configurations
+    ``rows (P, n)`` at each count of ``counts`` (increasing, at most ``P``), each set the first
+    ``k`` of a random order of the rows: ``{"counts": (C,), name: (C,)}``. A set's information is
+    the sum of its poses', so one Jacobian per row serves every set and count."""
+    counts = [int(k) for k in counts]
+    L = pose_blocks(problem, np.asarray(rows))
+    A = np.einsum("prb,prc->pbc", L, L)
+    order = np.stack([rng.permutation(len(A))[: counts[-1]] for _ in range(MATCH_SETS)])
+    M = np.broadcast_to(np.diag(np.asarray(problem.prior)), (MATCH_SETS,) + A.shape[1:]).copy()
+    medians, done = [], 0
     for k in counts:
-        M += np.einsum("rkab,rkac->rbc", L[:, done:k], L[:, done:k])
+        M += A[order[:, done:k]].sum(axis=1)
         done = k
         m = [values_of(r) for r in measures_of_information(problem, M)]
-        rows.append({name: float(np.median([v[name] for v in m])) for name in m[0]})
-    return {"counts": [int(k) for k in counts]} | {name: [r[name] for r in rows] for name in rows[0]}
+        medians.append({name: float(np.median([v[name] for v in m])) for name in m[0]})
+    return {"counts": counts} | {name: [r[name] for r in medians] for name in medians[0]}
 
 
 def random_by_count(problem: DesignProblem, cons: Constraints, n_poses: int, rng) -> dict:
-    """:func:`criteria_by_count` of :data:`MATCH_SETS` random feasible sets at the
-    :func:`match_counts` of ``n_poses``; under a spread the largest sets random configurations
-    cannot fill are left out."""
+    """:func:`criteria_by_count` at the :func:`match_counts` of ``n_poses``, over random
+    configurations drawn as the comparison's sets of ``n_poses`` are (:func:`random_feasible`;
+    a minimum spread holds within each drawn set, not among the rows taken from several)."""
     counts = match_counts(problem, n_poses)
-    while len(counts):
-        try:
-            q = random_feasible(problem, cons, (MATCH_SETS, int(counts[-1])), rng)
-        except DataError:
-            counts = counts[:-1]
-            continue
-        return criteria_by_count(problem, q, counts)
-    return {"counts": []}
+    n_sets = -(-MATCH_POOL * int(counts[-1]) // n_poses)
+    rows = random_feasible(problem, cons, (n_sets, n_poses), rng).reshape(n_sets * n_poses, -1)
+    return criteria_by_count(problem, rows, counts, rng)
 
 
 def criteria_of_sets(problem: DesignProblem, q) -> dict:

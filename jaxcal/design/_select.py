@@ -26,7 +26,6 @@ from jaxtyping import Array, Bool, Float, Int
 from .._config import as_f64
 from ..errors import DataError
 from ._constraints import (
-    MATCH_SETS,
     constraints,
     criteria_by_count,
     criteria_of_sets,
@@ -251,6 +250,4 @@ def _pool_random_values(problem: DesignProblem, cons, pool, n_poses: int, n_rand
     ok = np.flatnonzero(in_region(cons, positions(problem, pool)) if cons.has_region else np.ones(len(pool), bool))
     sets = np.stack([rng.choice(ok, n_poses, replace=False) for _ in range(n_random)])
     counts = match_counts(problem, n_poses)
-    counts = counts[counts <= len(ok)]
-    nested = np.stack([rng.permutation(ok)[: counts[-1]] for _ in range(MATCH_SETS)])
-    return criteria_of_sets(problem, pool[sets]), criteria_by_count(problem, pool[nested], counts)
+    return criteria_of_sets(problem, pool[sets]), criteria_by_count(problem, pool[ok], counts[counts <= len(ok)], rng)
