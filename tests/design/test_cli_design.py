@@ -168,6 +168,7 @@ def test_a_box_too_small_for_the_default_start_pool_still_gives_the_poses(monkey
         "--random-sets", "5", "--starts", "1", "--seed", "1",
     )  # fmt: skip
     assert code in (0, None), err
+    assert "validation poses: 200 random within the joint limits, not only in the region" in " ".join(stdout.split())
     import jaxcal
 
     r = jaxcal.preset("ur5")
