@@ -464,12 +464,16 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols) -> None:
             )
 
 
-def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Measurements:
+def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, points=None) -> Measurements:
     """Read a measurement CSV (module docstring) for ``robot``; returns mm and rad.
 
     ``length_unit`` (``"mm"`` or ``"m"``) and ``angle_unit`` (``"rad"`` or ``"deg"``) default to
-    the robot file's units (``robot.units``). Raises :class:`DataError` for malformed files.
+    the robot file's units (``robot.units``). ``points``: only these measured points
+    (:meth:`Measurements.select_points`), chosen before the unit checks, so that a point left out
+    (a marker lost and written as a sentinel) does not refuse the file. Raises
+    :class:`DataError` for malformed files.
     """
+    chosen = points  # the name is the file's point columns below
     lu, lu_name = unit_scale(length_unit, LENGTH_UNITS, "length_unit", robot.units[0])
     au, au_name = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", robot.units[1])
     n = robot.n_joints
@@ -495,8 +499,7 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) 
         meas[:, :3, :3] = quaternions_to_rotations(values[:, n + 3 :], rows, lines, src)
     else:
         meas = pos
-    mixed_units(q, pos, robot, rows, src, jcols)
-    return Measurements(
+    out = Measurements(
         q=q,
         measured=meas,
         source=Path(path).name,
@@ -505,6 +508,11 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None) 
         units=(lu_name, au_name),
         dropped_rows=dropped,
     )
+    if chosen is not None:
+        out = out.select_points(chosen)
+        q, pos, rows = out.q, out.measured, out.rows
+    mixed_units(q, pos, robot, rows, src, jcols)
+    return out
 
 
 def write_measurements(path, q, measured, *, position_only: bool = False, joint_names=None) -> None:

@@ -409,6 +409,18 @@ def test_measurement_file(tmp_path, case):
     assert msg in str(e.value)
 
 
+def test_a_sentinel_in_a_point_left_out_does_not_refuse_the_file(tmp_path):
+    """The lost marker's sentinel is in point 2: reading point 1 alone reads every row, the
+    file's own values; reading point 2 still refuses it."""
+    p = tmp_path / "m.csv"
+    p.write_text("\n".join(_sentinel(LINES)) + "\n")
+    meas = read_measurements(p, ROBOT, points=[1])
+    np.testing.assert_array_equal(meas.measured[:, 0], M[:, :3, 3])
+    assert meas.point_numbers == (1,)
+    with pytest.raises(DataError, match="row 3: position norm .* lost markers as empty cells"):
+        read_measurements(p, ROBOT, points=[2])
+
+
 def test_good_file_reads(tmp_path):
     p = tmp_path / "m.csv"
     p.write_text("\n".join(LINES) + "\n")
@@ -481,6 +493,15 @@ def test_cli_one_line_exit_2(tmp_path, monkeypatch, capsys, case):
     assert len(lines) == 1 and lines[0].startswith("error: "), err
     assert msg in lines[0], err
     assert "Traceback" not in err + out
+
+
+def test_calibrate_leaves_out_a_point_with_a_sentinel_before_reading_it(tmp_path, monkeypatch, capsys):
+    data = tmp_path / "two.csv"
+    data.write_text("\n".join(_sentinel(LINES)) + "\n")
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "paper-6r", data, "--points", "1", "--folds", "2")
+    assert code in (0, None), err
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "paper-6r", data, "--points", "2")
+    assert code == 2 and "row 3" in err
 
 
 def test_cli_entry_point_subprocess(tmp_path):

@@ -133,9 +133,8 @@ def calibrate(
                 else "a DH robot as TOML"
             )
             raise DataError(f"{name}: {kind}; nothing was computed", option=name)
-    meas = read_measurements(data, nominal, length_unit=length_unit, angle_unit=angle_unit)
-    if points is not None:
-        meas = meas.select_points(parse_points(points))
+    chosen = None if points is None else parse_points(points)
+    meas = read_measurements(data, nominal, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     opts = Options(
         method=method,
         params=params,
