@@ -28,6 +28,7 @@ does not fit the model: :func:`too_many` says so, and the fit is refused.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from collections.abc import Callable
 
@@ -227,6 +228,43 @@ def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5) 
     return (
         f"{n} of {K} poses ({100 * n / K:.0f} %) are outliers, more than max_outlier_fraction "
         f"{100 * limit:.0f} %: not a few bad measurements but data the model does not fit; worst rows: {listed}"
+    )
+
+
+SWAP_FIT = 5.0
+"""A flagged pose fits once two of its points are exchanged when its RMS point error drops to
+this many times the noise, and to a fifth of what it was, or less."""
+
+
+def swaps_note(predicted, target, flags, noise_mm: float, rows) -> str:
+    """The cause to name when most flagged poses of several points fit once two of their points are
+    exchanged (``predicted``, ``target`` ``(K, M, 3)``): marker labels the tracker swapped,
+    which no model fits and which relabelling in the file mends."""
+    pred, meas = np.asarray(predicted, float), np.asarray(target, float)
+    idx = np.flatnonzero(np.asarray(flags, bool))
+    if meas.ndim != 3 or meas.shape[1] < 2 or not idx.size:
+        return ""
+
+    def rms(m):
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(np.nanmean(np.sum((m - pred[idx]) ** 2, -1), -1))
+
+    now, best, pair = rms(meas[idx]), np.full(idx.size, np.inf), np.zeros((idx.size, 2), int)
+    for i, j in itertools.combinations(range(meas.shape[1]), 2):
+        swapped = meas[idx].copy()
+        swapped[:, [i, j]] = swapped[:, [j, i]]
+        e = rms(swapped)
+        better = e < best
+        best[better], pair[better] = e[better], (i, j)
+    fits = (best <= SWAP_FIT * noise_mm) & (best <= now / 5)
+    if fits.sum() * 2 <= idx.size:
+        return ""
+    pairs = sorted({(int(a) + 1, int(b) + 1) for a, b in pair[fits]})
+    listed = ", ".join(str(int(rows[k])) for k in idx[fits][:8]) + (", ..." if fits.sum() > 8 else "")
+    return (
+        f"marker labels swapped: {int(fits.sum())} of the {idx.size} outlying poses fit once two points are "
+        f"exchanged ({', '.join(f'points {a} and {b}' for a, b in pairs)}; rows {listed}). Correct the labels "
+        "in the file"
     )
 
 

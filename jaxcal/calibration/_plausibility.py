@@ -267,11 +267,13 @@ TIE = 1e-3
 """Residuals within this share of each other are a tie."""
 
 
-def explain(found: list[str], before, ranked, limits: Thresholds) -> str:
+def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str = "") -> str:
     """One message: what is implausible, the likely cause it found (or the ones it ruled out).
     A correction counts when it brings the frames-only residual within the limits and to less
-    than a fifth of the residual as given."""
+    than a fifth of the residual as given. ``cause``: one already found in the data."""
     head = "not a calibration: " + "; ".join(found)
+    if cause:
+        return f"{head}. Likely cause: {cause}"
     b0 = badness(*before, limits)
     fixes = [(m, p, r) for m, p, r in ranked if badness(p, r, limits) < min(1.0, 0.2 * b0)]
     if fixes:

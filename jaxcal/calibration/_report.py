@@ -9,7 +9,7 @@ import json
 import numpy as np
 
 from ..camera import n_params as camera_size
-from ..model import Layout, Model, measured_robot, observed
+from ..model import Layout, Model, measured_robot, observed, predict
 from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 from . import _core as core
 from . import _outliers as outliers
@@ -327,10 +327,14 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
     last = outliers.judged(fin, p.target, p.n_points, opts, None if opts.keep_outliers else ~p.valid[None])
     pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
     many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
+    swap = ""
     if many:
         many += outliers.zeros_note(p.target, p.n_points, last.flags[0])
+        if p.n_points > 1:
+            noise = float(last.scale[0, 0] * fr.sig[-1, 0])
+            swap = outliers.swaps_note(predict(f.model, q), p.target, last.flags[0], noise, p.rows)
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
-    why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se)
+    why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
     h = _heldout(fits, fr, p)
     rep = {
         "robot": robot.name,

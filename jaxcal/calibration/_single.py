@@ -19,7 +19,7 @@ from ..camera import n_params as camera_size
 from ..errors import DataError, ImplausibleFitError
 from ..identifiability import Identifiability
 from ..kinematics import check_q
-from ..model import Layout, Model, measured_robot, observed
+from ..model import Layout, Model, measured_robot, observed, predict
 from ..robot import Robot
 from ..sharding import describe, select_devices
 from ..solvers import PIN, calibrate_design_batch
@@ -251,16 +251,22 @@ def judge(
     extra: str = "",
     *,
     se=None,
+    cause: str = "",
 ) -> str:
     """Empty when the fit is plausible as a calibration; else why not and the likely input
     mistake (:mod:`._plausibility`). ``extra``: a further finding (too many outliers,
-    :func:`._outliers.too_many`). Raises :class:`jaxcal.ImplausibleFitError` with ``strict``."""
+    :func:`._outliers.too_many`); ``cause``: its cause, found in the data themselves (marker
+    labels swapped, :func:`._outliers.swaps_note`), which the input mistakes then need not be
+    tried for. Raises :class:`jaxcal.ImplausibleFitError` with ``strict``."""
     limits = plausibility.Thresholds.of(robot, opts, q)
     found = plausibility.findings(stats, x, layout, limits, free=free, se=se) + ([extra] if extra else [])
     if not found:
         return ""
-    before, ranked = plausibility.diagnose(robot, q, target, n_points, layout, limits, memory_mb=opts.memory_mb)
-    message = plausibility.explain(found, before, ranked, limits)
+    if cause:
+        message = plausibility.explain(found, None, [], limits, cause=cause)
+    else:
+        before, ranked = plausibility.diagnose(robot, q, target, n_points, layout, limits, memory_mb=opts.memory_mb)
+        message = plausibility.explain(found, before, ranked, limits)
     if opts.strict:
         raise ImplausibleFitError(message)
     return message
@@ -411,6 +417,10 @@ def calibrate(
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
     many = outliers.too_many(flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction)
     few = few_distinct(q, core.same_pose(robot), layout.rows, needed)
+    swap = ""
+    if many and n_points > 1:
+        noise = float(det.scale[0, 0] * sig[0])
+        swap = outliers.swaps_note(predict(model, q), target, flags, noise, np.arange(K))
     why = judge(
         robot,
         q,
@@ -423,6 +433,7 @@ def calibrate(
         estimated(prior),
         "; ".join(filter(None, (many, few))),
         se=se,
+        cause=swap,
     )
     return CalibrationResult(
         model=model,
