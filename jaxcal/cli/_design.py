@@ -150,5 +150,7 @@ def design(
         )
         summary["params_from"] = None if params_from is None else str(params_from)
         summary["points_mm"] = None if measured is None else measured.tolist()
+        # jaxcal's own units, whatever the robot file's (the pose file --out is in those)
+        summary["units"] = {"q": "rad, mm for prismatic joints", "min_distance": "rad, mm for prismatic joints"}
         write_atomic(json_out, json.dumps(summary, indent=2))
         console.print(f"wrote {json_out}")

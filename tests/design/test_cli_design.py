@@ -184,7 +184,8 @@ def test_a_position_only_design_says_which_point_it_is_for(monkeypatch, capsys, 
     code, stdout, err = run_cli(monkeypatch, capsys, *common, "--out", tmp_path / "p.csv", "--json", js)
     assert code in (0, None), err
     assert "measured point: not given (--point)" in " ".join(stdout.split())
-    assert np.linalg.norm(json.loads(js.read_text())["points_mm"]) == pytest.approx(1.0)
+    d = json.loads(js.read_text())
+    assert np.linalg.norm(d["points_mm"]) == pytest.approx(1.0) and d["units"]["q"].startswith("rad")
     code, stdout, err = run_cli(
         monkeypatch, capsys, *common, "--point", "0,40,30", "--out", tmp_path / "q.csv", "--json", js
     )  # fmt: skip
