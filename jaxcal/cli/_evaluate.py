@@ -40,7 +40,7 @@ def evaluate(
 
     from .._io import check_writable, write_atomic
     from ..calibration import evaluate as run
-    from ..measurements import read_measurements
+    from ..measurements import measurement_columns, read_measurements, read_table
     from ..model import Model, load_model
 
     if json_out is not None:
@@ -49,15 +49,16 @@ def evaluate(
 
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
     m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
-    meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit)
+    chosen = None if points is None else parse_points(points)
+    # chosen before the unit checks, so that a point left out (a lost marker's sentinel) is not read
+    meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     train = None
     if training is not None:
         train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit)
-    if points is not None:
-        chosen = parse_points(points)
-        if m.n_points > 1 and m.n_points == meas.n_points:  # the model's points are the file's
+    if chosen is not None and m.n_points > 1:
+        src, header, _ = read_table(data, "")
+        if m.n_points == len(measurement_columns(header, src)[0]):  # the model's points are the file's
             m = Model(m.robot, np.asarray(m.points)[[p - 1 for p in chosen]], m.camera_params, camera=m.camera)
-        meas = meas.select_points(chosen)
     rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
     table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
     for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
