@@ -419,11 +419,12 @@ def quaternions_to_rotations(quat, rows, lines, src) -> np.ndarray:
     return quat_to_matrix(quat / norm[:, None])
 
 
-def mixed_units(q, pos, robot: Robot, rows, src, joint_cols) -> None:
+def mixed_units(q, pos, robot: Robot, rows, src, joint_cols, point_numbers=()) -> None:
     """Raise :class:`DataError` when some rows are in another unit than the rest: a few positions
     ~1000x closer to / farther from the measurement origin than the median row (metres among
     millimetres or the reverse), or a minority of rows with revolute joint values beyond both
-    2*pi and the joint limits (degrees among radians)."""
+    2*pi and the joint limits (degrees among radians). Points are named by their numbers in the
+    file (``point_numbers``, else 1..M)."""
     per_point = np.linalg.norm(pos, axis=-1)
     r = np.nanmax(per_point, -1) if per_point.ndim > 1 else per_point  # lost points (NaN) left out
     med = float(np.median(r))
@@ -436,14 +437,17 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols) -> None:
             far = np.flatnonzero(pts > 100 * med)
             if len(pts) > 1 and 0 < far.size < np.isfinite(pts).sum():  # another unit moves every point
                 j = int(far[0])
+                nums = list(point_numbers) or list(range(1, len(pts) + 1))
                 raise DataError(
-                    f"{src}: row {rows[k]}, point {j + 1}: position norm {pts[j]:.4g} mm while the row's other "
+                    f"{src}: row {rows[k]}, point {nums[j]}: position norm {pts[j]:.4g} mm while the row's other "
                     f"points and the median row are near {med:.4g} mm: a lost marker written as a sentinel "
                     f"value (such as -9999)? Write lost markers as empty cells ({odd.size} such row(s): "
                     f"{', '.join(str(rows[i]) for i in odd[:5])})"
                 )
+            # one point alone cannot tell a far row's unit from a lost marker's sentinel value
+            sentinel = ", or a lost marker written as a sentinel value" if (r[odd] > 100 * med).any() else ""
             raise DataError(
-                f"{src}: mixed length units? row {rows[k]}: position norm {r[k]:.4g} mm vs a median "
+                f"{src}: mixed length units{sentinel}? row {rows[k]}: position norm {r[k]:.4g} mm vs a median "
                 f"of {med:.4g} mm over all rows ({odd.size} such row(s): "
                 f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit, and lost "
                 f"markers as empty cells"
@@ -473,26 +477,25 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
     (a marker lost and written as a sentinel) does not refuse the file. Raises
     :class:`DataError` for malformed files.
     """
-    chosen = points  # the name is the file's point columns below
     lu, lu_name = unit_scale(length_unit, LENGTH_UNITS, "length_unit", robot.units[0])
     au, au_name = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", robot.units[1])
     n = robot.n_joints
     src, header, records = read_table(path, f"expected a header row q1..q{n},x,y,z[,qw,qx,qy,qz]")
     jcols = joint_columns(header, robot, src)
-    points, quat = measurement_columns(header, src)
-    pcols = [c for p in points for c in p]
+    columns, quat = measurement_columns(header, src)
+    pcols = [c for p in columns for c in p]
     used = set(jcols) | set(pcols) | set(quat or [])
     ignored = tuple(c for c in header if c not in used and c.strip())
     require_rows(records, src)
-    values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else points)
-    seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(points), 3).any(-1)).any(-1)
+    values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else columns)
+    seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(columns), 3).any(-1)).any(-1)
     if not seen.any():
         raise DataError(f"{src}: no row has a measured point (every point cell is empty)")
     dropped = tuple(int(r) for r in rows[~seen])
     values, rows, lines = values[seen], rows[seen], lines[seen]
     scale = np.array([lu if t == "P" else au for t in robot.joint_types])
     q = values[:, :n] * scale
-    pos = values[:, n : n + len(pcols)].reshape(len(values), len(points), 3) * lu
+    pos = values[:, n : n + len(pcols)].reshape(len(values), len(columns), 3) * lu
     if quat:
         meas = np.broadcast_to(np.eye(4), (len(values), 4, 4)).copy()
         meas[:, :3, 3] = pos[:, 0]
@@ -508,10 +511,10 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
         units=(lu_name, au_name),
         dropped_rows=dropped,
     )
-    if chosen is not None:
-        out = out.select_points(chosen)
+    if points is not None:
+        out = out.select_points(points)
         q, pos, rows = out.q, out.measured, out.rows
-    mixed_units(q, pos, robot, rows, src, jcols)
+    mixed_units(q, pos, robot, rows, src, jcols, out.point_numbers)
     return out
 
 

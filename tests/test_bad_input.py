@@ -348,13 +348,14 @@ def _mixed_m(lines):
 
 
 def _sentinel(lines):
-    """Two points per row (the second 50 mm off the first); data row 3's second point written as the
-    lost-marker sentinel 1e10."""
-    out = [lines[0].replace("x,y,z", "x1,y1,z1,x2,y2,z2")]
+    """Three points per row (the second and third 50 mm off the first); data row 3's third point
+    written as the lost-marker sentinel 1e10."""
+    out = [lines[0].replace("x,y,z", "x1,y1,z1,x2,y2,z2,x3,y3,z3")]
     for i, line in enumerate(lines[1:], start=1):
         v = line.split(",")
-        second = ["1e10"] * 3 if i == 3 else [repr(float(c) + 50.0) for c in v[6:]]
-        out.append(",".join(v + second))
+        second = [repr(float(c) + 50.0) for c in v[6:]]
+        third = ["1e10"] * 3 if i == 3 else [repr(float(c) - 50.0) for c in v[6:]]
+        out.append(",".join(v + second + third))
     return out
 
 
@@ -394,7 +395,7 @@ CSV = {
     ),
     "ragged row": (LINES[:3] + [LINES[3].rsplit(",", 1)[0]] + LINES[4:], "row 3 (line 4): 8 fields"),
     "mixed units m among mm": (_mixed_m(LINES), "mixed length units? row 3"),
-    "a lost marker written as 1e10": (_sentinel(LINES), "row 3, point 2: position norm 1.732e+10 mm while"),
+    "a lost marker written as 1e10": (_sentinel(LINES), "row 3, point 3: position norm 1.732e+10 mm while"),
     "mixed units deg among rad": (_mixed_deg(LINES), "mixed angle units? row 5, column 'q2'"),
 }
 
@@ -410,15 +411,18 @@ def test_measurement_file(tmp_path, case):
 
 
 def test_a_sentinel_in_a_point_left_out_does_not_refuse_the_file(tmp_path):
-    """The lost marker's sentinel is in point 2: reading point 1 alone reads every row, the
-    file's own values; reading point 2 still refuses it."""
+    """The lost marker's sentinel is in point 3: reading point 1 alone reads every row, the
+    file's own values; reading points 1 and 3 refuses it, naming point 3 (the file's number, not
+    its place in the selection); point 3 alone cannot tell a sentinel from a unit, and says both."""
     p = tmp_path / "m.csv"
     p.write_text("\n".join(_sentinel(LINES)) + "\n")
     meas = read_measurements(p, ROBOT, points=[1])
     np.testing.assert_array_equal(meas.measured[:, 0], M[:, :3, 3])
     assert meas.point_numbers == (1,)
-    with pytest.raises(DataError, match="row 3: position norm .* lost markers as empty cells"):
-        read_measurements(p, ROBOT, points=[2])
+    with pytest.raises(DataError, match="row 3, point 3: position norm .* a lost marker written as a sentinel"):
+        read_measurements(p, ROBOT, points=[1, 3])
+    with pytest.raises(DataError, match="units, or a lost marker written as a sentinel value\\? row 3: position norm"):
+        read_measurements(p, ROBOT, points=[3])
 
 
 def test_good_file_reads(tmp_path):
@@ -500,7 +504,7 @@ def test_calibrate_leaves_out_a_point_with_a_sentinel_before_reading_it(tmp_path
     data.write_text("\n".join(_sentinel(LINES)) + "\n")
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", "paper-6r", data, "--points", "1", "--folds", "2")
     assert code in (0, None), err
-    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "paper-6r", data, "--points", "2")
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "paper-6r", data, "--points", "3")
     assert code == 2 and "row 3" in err
 
 

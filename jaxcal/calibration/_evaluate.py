@@ -161,7 +161,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
 
     * ``position_rms_mm``, ``position_max_mm``, ``position_median_mm`` over every point of every
       pose (error norms), and ``points``: per measured point in column order, ``rms_mm``,
-      ``max_mm``, ``median_mm``;
+      ``max_mm``, ``median_mm`` and (points) ``point``, its number in the file;
     * ``rotation_rms_deg`` (and max, median) when poses are measured;
     * ``poses``: per pose its data row and error (mm; per point, None for a point not seen, and
       deg for poses); ``lost_points``: ``{row, point}`` of the points not seen, ``dropped_rows``
@@ -204,7 +204,8 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     pos, rot = _errors(pred, meas.measured, M)  # (K, M) mm, (K,) deg
     out = {"poses_evaluated": len(meas), "source": meas.source}
     out.update({f"position_{k}": v for k, v in _stats(pos).items()})
-    out["points"] = [_stats(pos[:, j]) for j in range(pos.shape[1])]
+    numbers = list(getattr(meas, "point_numbers", ()) or range(1, M + 1))
+    out["points"] = [_stats(pos[:, j]) | ({"point": numbers[j]} if M else {}) for j in range(pos.shape[1])]
     if rot is not None:
         out.update({f"rotation_{k.replace('_mm', '_deg')}": v for k, v in _stats(rot).items()})
     out["poses"] = [

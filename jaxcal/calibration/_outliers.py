@@ -236,10 +236,11 @@ SWAP_FIT = 5.0
 this many times the noise, and to a fifth of what it was, or less."""
 
 
-def swaps_note(predicted, target, flags, noise_mm: float, rows) -> str:
+def swaps_note(predicted, target, flags, noise_mm: float, rows, point_numbers=()) -> str:
     """The cause to name when most flagged poses of several points fit once two of their points are
     exchanged (``predicted``, ``target`` ``(K, M, 3)``): marker labels the tracker swapped,
-    which no model fits and which relabelling in the file mends."""
+    which no model fits and which relabelling in the file mends. Points are named by their numbers
+    in the file (``point_numbers``, else 1..M), the columns the user relabels."""
     pred, meas = np.asarray(predicted, float), np.asarray(target, float)
     idx = np.flatnonzero(np.asarray(flags, bool))
     if meas.ndim != 3 or meas.shape[1] < 2 or not idx.size:
@@ -259,7 +260,8 @@ def swaps_note(predicted, target, flags, noise_mm: float, rows) -> str:
     fits = (best <= SWAP_FIT * noise_mm) & (best <= now / 5)
     if fits.sum() * 2 <= idx.size:
         return ""
-    pairs = sorted({(int(a) + 1, int(b) + 1) for a, b in pair[fits]})
+    nums = list(point_numbers) or list(range(1, meas.shape[1] + 1))
+    pairs = sorted({(int(nums[a]), int(nums[b])) for a, b in pair[fits]})
     listed = ", ".join(str(int(rows[k])) for k in idx[fits][:8]) + (", ..." if fits.sum() > 8 else "")
     return (
         f"marker labels swapped: {int(fits.sum())} of the {idx.size} outlying poses fit once two points are "

@@ -332,7 +332,9 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         many += outliers.zeros_note(p.target, p.n_points, last.flags[0])
         if p.n_points > 1:
             noise = float(last.scale[0, 0] * fr.sig[-1, 0])
-            swap = outliers.swaps_note(predict(f.model, q), p.target, last.flags[0], noise, p.rows)
+            swap = outliers.swaps_note(
+                predict(f.model, q), p.target, last.flags[0], noise, p.rows, getattr(p.data, "point_numbers", ())
+            )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
     h = _heldout(fits, fr, p)

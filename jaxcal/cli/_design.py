@@ -111,11 +111,12 @@ def design(
     if points is None and measured is not None and np.any(measured):
         console.print(
             f"measured point: not given (--point); designed for a point {DEFAULT_POINT_MM:g} mm from the tool "
-            "origin, off the last joint's axis as a real marker is"
+            "origin in a generic direction, off the last joint's axis as a real marker is"
             + (
                 ""
                 if criterion == "validation"
-                else f"; criterion {criterion} weighs the last joint's parameters through that lever: give --point"
+                else f"; criterion {criterion} weighs the last joint's parameters through that point's short "
+                "lever (under 1 mm from the axis): give --point"
             ),
             highlight=False,
             markup=False,

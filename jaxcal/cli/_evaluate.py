@@ -54,7 +54,8 @@ def evaluate(
     meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     train = None
     if training is not None:
-        train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit)
+        # only its joint values are used; the same points, so that the file calibrate read is read here
+        train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     if chosen is not None and m.n_points > 1:
         src, header, _ = read_table(data, "")
         if m.n_points == len(measurement_columns(header, src)[0]):  # the model's points are the file's
@@ -63,7 +64,8 @@ def evaluate(
     table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
     for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
         table.add_column(col, justify="right")
-    for j, p in enumerate(rep["points"], 1):
+    numbers = meas.point_numbers or range(1, len(rep["points"]) + 1)  # the file's numbers
+    for j, p in zip(numbers, rep["points"]):
         table.add_row(str(j) if meas.n_points else "tool", _fmt(p["rms_mm"]), _fmt(p["max_mm"]), _fmt(p["median_mm"]))
     table.add_row("all", _fmt(rep["position_rms_mm"]), _fmt(rep["position_max_mm"]), _fmt(rep["position_median_mm"]))
     console.print(table)

@@ -82,11 +82,15 @@ class PoseDesign:
             f"{'criterion':<44} {'design':>12} {'random median':>14} {'random better':>14} "
             f"{'random poses to match':>22}",
         ]
+        largest = max(self.random_by_count.get("counts", [N]))
         for c in CRITERIA:
             med = float(np.median(self.random_values[_key(c)]))
+            n = self.equivalent_random_poses(c)
+            # beyond the largest count drawn the figure is extrapolated: only its bound is shown
+            match = f"> {largest}" if n > largest else f"{n:.1f}" if np.isfinite(n) else "-"
             lines.append(
                 f"{LABELS[c]:<44} {value(c, self.values):>12.5g} {med:>14.5g} "
-                f"{self.random_fraction_better(c):>13.1%} {self.equivalent_random_poses(c):>22.1f}"
+                f"{self.random_fraction_better(c):>13.1%} {match:>22}"
             )
         lines.append(
             f"(random: {R} sets of {N} of the pool's poses in the region and view: random configurations within "
@@ -105,7 +109,7 @@ class PoseDesign:
             "values": dict(self.values),
             "random_median": {k: float(np.median(v)) for k, v in self.random_values.items()},
             "random_fraction_better": {c: self.random_fraction_better(c) for c in CRITERIA},
-            "equivalent_random_poses": {c: self.equivalent_random_poses(c) for c in CRITERIA},
+            "equivalent_random_poses": {c: _finite(self.equivalent_random_poses(c)) for c in CRITERIA},
             "random_median_by_count": self.random_by_count,
             "feasible": self.feasible,
             "min_distance": self.min_distance,
@@ -120,17 +124,23 @@ def matching_count(counts, y, target: float) -> float:
     an RMS), reaches ``target``: interpolated linearly in ``log count`` between the first two
     counts that bracket it, extrapolated from the end segments beyond them. Counts with a
     non-finite figure (sets too small to identify the parameters) are left out; NaN when fewer
-    than two remain."""
+    than two remain. ``y`` is taken as its running maximum (more poses never lose information;
+    a dip is sampling noise), so a target beyond a flat tail is never reached: inf."""
     k, y = np.log(np.asarray(counts, dtype=np.float64)), np.asarray(y, dtype=np.float64)
     keep = np.isfinite(y)
-    k, y = k[keep], y[keep]
+    k, y = k[keep], np.maximum.accumulate(y[keep]) if keep.any() else y[keep]
     if len(k) < 2 or not np.isfinite(target):
         return float("nan")
     above = np.flatnonzero(y[1:] >= target)
     i = int(above[0]) if len(above) else len(k) - 2
-    if y[i + 1] == y[i]:
-        return float(np.exp(k[i + 1]))
+    if y[i + 1] == y[i]:  # flat: reached at the segment's start, or (past the end) never
+        return float(np.exp(k[i])) if y[i] >= target else float("inf")
     return float(np.exp(k[i] + (target - y[i]) / (y[i + 1] - y[i]) * (k[i + 1] - k[i])))
+
+
+def _finite(v: float) -> float | None:
+    """JSON has no NaN or inf: a count that cannot be told is written as null."""
+    return float(v) if np.isfinite(v) else None
 
 
 def _key(c: str) -> str:

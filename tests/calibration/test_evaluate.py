@@ -60,17 +60,19 @@ def test_cli_on_a_toml_model_with_points(tmp_path, monkeypatch, capsys):
     save_robot(ur5.replace(dh=dh), tmp_path / "one.toml", points=pts[:1])
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", tmp_path / "one.toml", tmp_path / "d.csv")
     assert code == 2 and "2 point(s) per pose" in err
-    # point 2 of row 3 lost and written as a sentinel: with --points 1, both models read the file
-    rows[2] = ",".join(rows[2].split(",")[:9] + ["1e10"] * 3)
+    # point 1 of row 3 lost and written as a sentinel: with --points 2, both models read the file,
+    # and the training file too (its joint values group the postures); the point keeps its number
+    rows[2] = ",".join(rows[2].split(",")[:6] + ["1e10"] * 3 + rows[2].split(",")[9:])
     (tmp_path / "s.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
-    for model in ("true.toml", "one.toml"):
+    save_robot(ur5.replace(dh=dh), tmp_path / "two.toml", points=pts[1:])
+    for model in ("true.toml", "two.toml"):
         code, out, err = run_cli(
-            monkeypatch, capsys, "evaluate", tmp_path / model, tmp_path / "s.csv", "--points", "1",
-            "--json", tmp_path / "e.json",
+            monkeypatch, capsys, "evaluate", tmp_path / model, tmp_path / "s.csv", "--points", "2",
+            "--training", tmp_path / "s.csv", "--json", tmp_path / "e.json",
         )  # fmt: skip
         assert code in (0, None), err
         rep = json.loads((tmp_path / "e.json").read_text())
-        assert len(rep["points"]) == 1 and rep["position_max_mm"] < 1e-9
+        assert len(rep["points"]) == 1 and rep["position_max_mm"] < 1e-9 and rep["points"][0]["point"] == 2
 
 
 def test_posture_groups():

@@ -345,9 +345,10 @@ def test_clean_poses_of_an_arm_far_from_its_nominal_are_not_left_out():
 
 
 def test_marker_labels_swapped_in_many_rows_are_named_as_a_swap():
-    """Points 1 and 2 exchanged in 15 of 60 rows (a tracker's label swap, more than the outlier
+    """Points 3 and 4 exchanged in 15 of 60 rows (a tracker's label swap, more than the outlier
     limit): the fit is refused, and the refusal says that those rows fit once the two points are
-    exchanged, naming them; the clean file has no such note."""
+    exchanged, naming them and the points by their numbers in the file when only points 2-4 are
+    read; the clean file has no such note."""
     robot = jaxcal.preset("ur5")
     sim = simulate(robot, n_poses=K, n_val=1, seed=8, sigma_pos=NOISE, sigma_rot=2e-5)
     offsets = np.array([[0.0, 0, 0], [60.0, 0, 0], [0, 60.0, 0], [0, 0, 60.0]])
@@ -355,15 +356,19 @@ def test_marker_labels_swapped_in_many_rows_are_named_as_a_swap():
     pts = np.einsum("kij,mj->kmi", T[:, :3, :3], offsets) + T[:, None, :3, 3]
     swapped = pts.copy()
     rows = np.arange(2, K, 4)[:15]
-    swapped[rows, 0], swapped[rows, 1] = pts[rows, 1], pts[rows, 0]
+    swapped[rows, 2], swapped[rows, 3] = pts[rows, 3], pts[rows, 2]
     kw = dict(nested_max_poses=0, folds=3, params="all", compliance="no")
-    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(sim.q[0], swapped), **kw).report
+    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(sim.q[0], swapped).select_points([2, 3, 4]), **kw).report
     why = rep["implausible"]
     assert "Likely cause: marker labels swapped: 15 of the 15 outlying poses fit once two points are" in why
-    named = why.split("(points 1 and 2; rows ")[1].split(")")[0].rstrip(", .").split(", ")
+    named = why.split("(points 3 and 4; rows ")[1].split(")")[0].rstrip(", .").split(", ")
     assert {int(r) for r in named} == {int(r) + 1 for r in rows[:8]}
     assert "check the robot model" not in why
-    clean = jaxcal.calibrate_data(robot, jaxcal.Measurements(sim.q[0], pts), **kw).report
+    clean = jaxcal.calibrate_data(robot, jaxcal.Measurements(sim.q[0], pts).select_points([2, 3, 4]), **kw).report
     assert clean["implausible"] is None
     one = calibrate(robot, sim.q[0], swapped, sigma_pos_mm=NOISE)  # the single fit says the same
-    assert not one.plausible and "Likely cause: marker labels swapped: 15 of the 15" in one.implausible
+    assert (
+        not one.plausible
+        and "(points 3 and 4; rows " in one.implausible
+        and "Likely cause: marker labels swapped: 15 of the 15" in one.implausible
+    )

@@ -380,6 +380,11 @@ def test_matching_count_interpolates_and_extrapolates_in_log_count():
     for k in (5.0, 11.0, 100.0, 3.0):
         assert design.matching_count(ks, y, 0.5 * np.log(k)) == pytest.approx(k, rel=1e-12)
     assert np.isnan(design.matching_count(ks[:2], y[:2], 1.0))
+    # a dip or a flat tail (sampling noise) is never extrapolated back to a small count
+    five = [5, 7, 10, 14, 20]
+    assert design.matching_count(five, [1, 2, 3, 4, 3.9], 4.5) == np.inf
+    assert design.matching_count(five, [1, 2, 3, 4, 4], 4.5) == np.inf
+    assert design.matching_count(five, [2, 2, 3, 4, 5], 1.0) == pytest.approx(5.0)  # at the smallest count
 
 
 def test_a_position_only_design_without_a_point_is_for_a_marker_off_the_last_axis(robot):
