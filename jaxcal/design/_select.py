@@ -11,6 +11,9 @@ without refactoring: with ``M_i = M - A_i`` and ``K = I + L_j M_i^{-1} L_j^T`` (
 * ``log det(M_i + A_j) = log det M_i + log det K``;
 * ``tr(F (M_i + A_j)^{-1} F^T) = tr(F M_i^{-1} F^T) - tr(K^{-1} Z^T Z)``, ``Z = F M_i^{-1} L_j^T``
   (Sherman–Morrison–Woodbury), with ``F = I`` (A) or the validation factor.
+
+When ``M_i`` is singular (the fewest poses that identify the parameters, less one), each
+swapped set is factorised anew instead.
 """
 
 from __future__ import annotations
@@ -75,6 +78,21 @@ def _swap_losses(problem: DesignProblem, Mi_base, L: Float[Array, "P r b"]):
     return jnp.where(jnp.isfinite(out), out, jnp.inf)
 
 
+def _direct_losses(problem: DesignProblem, Mi_base, A: Float[Array, "P b b"]):
+    """Loss of ``Mi_base + A_j`` for every pool pose ``j``, each factorised anew: for a set
+    with one pose too few to identify the parameters, where ``Mi_base`` is singular and the
+    Woodbury form (:func:`_swap_losses`) is undefined although the swapped sets are not."""
+
+    def one(Aj):
+        C = jnp.linalg.cholesky(Mi_base + Aj)
+        Ci = jax.scipy.linalg.solve_triangular(C, jnp.eye(C.shape[0]), lower=True)
+        ld = 2.0 * jnp.sum(jnp.log(jnp.diagonal(C)))
+        return _loss_terms(problem, ld, jnp.sum(Ci**2), jnp.sum((Ci @ problem.val_factor.T) ** 2))
+
+    out = jax.vmap(one)(A)
+    return jnp.where(jnp.isfinite(out), out, jnp.inf)
+
+
 @eqx.filter_jit
 def _greedy(problem: DesignProblem, L, allowed: Bool[Array, " P"], close: Bool[Array, "P P"], n: int):
     """``n`` pool indices by greedy ``log det`` (with a ridge): each step the allowed pose, not
@@ -113,7 +131,9 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
         n_close = jnp.sum(close[:, ch], 1)  # chosen poses too close to each pool pose
 
         def slot(i):
-            s = _swap_losses(problem, M - A[ch[i]], L)
+            Mi = M - A[ch[i]]
+            s = _swap_losses(problem, Mi, L)
+            s = jax.lax.cond(jnp.any(jnp.isfinite(s)), lambda: s, lambda: _direct_losses(problem, Mi, A))
             ok = allowed & ~in_set & (n_close - close[:, ch[i]] == 0)
             return jnp.where(ok, s, jnp.inf)
 
@@ -123,7 +143,7 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
 
     def current(ch):
         M = info(ch)
-        return _swap_losses(problem, M - A[ch[0]], L[ch[0]][None])[0]
+        return _direct_losses(problem, M - A[ch[0]], A[ch[0]][None])[0]
 
     def cond(state):
         ch, loss, swaps, done = state

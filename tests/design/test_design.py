@@ -157,6 +157,21 @@ def test_pool_selection_no_single_swap_improves(robot, problem):
         design.select_poses(problem, bad, N)
 
 
+def test_pool_selection_of_the_fewest_poses_that_identify_finds_the_best_set():
+    """UR5, base and tool estimated (28 base parameters, 6 rows a pose): 5 of 6 random poses
+    identify, 4 do not, so removing a chosen pose leaves a singular information the Woodbury
+    swap cannot use. The selection is the best of the six sets, found by evaluating each."""
+    robot = jaxcal.preset("ur5")
+    problem = design.design_problem(robot)
+    lim = np.asarray(robot.q_limits)
+    for seed in (1, 4):  # pools where the greedy start alone is 2.7x and 7.7x off the best
+        pool = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (6, 6))
+        d = design.select_poses(problem, pool, 5, n_random=5)
+        sets = [[j for j in range(6) if j != i] for i in range(6)]
+        best = min(design.evaluate(problem, pool[s])["validation_rms_mm"] for s in sets)
+        assert d.values["validation_rms_mm"] == pytest.approx(best, rel=1e-9)
+
+
 def test_pose_file_round_trip_and_errors(robot, tmp_path):
     named = robot.replace(joint_names=[f"j{i}" for i in range(6)], units=("m", "deg"))
     q = _random_q(robot, 5, 8)
