@@ -232,15 +232,48 @@ def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5) 
 
 
 SWAP_FIT = 5.0
-"""A flagged pose fits once two of its points are exchanged when its RMS point error drops to
-this many times the noise, and to a fifth of what it was, or less."""
+"""A flagged pose fits once its points are relabelled when its RMS point error drops to this
+many times the noise, and to a fifth of what it was, or less."""
+SWAP_ALL_BELOW = 6
+"""With fewer points than this every relabelling is tried (119 for five points); with more,
+exchanges of two points only."""
+
+
+def _relabellings(M: int) -> list[tuple[int, ...]]:
+    """The relabellings tried: ``perm[k]`` is the file's column that holds point ``k``."""
+    if M < SWAP_ALL_BELOW:
+        return [p for p in itertools.permutations(range(M)) if p != tuple(range(M))]
+    out = []
+    for i, j in itertools.combinations(range(M), 2):
+        p = list(range(M))
+        p[i], p[j] = j, i
+        out.append(tuple(p))
+    return out
+
+
+def _cycles(perm, nums) -> str:
+    """``points 3 and 4`` for an exchange, ``points 1, 2 and 3 rotated`` for a longer cycle."""
+    seen, parts = set(), []
+    for k in range(len(perm)):
+        if k in seen or perm[k] == k:
+            continue
+        c, j = [], k
+        while j not in seen:
+            seen.add(j)
+            c.append(int(nums[j]))
+            j = perm[j]
+        c = sorted(c)
+        names = ", ".join(map(str, c[:-1])) + f" and {c[-1]}"
+        parts.append(f"points {names}" + (" rotated" if len(c) > 2 else ""))
+    return "; ".join(parts)
 
 
 def swaps_note(predicted, target, flags, noise_mm: float, rows, point_numbers=()) -> str:
-    """The cause to name when most flagged poses of several points fit once two of their points are
-    exchanged (``predicted``, ``target`` ``(K, M, 3)``): marker labels the tracker swapped,
-    which no model fits and which relabelling in the file mends. Points are named by their numbers
-    in the file (``point_numbers``, else 1..M), the columns the user relabels."""
+    """The cause to name when most flagged poses of several points fit once their points are
+    relabelled (two exchanged, or a few rotated; ``predicted``, ``target`` ``(K, M, 3)``):
+    marker labels the tracker swapped, which no model fits and which relabelling in the file
+    mends. Points are named by their numbers in the file (``point_numbers``, else 1..M), the
+    columns the user relabels."""
     pred, meas = np.asarray(predicted, float), np.asarray(target, float)
     idx = np.flatnonzero(np.asarray(flags, bool))
     if meas.ndim != 3 or meas.shape[1] < 2 or not idx.size:
@@ -250,23 +283,23 @@ def swaps_note(predicted, target, flags, noise_mm: float, rows, point_numbers=()
         with np.errstate(invalid="ignore"):
             return np.sqrt(np.nanmean(np.sum((m - pred[idx]) ** 2, -1), -1))
 
-    now, best, pair = rms(meas[idx]), np.full(idx.size, np.inf), np.zeros((idx.size, 2), int)
-    for i, j in itertools.combinations(range(meas.shape[1]), 2):
-        swapped = meas[idx].copy()
-        swapped[:, [i, j]] = swapped[:, [j, i]]
-        e = rms(swapped)
+    perms = _relabellings(meas.shape[1])
+    now, best, which = rms(meas[idx]), np.full(idx.size, np.inf), np.zeros(idx.size, int)
+    for n, perm in enumerate(perms):
+        e = rms(meas[idx][:, list(perm)])
         better = e < best
-        best[better], pair[better] = e[better], (i, j)
+        best[better], which[better] = e[better], n
     fits = (best <= SWAP_FIT * noise_mm) & (best <= now / 5)
     if fits.sum() * 2 <= idx.size:
         return ""
     nums = list(point_numbers) or list(range(1, meas.shape[1] + 1))
-    pairs = sorted({(int(nums[a]), int(nums[b])) for a, b in pair[fits]})
+    found = [_cycles(perms[n], nums) for n in sorted(set(which[fits].tolist()))]
+    exchanged = all(sum(a != b for a, b in enumerate(perms[n])) == 2 for n in set(which[fits].tolist()))
+    how = "two points are exchanged" if exchanged else "their points are relabelled"
     listed = ", ".join(str(int(rows[k])) for k in idx[fits][:8]) + (", ..." if fits.sum() > 8 else "")
     return (
-        f"marker labels swapped: {int(fits.sum())} of the {idx.size} outlying poses fit once two points are "
-        f"exchanged ({', '.join(f'points {a} and {b}' for a, b in pairs)}; rows {listed}). Correct the labels "
-        "in the file"
+        f"marker labels swapped: {int(fits.sum())} of the {idx.size} outlying poses fit once {how} "
+        f"({', '.join(sorted(set(found)))}; rows {listed}). Correct the labels in the file"
     )
 
 

@@ -348,7 +348,7 @@ def test_marker_labels_swapped_in_many_rows_are_named_as_a_swap():
     """Points 3 and 4 exchanged in 15 of 60 rows (a tracker's label swap, more than the outlier
     limit): the fit is refused, and the refusal says that those rows fit once the two points are
     exchanged, naming them and the points by their numbers in the file when only points 2-4 are
-    read; the clean file has no such note."""
+    read; the clean file has no such note; three labels rotated are named as such."""
     robot = jaxcal.preset("ur5")
     sim = simulate(robot, n_poses=K, n_val=1, seed=8, sigma_pos=NOISE, sigma_rot=2e-5)
     offsets = np.array([[0.0, 0, 0], [60.0, 0, 0], [0, 60.0, 0], [0, 0, 60.0]])
@@ -371,4 +371,10 @@ def test_marker_labels_swapped_in_many_rows_are_named_as_a_swap():
         not one.plausible
         and "(points 3 and 4; rows " in one.implausible
         and "Likely cause: marker labels swapped: 15 of the 15" in one.implausible
+    )
+    cycled = pts.copy()  # three labels rotated: column 1 holds point 2, column 2 point 3, column 3 point 1
+    cycled[rows, :3] = pts[rows][:, [1, 2, 0]]
+    one = calibrate(robot, sim.q[0], cycled, sigma_pos_mm=NOISE)
+    assert "15 of the 15 outlying poses fit once their points are relabelled (points 1, 2 and 3 rotated" in (
+        one.implausible
     )
