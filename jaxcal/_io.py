@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 from .errors import DataError
 
@@ -24,6 +28,24 @@ def check_writable(path, what: str = "output") -> Path:
                 raise DataError(f"{what} {path}: folder {p} is not writable", option=what)
             break
     return path
+
+
+def _finite(o):
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, (np.ndarray, np.generic)):
+        return _finite(o.tolist())
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    return o
+
+
+def json_text(obj) -> str:
+    """``obj`` as indented JSON with NaN and inf written as null: JSON has neither, and strict
+    readers refuse the bare tokens Python would write."""
+    return json.dumps(_finite(obj), indent=2, allow_nan=False)
 
 
 def _umask() -> int:

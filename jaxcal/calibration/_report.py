@@ -4,10 +4,10 @@ figures of the nested fits, and the JSON report (its fields: docs/conventions.md
 from __future__ import annotations
 
 import dataclasses
-import json
 
 import numpy as np
 
+from .._io import json_text
 from ..camera import n_params as camera_size
 from ..model import Layout, Model, measured_robot, observed, predict
 from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
@@ -60,7 +60,7 @@ class DataCalibration:
         return self.report["cv"]
 
     def to_json(self) -> str:
-        return json.dumps(self.report, indent=2)
+        return json_text(self.report)
 
 
 def _rms(v) -> float:

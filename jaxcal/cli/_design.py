@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import typer
@@ -69,7 +68,7 @@ def design(
     chosen from a pool; compared with random poses of the same count."""
     import numpy as np
 
-    from .._io import check_writable, write_atomic
+    from .._io import check_writable, json_text, write_atomic
     from ..design import DEFAULT_POINT_MM, design_problem, optimal_poses, select_poses, write_poses
     from ..errors import DataError
 
@@ -153,5 +152,5 @@ def design(
         summary["points_mm"] = None if measured is None else measured.tolist()
         # jaxcal's own units, whatever the robot file's (the pose file --out is in those)
         summary["units"] = {"q": "rad, mm for prismatic joints", "min_distance": "rad, mm for prismatic joints"}
-        write_atomic(json_out, json.dumps(summary, indent=2))
+        write_atomic(json_out, json_text(summary))
         console.print(f"wrote {json_out}")

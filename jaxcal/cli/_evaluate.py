@@ -36,9 +36,8 @@ def evaluate(
 ):
     """Predict a data file's measurements with a saved model (frames included, nothing
     re-fitted) and report the errors in mm (rotation in deg)."""
-    import json
 
-    from .._io import check_writable, write_atomic
+    from .._io import check_writable, json_text, write_atomic
     from ..calibration import evaluate as run
     from ..measurements import measurement_columns, read_measurements, read_table
     from ..model import Model, load_model
@@ -82,5 +81,5 @@ def evaluate(
     for w in rep["warnings"]:
         console.print(f"[yellow]warning:[/yellow] {w}", highlight=False)
     if json_out is not None:
-        write_atomic(json_out, json.dumps(rep, indent=2))
+        write_atomic(json_out, json_text(rep))
         console.print(f"report written to {json_out}")

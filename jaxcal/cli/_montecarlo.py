@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
 from pathlib import Path
@@ -81,7 +80,7 @@ def montecarlo(
     keep_outliers: bool = typer.Option(False, "--keep-outliers", help="fit the outlier poses (default: left out)"),
 ):
     """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
-    from .._io import check_writable, write_atomic
+    from .._io import check_writable, json_text, write_atomic
     from ..experiments import run_montecarlo
 
     if json_out is not None:
@@ -161,7 +160,7 @@ def montecarlo(
         t.add_row(k, v)
     console.print(t)
     if json_out and out["complete"]:  # a summary of part of a study is not written
-        write_atomic(json_out, json.dumps(out, indent=2))
+        write_atomic(json_out, json_text(out))
         console.print(f"wrote {json_out}")
 
 

@@ -109,7 +109,7 @@ class PoseDesign:
             "values": dict(self.values),
             "random_median": {k: float(np.median(v)) for k, v in self.random_values.items()},
             "random_fraction_better": {c: self.random_fraction_better(c) for c in CRITERIA},
-            "equivalent_random_poses": {c: _finite(self.equivalent_random_poses(c)) for c in CRITERIA},
+            "equivalent_random_poses": {c: self.equivalent_random_poses(c) for c in CRITERIA},
             "random_median_by_count": self.random_by_count,
             "feasible": self.feasible,
             "min_distance": self.min_distance,
@@ -136,11 +136,6 @@ def matching_count(counts, y, target: float) -> float:
     if y[i + 1] == y[i]:  # flat: reached at the segment's start, or (past the end) never
         return float(np.exp(k[i])) if y[i] >= target else float("inf")
     return float(np.exp(k[i] + (target - y[i]) / (y[i + 1] - y[i]) * (k[i + 1] - k[i])))
-
-
-def _finite(v: float) -> float | None:
-    """JSON has no NaN or inf: a count that cannot be told is written as null."""
-    return float(v) if np.isfinite(v) else None
 
 
 def _key(c: str) -> str:

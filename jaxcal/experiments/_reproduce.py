@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import statistics
 from pathlib import Path
 
@@ -19,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._io import write_atomic
+from .._io import json_text, write_atomic
 from ..calibration import Options, calibrate_batch, identify
 from ..error_model import perturb
 from ..kinematics import fk
@@ -166,7 +165,7 @@ def run_reproduce(
         "elimination_step_conditions": step_conditions(robot, q),
         "machine": machine_info(),
     }
-    write_atomic(out / "summary.json", json.dumps(summary, indent=2, default=float))
+    write_atomic(out / "summary.json", json_text(summary))
     return summary
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .._io import write_atomic
+from .._io import json_text, write_atomic
 from ..errors import DataError
 
 FORMAT = 1
@@ -92,4 +92,4 @@ class StudyFolder:
 
     def write_summary(self, summary: dict) -> None:
         if jax.process_index() == 0:
-            write_atomic(self.path / "summary.json", json.dumps(summary, indent=2))
+            write_atomic(self.path / "summary.json", json_text(summary))
