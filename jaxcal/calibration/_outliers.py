@@ -293,13 +293,21 @@ def swaps_note(predicted, target, flags, noise_mm: float, rows, point_numbers=()
     if fits.sum() * 2 <= idx.size:
         return ""
     nums = list(point_numbers) or list(range(1, meas.shape[1] + 1))
-    found = [_cycles(perms[n], nums) for n in sorted(set(which[fits].tolist()))]
-    exchanged = all(sum(a != b for a, b in enumerate(perms[n])) == 2 for n in set(which[fits].tolist()))
+    used = [perms[n] for n in sorted(set(which[fits].tolist()))]
+    found = sorted({c for p in used for c in _cycles(p, nums).split("; ")})  # one name per cycle
+    exchanged = all(sum(a != b for a, b in enumerate(p)) == 2 for p in used)
     how = "two points are exchanged" if exchanged else "their points are relabelled"
     listed = ", ".join(str(int(rows[k])) for k in idx[fits][:8]) + (", ..." if fits.sum() > 8 else "")
+    # every point moved along one cycle is also what a tool turned by a symmetry of the layout does
+    turned = any(len(p) > 2 and all(p[k] != k for k in range(len(p))) for p in used)
     return (
         f"marker labels swapped: {int(fits.sum())} of the {idx.size} outlying poses fit once {how} "
-        f"({', '.join(sorted(set(found)))}; rows {listed}). Correct the labels in the file"
+        f"({'; '.join(found)}; rows {listed}). Correct the labels in the file"
+        + (
+            " (or, with markers placed symmetrically on the tool, look for a tool turned in those rows)"
+            if turned
+            else ""
+        )
     )
 
 

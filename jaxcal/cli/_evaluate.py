@@ -53,8 +53,12 @@ def evaluate(
     meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     train = None
     if training is not None:
-        # only its joint values are used; the same points, so that the file calibrate read is read here
-        train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
+        # only its joint values are used: the same points when it has them, so that the file calibrate
+        # read with --points is read here (a sentinel in a point left out does not refuse it)
+        src, header, _ = read_table(training, "")
+        have = len(measurement_columns(header, src)[0])
+        same = chosen if chosen is not None and max(chosen) <= have else None
+        train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same)
     if chosen is not None and m.n_points > 1:
         src, header, _ = read_table(data, "")
         if m.n_points == len(measurement_columns(header, src)[0]):  # the model's points are the file's

@@ -12,8 +12,8 @@ without refactoring: with ``M_i = M - A_i`` and ``K = I + L_j M_i^{-1} L_j^T`` (
 * ``tr(F (M_i + A_j)^{-1} F^T) = tr(F M_i^{-1} F^T) - tr(K^{-1} Z^T Z)``, ``Z = F M_i^{-1} L_j^T``
   (Sherman–Morrison–Woodbury), with ``F = I`` (A) or the validation factor.
 
-When ``M_i`` is singular (the fewest poses that identify the parameters, less one), each
-swapped set is factorised anew instead.
+When ``M_i`` is singular or nearly so (the fewest poses that identify the parameters, less
+one: :data:`SINGULAR`), each swapped set is factorised anew instead.
 """
 
 from __future__ import annotations
@@ -45,6 +45,10 @@ from ._result import PoseDesign, frozen
 
 RIDGE = 1e-6
 """Ridge of the greedy start, relative to the mean information of one pool pose."""
+SINGULAR = 1e-8
+"""A chosen set less one pose whose squared Cholesky pivots span more than ``1 / SINGULAR`` is
+singular for the Woodbury scores, which go through its inverse: they would be finite but wrong
+(a rank one short factorises on a rounding-level pivot)."""
 IMPROVEMENT = 1e-10
 """Smallest improvement of the loss an exchange must bring."""
 
@@ -133,7 +137,9 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
         def slot(i):
             Mi = M - A[ch[i]]
             s = _swap_losses(problem, Mi, L)
-            s = jax.lax.cond(jnp.any(jnp.isfinite(s)), lambda: s, lambda: _direct_losses(problem, Mi, A))
+            d = jnp.diagonal(jnp.linalg.cholesky(Mi))
+            regular = jnp.all(jnp.isfinite(d)) & (jnp.min(d) ** 2 > SINGULAR * jnp.max(d) ** 2)
+            s = jax.lax.cond(regular & jnp.any(jnp.isfinite(s)), lambda: s, lambda: _direct_losses(problem, Mi, A))
             ok = allowed & ~in_set & (n_close - close[:, ch[i]] == 0)
             return jnp.where(ok, s, jnp.inf)
 

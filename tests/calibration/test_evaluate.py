@@ -73,6 +73,14 @@ def test_cli_on_a_toml_model_with_points(tmp_path, monkeypatch, capsys):
         assert code in (0, None), err
         rep = json.loads((tmp_path / "e.json").read_text())
         assert len(rep["points"]) == 1 and rep["position_max_mm"] < 1e-9 and rep["points"][0]["point"] == 2
+    # a one-point training file (the marker the model was fitted on) with --points 2 for the data
+    one = [",".join(r.split(",")[:6] + r.split(",")[9:]) for r in rows]
+    (tmp_path / "t1.csv").write_text(",".join(header.split(",")[:6] + ["x", "y", "z"]) + "\n" + "\n".join(one) + "\n")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "evaluate", tmp_path / "two.toml", tmp_path / "s.csv", "--points", "2",
+        "--training", tmp_path / "t1.csv",
+    )  # fmt: skip
+    assert code in (0, None), err
 
 
 def test_posture_groups():
