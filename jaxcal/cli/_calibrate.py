@@ -61,7 +61,9 @@ def calibrate(
     max_outlier_fraction: float = typer.Option(
         _D.max_outlier_fraction, help="refuse the fit when more than this share of the poses are outliers"
     ),
-    sigma_pos_mm: float = typer.Option(None, help="position noise per coordinate (default: estimated)"),
+    sigma_pos_mm: float = typer.Option(
+        None, help="position noise per coordinate, the fits' weight (default: the frames-only fit's residual)"
+    ),
     sigma_rot_rad: float = typer.Option(None, help="rotation noise per axis (default: estimated)"),
     max_steps: int = typer.Option(_D.max_steps, help="solver step limit"),
     rtol: float = typer.Option(_D.rtol, help="solver relative tolerance"),
@@ -336,7 +338,8 @@ def show(rep: dict, meas) -> None:
         for name, why in held.items():
             console.print(f"  {name}: {why}", highlight=False)
     console.print(
-        f"weights: sigma_pos {rep['sigma_pos_mm']:.3g} mm"
+        f"noise of the fit {rep['outlier_detection']['noise_pos_mm']:.3g} mm per coordinate; weights (the frames-only "
+        f"residual): sigma_pos {rep['sigma_pos_mm']:.3g} mm"
         + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rep["points"] == 0 else "")
         + f"; condition number {rep['condition_number']:.3g}; converged {rep['converged']} in "
         f"{rep['steps']} steps ({rep['cv_fits_converged']}/{rep['cv_fits']} cross-validation fits converged"

@@ -29,7 +29,9 @@ def accuracy_map(result, q, *, workspace_poses: int = 400, seed: int = 0) -> dic
     ``data`` and ``workspace`` (``workspace_poses`` seeded poses uniform within the joint limits)
     as ``(positions (K, 3) in the base frame, predicted sigma (K,) mm)``, the sigma the RMS over a
     pose's points; ``heldout`` the measured held-out error per data pose; ``noise_mm`` the
-    measurement noise as an RMS distance, ``sqrt(3) sigma_pos``."""
+    noise of the final fit's residual (robust, per coordinate: ``outlier_detection.noise_pos_mm``)
+    as an RMS distance, ``sqrt(3)`` times it. Not ``sigma_pos_mm``: that is the fits' weight, the
+    frames-only residual, which holds the robot's own errors too."""
     from ..plots import heldout_errors
 
     lim = np.asarray(result.nominal.q_limits)
@@ -43,7 +45,7 @@ def accuracy_map(result, q, *, workspace_poses: int = 400, seed: int = 0) -> dic
         "data": at(np.asarray(q)),
         "workspace": at(qw),
         "heldout": heldout_errors(result)[0],
-        "noise_mm": float(np.sqrt(3.0) * result.report["sigma_pos_mm"]),
+        "noise_mm": float(np.sqrt(3.0) * result.report["outlier_detection"]["noise_pos_mm"]),
     }
 
 
@@ -134,9 +136,18 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
         ),  # fmt: skip
         _table(
             "fit",
-            ["noise sigma_pos (mm)", "sigma_rot (deg)", "condition number", "converged", "steps", "CV fits converged"],
+            [
+                "noise of the fit (mm)",
+                "weights: sigma_pos (mm)",
+                "sigma_rot (deg)",
+                "condition number",
+                "converged",
+                "steps",
+                "CV fits converged",
+            ],
             [
                 [
+                    rep["outlier_detection"]["noise_pos_mm"],
                     rep["sigma_pos_mm"],
                     rep["sigma_rot_deg"],
                     rep["condition_number"],

@@ -7,7 +7,7 @@ from html.parser import HTMLParser
 
 import numpy as np
 import pytest
-from helpers import ur5_tracker
+from helpers import UR5_TRACKER, ur5_tracker
 
 from jaxcal.export import report_html
 
@@ -112,3 +112,26 @@ def test_accuracy_table_from_the_covariance(page):
     assert row[0] == "data poses"
     assert float(row[1]) == pytest.approx(np.median(sd), rel=1e-5)
     assert float(row[2]) == pytest.approx(np.max(sd), rel=1e-5)
+
+
+def test_the_accuracy_maps_noise_is_the_fits_not_its_weights():
+    """Without a given noise the fits are weighted by the frames-only residual, which holds the
+    robot's own errors (mm here): the map adds the calibrated fit's noise, the simulated 0.05 mm
+    per coordinate, and the predicted held-out RMS is that of the held-out errors measured."""
+    import jaxcal
+    from jaxcal.export import accuracy_map
+    from jaxcal.simulation import simulate
+
+    ur5 = jaxcal.preset("ur5")
+    rng = np.random.default_rng(37)
+    q = rng.uniform(-np.pi, np.pi, (UR5_TRACKER["n_poses"], 6))
+    s = UR5_TRACKER["sigma_pos"]
+    sim = simulate(ur5, n_robots=1, q=q, q_val=q[:5], seed=38, sigma_pos=s, base=True, tool=True)
+    data = jaxcal.Measurements(q, sim.measured[0, :, None, :3, 3])
+    res = jaxcal.calibrate_data(ur5, data, folds=UR5_TRACKER["folds"], params=UR5_TRACKER["params"])
+    assert res.report["sigma_pos_mm"] > 10 * s  # the weights: the robot's errors, not the noise
+    acc = accuracy_map(res, q, workspace_poses=20)
+    assert acc["noise_mm"] == pytest.approx(np.sqrt(3) * s, rel=0.25)
+    predicted = np.sqrt(np.mean(acc["data"][1] ** 2) + acc["noise_mm"] ** 2)
+    measured = np.sqrt(np.nanmean(np.asarray(acc["heldout"]) ** 2))
+    assert 0.6 < predicted / measured < 1.6
