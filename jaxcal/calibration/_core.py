@@ -503,6 +503,33 @@ def reidentified(
     )
 
 
+@jit(keep=True)
+def _base_normals(models: Model, layout: Layout, q, cols):
+    def one(m, q_):
+        J = jacobian(m, layout, q_).reshape(-1, layout.size)[:, cols]
+        J = J / jnp.maximum(jnp.linalg.norm(J, axis=0), 1e-300)
+        return J.T @ J
+
+    return jax.vmap(one)(models, q)
+
+
+def singular_at_fit(models: Model, layout: Layout, q, base, max_condition: float, memory_mb: float) -> np.ndarray:
+    """``(R,)`` which members' set ``base`` is not separable at their fit ``models`` (leading
+    axis, with ``q (R, K, n)``), as :func:`reidentified` judges one fit: the column-scaled
+    condition above ``max_condition``. One compiled program over chunks within ``memory_mb``."""
+    R, K = np.shape(q)[:2]
+    per = 4 * K * layout.rows * layout.size * 8  # a member's Jacobian and its copies, bytes
+    c = int(max(1, min(R, MAX_CHUNK, memory_mb * 2**20 // per)))
+    cols, out = jnp.asarray(list(base), dtype=jnp.int32), []
+    for start in range(0, R, c):
+        idx = np.minimum(np.arange(start, start + c), R - 1)  # the last chunk padded: one compile
+        out.append(np.asarray(_base_normals(take(models, idx), layout, np.asarray(q)[idx], cols))[: R - start])
+    N = np.concatenate(out)
+    bad = ~np.all(np.isfinite(N), axis=(1, 2))
+    ev = np.linalg.eigvalsh(np.where(bad[:, None, None], np.eye(N.shape[-1]), N))
+    return bad | ~(ev[:, 0] > 0) | (ev[:, -1] > max_condition**2 * ev[:, 0])
+
+
 def kin_order(robot: Robot | None, layout: Layout) -> list[int]:
     """The kinematic parameters in the order the base set takes them. For a joint frame, the
     origin's turns least aligned with the joint's axis ``a`` come first (and a prismatic joint's

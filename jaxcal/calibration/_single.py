@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import numpy as np
 
 from .._config import as_f64
@@ -137,6 +138,11 @@ class BatchResult:
     problems: tuple[str, ...] = ()
     """Per data set, why its poses cannot identify what a generic pose set does (a joint that
     never moves, too few distinct poses; not converged then), or ""."""
+    rechosen: np.ndarray | None = None
+    """``(R,)``: data sets whose fit ran where the batch's parameter set is not separable (an arm
+    far from its file), fitted again with the set identifiable at their fit, as
+    :func:`calibrate` does; ``x`` keeps the batch's layout, with the parameters that set holds
+    at 0."""
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -485,8 +491,10 @@ def calibrate_batch(
     moves the most joints through the most distinct poses (the first of those) unless ``ident`` is
     given; a data set that cannot identify it (a joint still in it alone, too few distinct poses) is
     named in ``problems`` and not converged, and members that Gauss-Newton does not converge are
-    fitted again by Levenberg-Marquardt, as in :func:`calibrate`. A given ``ident`` is the caller's:
-    only too few distinct poses are named, and there is no such retry. A data set whose solve gives
+    fitted again by Levenberg-Marquardt, as in :func:`calibrate`; members whose fit ran where
+    the set is not separable (an arm far from its file) are fitted again with the set
+    identifiable at their fit (``rechosen``). A given ``ident`` is the caller's: only too few
+    distinct poses are named, and there is neither retry. A data set whose solve gives
     non-finite values is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN."""
     devs = select_devices(devices)
     opts = make_options(options, kw, elimination=True)
@@ -562,11 +570,26 @@ def calibrate_batch(
         cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
     )
     det = outliers.found(b, refit, masks, target, opts)
+    fitted = masks
     if det.flags.any() and not opts.keep_outliers:  # every data set again without its outliers
-        kept = masks * ~det.flags
-        _, _, b = stages(start(kept), kept)
+        fitted = masks * ~det.flags
+        ref_b, weights, b = stages(start(fitted), fitted)
         found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
         det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
+    rechosen = np.zeros(R, bool)
+    if mine:
+
+        def again(idx, priors):  # from each member's last fit
+            data = (core.take(q, idx), core.take(target, idx), fitted[idx], weights[idx], priors)
+            return core.run_members(
+                cfg, core.take(ref_b, idx), *data, opts.loss_scale, x0=b["x"][idx], **run, label="set chosen again"
+            )
+
+        lever = selection.lever(J0, n_points)
+        sound = np.array([not p for p in problems])  # a data set that cannot identify the set is named
+        b, rechosen = _rechosen(
+            robot, layout, ident, q, b, lambda i: prior_of(layout, i, cand, lever=lever), again, opts, sound
+        )
     nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
     x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
     x[nonfinite] = 0.0
@@ -585,7 +608,37 @@ def calibrate_batch(
         nonfinite=nonfinite,
         devices=tuple(describe(devs)),
         problems=problems,
+        rechosen=rechosen,
     )
+
+
+def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, prior_for, again, opts, sound):
+    """``(b, which)``: the members whose fit ran where ``ident``'s set is not separable (an arm
+    far from its file, :func:`._core.reidentified`) fitted again with the set identifiable at
+    their fit (``prior_for(set)``, ``again(members, priors)``), as :func:`calibrate` does; among
+    the ``sound`` members (a data set named in ``problems`` is not converged anyway)."""
+    R = len(q)
+    which = np.zeros(R, bool)
+    sound = sound & np.all(np.isfinite(b["x"]), -1)
+    far = core.singular_at_fit(b["model"], layout, q, ident.base, selection.MAX_CONDITION, opts.memory_mb) & sound
+    idx, priors = [], []
+    for r in np.flatnonzero(far):  # rare: the members that ran there, each analysed alone
+        found = core.reidentified(ident, core.member(b["model"], r), layout, q[r], robot, selection.MAX_CONDITION)
+        if found is not None:
+            idx.append(r)
+            priors.append(prior_for(found[0]))
+    if not idx:
+        return b, which
+    idx = np.array(idx)
+    new = again(idx, np.array(priors))
+    which[idx] = True
+
+    def merged(a, n):
+        a = np.array(a)
+        a[idx] = n
+        return a
+
+    return jax.tree.map(merged, b, new), which
 
 
 def _still_joints(robot: Robot, q) -> np.ndarray:

@@ -87,3 +87,19 @@ def test_a_length_held_for_axes_parallel_in_the_file_is_estimated_where_the_arm_
     assert any(MOVED in n and "d3" in n for n in r.report["notes"])
     pred = np.asarray(predict(r.model, q[50:])).reshape(-1, 3)
     assert np.sqrt(np.mean(np.sum((pred - truth[50:]) ** 2, -1))) < 0.03  # d3 held: 0.06 mm
+
+
+def test_calibrate_batch_chooses_the_set_again_for_a_member_that_ran_there(far_arm):
+    """Member 0 is the far arm, member 1 the nominal arm measured at the same postures: only the
+    first is fitted again with the set identifiable at its fit, and it errs as calibrate's fit."""
+    from jaxcal.calibration import calibrate_batch
+    from jaxcal.model import Model, apply
+
+    robot, q, measured, truth = far_arm
+    nominal = np.asarray(predict(Model(robot, POINT_M[None] * 1e3), q))[:, 0]
+    noisy = nominal + np.random.default_rng(1).normal(scale=0.02, size=nominal.shape)
+    res = calibrate_batch(robot, np.stack([q[:N_TRAIN]] * 2), np.stack([measured[:N_TRAIN], noisy[:N_TRAIN]]))
+    assert res.converged.all() and res.rechosen.tolist() == [True, False]
+    start = Model(robot.stripped(), np.zeros((1, 3)))
+    assert _error_on_new_postures(apply(start, res.layout, res.x[0]), q, truth) < 0.03
+    assert _error_on_new_postures(apply(start, res.layout, res.x[1]), q, nominal) < 0.03
