@@ -324,7 +324,14 @@ def show(rep: dict, meas) -> None:
         *rot(rep["heldout_rot_rms_deg"]),
     )
     console.print(summary)
-    pt = Table(title="estimated parameters (all poses)")
+    frames = any(n.startswith(("base_", "tool_")) for n in rep["parameters"])
+    pt = Table(
+        title="estimated parameters (all poses)",
+        caption="delta: from the robot file; base_* and tool_*: from the closed-form starting frames (the frames "
+        "themselves are the JSON's base and tool)"
+        if frames
+        else None,
+    )
     for col in ("parameter", "delta", "std err", "unit"):
         pt.add_column(col, justify="right")
     for name, p in rep["parameters"].items():
