@@ -107,7 +107,7 @@ def pose_errors_figure(result):
     rep, pp = result.report, result.per_pose
     ho, fo = heldout_errors(result)
     fig, ax = plt.subplots(figsize=(10, 4))
-    x = np.arange(len(ho))
+    x = np.asarray(pp.get("rows", np.arange(1, len(ho) + 1)), float)  # the file's data rows, as the report names them
     ax.bar(
         x - 0.2, fo, width=0.4, color="tab:gray", label=f"frames only (RMS {rep['frames_only_heldout_rms_mm']:.2f} mm)"
     )
@@ -131,7 +131,7 @@ def pose_errors_figure(result):
             + ", ".join(str(int(r)) for r in np.asarray(pp["rows"])[bad][:8])
             + (", ..." if bad.size > 8 else ""),
         )
-    ax.set_xlabel("pose (CSV data row - 1)")
+    ax.set_xlabel("pose (CSV data row)")
     ax.set_ylabel("held-out position error (mm)")
     ax.set_title(f"{rep['folds']}-fold cross-validation: error on poses not used for fitting")
     ax.legend()
