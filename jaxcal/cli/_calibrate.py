@@ -349,7 +349,8 @@ def show(rep: dict, meas) -> None:
         f"residual): sigma_pos {rep['sigma_pos_mm']:.3g} mm"
         + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rep["points"] == 0 else "")
         + f"; condition number {rep['condition_number']:.3g}; converged {rep['converged']} in "
-        f"{rep['steps']} step{'' if rep['steps'] == 1 else 's'} ({rep['cv_fits_converged']}/{rep['cv_fits']} cross-validation fits converged"
+        f"{rep['steps']} step{'' if rep['steps'] == 1 else 's'} "
+        f"({rep['cv_fits_converged']}/{rep['cv_fits']} cross-validation fits converged"
         + (f"; {rep['lm_refits']} fitted again by Levenberg-Marquardt after Gauss-Newton" if rep["lm_refits"] else "")
         + ")"
     )
