@@ -324,19 +324,18 @@ def show(rep: dict, meas) -> None:
         *rot(rep["heldout_rot_rms_deg"]),
     )
     console.print(summary)
-    frames = any(n.startswith(("base_", "tool_")) for n in rep["parameters"])
-    pt = Table(
-        title="estimated parameters (all poses)",
-        caption="delta: from the robot file; base_* and tool_*: from the closed-form starting frames (the frames "
-        "themselves are the JSON's base and tool)"
-        if frames
-        else None,
-    )
+    pt = Table(title="estimated parameters (all poses)")
     for col in ("parameter", "delta", "std err", "unit"):
         pt.add_column(col, justify="right")
     for name, p in rep["parameters"].items():
         pt.add_row(name, f"{p['value']:+.4g}", f"{p['std_error']:.2g}", p["unit"])
     console.print(pt)
+    if any(n.startswith(("base_", "tool_")) for n in rep["parameters"]):
+        console.print(
+            "delta: from the robot file; base_* and tool_*: from the closed-form starting frames (the frames "
+            "themselves: base and tool below, and in --json)",
+            highlight=False,
+        )
     for note in rep.get("notes", []):
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     held = rep["not_estimated"]
