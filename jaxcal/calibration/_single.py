@@ -546,7 +546,7 @@ def calibrate_batch(
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
 
-    def stages(ref, masks):  # frames only (unless nothing needs it), then the set
+    def stages(ref, masks, x0=None):  # frames only (unless nothing needs it), then the set
         sig = np.tile([1.0, 1.0], (R, 1))
         if layout.frames or not given:
             unit = np.repeat(core.weights_of(layout, np.array([core.UNIT_WEIGHTS])), R, 0)
@@ -562,34 +562,34 @@ def calibrate_batch(
         return (
             ref,
             w,
-            core.run_members(cfg, ref, q, target, masks, w, prior, opts.loss_scale, **run, label="calibrating"),
+            core.run_members(cfg, ref, q, target, masks, w, prior, opts.loss_scale, x0=x0, **run, label="calibrating"),
         )
 
     ref_b, weights, b = stages(ref, masks)
-    refit = lambda w, x0: core.run_members(  # noqa: E731
-        cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
-    )
-    det = outliers.found(b, refit, masks, target, opts)
-    fitted = masks
-    if det.flags.any() and not opts.keep_outliers:  # every data set again without its outliers
-        fitted = masks * ~det.flags
-        ref_b, weights, b = stages(start(fitted), fitted)
-        found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
-        det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     rechosen = np.zeros(R, bool)
-    if mine:
+    if mine:  # before the outliers, which a fit stopped at a point of the parameterisation would misjudge
 
         def again(idx, priors):  # from each member's last fit
-            data = (core.take(q, idx), core.take(target, idx), fitted[idx], weights[idx], priors)
+            data = (core.take(q, idx), core.take(target, idx), masks[idx], weights[idx], priors)
             return core.run_members(
                 cfg, core.take(ref_b, idx), *data, opts.loss_scale, x0=b["x"][idx], **run, label="set chosen again"
             )
 
         lever = selection.lever(J0, n_points)
         sound = np.array([not p for p in problems])  # a data set that cannot identify the set is named
-        b, rechosen = _rechosen(
-            robot, layout, ident, q, b, lambda i: prior_of(layout, i, cand, lever=lever), again, opts, sound
+        b, rechosen, prior = _rechosen(
+            robot, layout, ident, q, b, prior, lambda i: prior_of(layout, i, cand, lever=lever), again, opts, sound
         )
+    refit = lambda w, x0: core.run_members(  # noqa: E731
+        cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
+    )
+    det = outliers.found(b, refit, masks, target, opts)
+    if det.flags.any() and not opts.keep_outliers:  # every data set again without its outliers
+        kept = masks * ~det.flags
+        # a member whose set was chosen again starts from its last fit: that set may be singular at the start
+        _, _, b = stages(start(kept), kept, np.where(rechosen[:, None], b["x"], 0.0) if rechosen.any() else None)
+        found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
+        det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
     x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
     x[nonfinite] = 0.0
@@ -612,11 +612,12 @@ def calibrate_batch(
     )
 
 
-def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, prior_for, again, opts, sound):
-    """``(b, which)``: the members whose fit ran where ``ident``'s set is not separable (an arm
-    far from its file, :func:`._core.reidentified`) fitted again with the set identifiable at
-    their fit (``prior_for(set)``, ``again(members, priors)``), as :func:`calibrate` does; among
-    the ``sound`` members (a data set named in ``problems`` is not converged anyway)."""
+def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, prior, prior_for, again, opts, sound):
+    """``(b, which, prior)``: the members whose fit ran where ``ident``'s set is not separable (an
+    arm far from its file, :func:`._core.reidentified`) fitted again with the set identifiable at
+    their fit (``prior_for(set)`` their rows of ``prior``; ``again(members, priors)``), as
+    :func:`calibrate` does; among the ``sound`` members (a data set named in ``problems`` is not
+    converged anyway)."""
     R = len(q)
     which = np.zeros(R, bool)
     sound = sound & np.all(np.isfinite(b["x"]), -1)
@@ -628,9 +629,11 @@ def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, 
             idx.append(r)
             priors.append(prior_for(found[0]))
     if not idx:
-        return b, which
+        return b, which, prior
     idx = np.array(idx)
-    new = again(idx, np.array(priors))
+    prior = np.array(prior, copy=True)
+    prior[idx] = priors
+    new = again(idx, prior[idx])
     which[idx] = True
 
     def merged(a, n):
@@ -638,7 +641,7 @@ def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, 
         a[idx] = n
         return a
 
-    return jax.tree.map(merged, b, new), which
+    return jax.tree.map(merged, b, new), which, prior
 
 
 def _still_joints(robot: Robot, q) -> np.ndarray:
