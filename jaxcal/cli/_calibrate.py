@@ -344,7 +344,7 @@ def show(rep: dict, meas) -> None:
         for name, why in held.items():
             console.print(f"  {name}: {why}", highlight=False)
     console.print(
-        f"noise of the fit {rep['outlier_detection']['noise_pos_mm']:.3g} mm per coordinate; weights (the frames-only "
+        f"noise of the fit {rep['noise_pos_mm']:.3g} mm per coordinate; weights (the frames-only "
         f"residual): sigma_pos {rep['sigma_pos_mm']:.3g} mm"
         + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rep["points"] == 0 else "")
         + f"; condition number {rep['condition_number']:.3g}; converged {rep['converged']} in "

@@ -28,10 +28,8 @@ def accuracy_map(result, q, *, workspace_poses: int = 400, seed: int = 0) -> dic
     """The accuracy map of a :class:`jaxcal.DataCalibration` whose data had joint values ``q``:
     ``data`` and ``workspace`` (``workspace_poses`` seeded poses uniform within the joint limits)
     as ``(positions (K, 3) in the base frame, predicted sigma (K,) mm)``, the sigma the RMS over a
-    pose's points; ``heldout`` the measured held-out error per data pose; ``noise_mm`` the
-    noise of the final fit's residual (robust, per coordinate: ``outlier_detection.noise_pos_mm``)
-    as an RMS distance, ``sqrt(3)`` times it. Not ``sigma_pos_mm``: that is the fits' weight, the
-    frames-only residual, which holds the robot's own errors too."""
+    pose's points; ``heldout`` the measured held-out error per data pose; ``noise_mm`` the final
+    fit's noise (``noise_pos_mm``, per coordinate) as an RMS distance, ``sqrt(3)`` times it."""
     from ..plots import heldout_errors
 
     lim = np.asarray(result.nominal.q_limits)
@@ -45,7 +43,7 @@ def accuracy_map(result, q, *, workspace_poses: int = 400, seed: int = 0) -> dic
         "data": at(np.asarray(q)),
         "workspace": at(qw),
         "heldout": heldout_errors(result)[0],
-        "noise_mm": float(np.sqrt(3.0) * result.report["outlier_detection"]["noise_pos_mm"]),
+        "noise_mm": float(np.sqrt(3.0) * result.report["noise_pos_mm"]),
     }
 
 
@@ -147,7 +145,7 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
             ],
             [
                 [
-                    rep["outlier_detection"]["noise_pos_mm"],
+                    rep["noise_pos_mm"],
                     rep["sigma_pos_mm"],
                     rep["sigma_rot_deg"],
                     rep["condition_number"],

@@ -135,3 +135,5 @@ def test_the_accuracy_maps_noise_is_the_fits_not_its_weights():
     predicted = np.sqrt(np.mean(acc["data"][1] ** 2) + acc["noise_mm"] ** 2)
     measured = np.sqrt(np.nanmean(np.asarray(acc["heldout"]) ** 2))
     assert 0.6 < predicted / measured < 1.6
+    huber = jaxcal.calibrate_data(ur5, data, folds=UR5_TRACKER["folds"], params="all", loss="huber", loss_scale=1.0)
+    assert huber.report["noise_pos_mm"] == pytest.approx(s, rel=0.25)  # a given loss scale does not set it
