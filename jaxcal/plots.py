@@ -173,9 +173,11 @@ def accuracy_figure(workspace, data, heldout, noise_mm: float):
     workspace (top and side views, base frame), beside the measured held-out errors at the data's
     poses (side view). ``workspace`` and ``data`` are ``(positions (K, 3) in the robot's base
     frame, predicted sigma (K,))`` of sampled reachable poses and of the data's poses;
-    ``heldout (K,)`` the data poses' measured held-out errors, ``noise_mm`` the measurement
-    noise's RMS distance (``sqrt(3) sigma_pos``), which a held-out error adds to the model's."""
+    ``heldout (K,)`` the data poses' measured held-out errors (NaN: a pose left out, an outlier),
+    ``noise_mm`` the fit's noise as an RMS distance, which a held-out error adds to the model's."""
     (pw, sw), (pd, sd) = workspace, data
+    scored = np.isfinite(heldout)  # the measured and the predicted RMS over the same poses
+    pd, sd, heldout = pd[scored], sd[scored], np.asarray(heldout)[scored]
     radius = lambda p: np.hypot(p[:, 0], p[:, 1])
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.8), layout="constrained")
     views = ((lambda p: p[:, 0], 1, "x (mm)", "y (mm)"), (radius, 2, "distance from the base z axis (mm)", "z (mm)"))

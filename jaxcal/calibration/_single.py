@@ -592,6 +592,9 @@ def calibrate_batch(
         det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
     x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
+    if rechosen.any():  # a refit with another set can wander by whole turns: within half a turn, as calibrate
+        idx = np.flatnonzero(rechosen)
+        x[idx] = core.relative_x(robot, layout, core.wrapped(core.take(b["model"], idx), robot))
     x[nonfinite] = 0.0
     ok = np.asarray(b["converged"]) & ~nonfinite & ~np.array([bool(p) for p in problems])
     share = det.flags.mean(-1)

@@ -117,7 +117,8 @@ def test_accuracy_table_from_the_covariance(page):
 def test_the_accuracy_maps_noise_is_the_fits_not_its_weights():
     """Without a given noise the fits are weighted by the frames-only residual, which holds the
     robot's own errors (mm here): the map adds the calibrated fit's noise, the simulated 0.05 mm
-    per coordinate, and the predicted held-out RMS is that of the held-out errors measured."""
+    per coordinate, and the predicted held-out RMS is that of the held-out errors measured, the
+    two outliers left out of both."""
     import jaxcal
     from jaxcal.export import accuracy_map
     from jaxcal.simulation import simulate
@@ -127,13 +128,18 @@ def test_the_accuracy_maps_noise_is_the_fits_not_its_weights():
     q = rng.uniform(-np.pi, np.pi, (UR5_TRACKER["n_poses"], 6))
     s = UR5_TRACKER["sigma_pos"]
     sim = simulate(ur5, n_robots=1, q=q, q_val=q[:5], seed=38, sigma_pos=s, base=True, tool=True)
-    data = jaxcal.Measurements(q, sim.measured[0, :, None, :3, 3])
+    points = sim.measured[0, :, None, :3, 3].copy()
+    points[[3, 11], 0] += [5.0, -4.0, 3.0]  # two gross outliers, left out of the fit and of the figures
+    data = jaxcal.Measurements(q, points)
     res = jaxcal.calibrate_data(ur5, data, folds=UR5_TRACKER["folds"], params=UR5_TRACKER["params"])
+    assert sorted(o["row"] for o in res.report["outliers"]) == [4, 12]
     assert res.report["sigma_pos_mm"] > 10 * s  # the weights: the robot's errors, not the noise
     acc = accuracy_map(res, q, workspace_poses=20)
+    assert np.flatnonzero(np.isnan(acc["heldout"])).tolist() == [3, 11]
     assert acc["noise_mm"] == pytest.approx(np.sqrt(3) * s, rel=0.25)
     predicted = np.sqrt(np.mean(acc["data"][1] ** 2) + acc["noise_mm"] ** 2)
     measured = np.sqrt(np.nanmean(np.asarray(acc["heldout"]) ** 2))
     assert 0.6 < predicted / measured < 1.6
-    huber = jaxcal.calibrate_data(ur5, data, folds=UR5_TRACKER["folds"], params="all", loss="huber", loss_scale=1.0)
+    clean = jaxcal.Measurements(q, sim.measured[0, :, None, :3, 3])
+    huber = jaxcal.calibrate_data(ur5, clean, folds=UR5_TRACKER["folds"], params="all", loss="huber", loss_scale=1.0)
     assert huber.report["noise_pos_mm"] == pytest.approx(s, rel=0.25)  # a given loss scale does not set it
