@@ -11,6 +11,7 @@ from .._io import json_text
 from ..camera import n_params as camera_size
 from ..model import Layout, Model, measured_robot, observed, predict
 from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
+from ..solvers import robust_scale
 from . import _core as core
 from . import _outliers as outliers
 from . import _selection as selection
@@ -63,15 +64,13 @@ class DataCalibration:
         return json_text(self.report)
 
 
-def _noise(pos_err, flags) -> float:
-    """The final fit's position noise per coordinate (mm), from the median of its position errors
-    on the poses fitted: the norm of three coordinates of noise ``s`` has median
-    ``s sqrt(chi2_3 median)``. Neither outliers nor a given loss scale move it, unlike
+def _noise(pos_err, flags, sigma_mm: float) -> float:
+    """The final fit's position noise per coordinate (mm): :func:`jaxcal.solvers.robust_scale` of
+    its position errors (three coordinates each) on the poses fitted, in units of the weight
+    ``sigma_mm`` as the detector's. Neither outliers nor a given loss scale move it, unlike
     ``sigma_pos_mm`` (the fits' weight: the frames-only residual, the robot's own errors too)."""
-    from scipy.stats import chi2
-
-    e = np.asarray(pos_err, float)[~np.asarray(flags, bool)]
-    return float(np.nanmedian(e) / np.sqrt(chi2.ppf(0.5, 3)))
+    e = np.asarray(pos_err, float)[~np.asarray(flags, bool)].ravel()
+    return float(robust_scale(e[np.isfinite(e)] / sigma_mm, 3)) * sigma_mm
 
 
 def _rms(v) -> float:
@@ -370,7 +369,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         "camera_model_option": opts.camera,
         "camera_parameters": {k: {"value": f.deltas[k][0], "std_error": f.deltas[k][1]} for k in f.cam_names} or None,
         "sigma_pos_mm": float(fr.sig[-1, 0]),
-        "noise_pos_mm": _noise(fin["pos_err"][0], last.flags[0]),
+        "noise_pos_mm": _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0])),
         "sigma_rot_deg": float(np.degrees(fr.sig[-1, 1])) if p.n_points == 0 else None,
         "parameters": {
             k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in f.deltas.items() if k not in f.cam_names
