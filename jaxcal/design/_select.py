@@ -59,9 +59,10 @@ def _loss_terms(problem: DesignProblem, logdet, tr_a, tr_v):
     return jnp.sum(jnp.where(problem.weights > 0, terms, 0.0), -1)
 
 
-def _swap_losses(problem: DesignProblem, Mi_base, L: Float[Array, "P r b"]):
-    """Loss of ``Mi_base + A_j`` for every pool pose ``j`` (Woodbury, module docstring)."""
-    C = jnp.linalg.cholesky(Mi_base)
+def _swap_losses(problem: DesignProblem, Mi_base, L: Float[Array, "P r b"], C=None):
+    """Loss of ``Mi_base + A_j`` for every pool pose ``j`` (Woodbury, module docstring); ``C``
+    the Cholesky factor of ``Mi_base`` when the caller has it."""
+    C = jnp.linalg.cholesky(Mi_base) if C is None else C
     Ci = jax.scipy.linalg.solve_triangular(C, jnp.eye(C.shape[0]), lower=True)
     Minv = Ci.T @ Ci
     F = problem.val_factor
@@ -136,8 +137,9 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
 
         def slot(i):
             Mi = M - A[ch[i]]
-            s = _swap_losses(problem, Mi, L)
-            d = jnp.diagonal(jnp.linalg.cholesky(Mi))
+            C = jnp.linalg.cholesky(Mi)
+            s = _swap_losses(problem, Mi, L, C)
+            d = jnp.diagonal(C)
             regular = jnp.all(jnp.isfinite(d)) & (jnp.min(d) ** 2 > SINGULAR * jnp.max(d) ** 2)
             s = jax.lax.cond(regular & jnp.any(jnp.isfinite(s)), lambda: s, lambda: _direct_losses(problem, Mi, A))
             ok = allowed & ~in_set & (n_close - close[:, ch[i]] == 0)
