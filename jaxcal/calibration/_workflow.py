@@ -398,7 +398,7 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)
     p, lin, final, per_fold, fits = _fitted(p, fr)
-    back = _readmitted(p, fits)
+    back = _readmitted(p, fr, final, fits)
     if back.any():  # poses the detector's model could not fit but the calibrated one predicts
         p = dataclasses.replace(p, valid=p.valid | back)
         fr = _frames(p)
@@ -472,11 +472,28 @@ def _wider(p: _Problem, fit: Model, sig):
     )
 
 
-def _readmitted(p: _Problem, fits) -> np.ndarray:
+def _readmitted(p: _Problem, fr: _Frames, final: _Selected, fits) -> np.ndarray:
     """``(K,)`` the poses left out as outliers that the final model, fitted without them, predicts
-    within the outlier threshold: the detector's model (held by its prior) could not fit an arm far
-    from its nominal, and its residual made clean poses look gross."""
+    within the outlier threshold, each in the spread of its own prediction
+    (:func:`_prediction_spread`): the detector's model (held by its prior) could not fit an arm far
+    from its nominal, or a posture alone at the end of a joint's range, and its residual made clean
+    poses look gross."""
     if p.valid.all():
         return np.zeros(len(p.q), bool)
     fin = {k: np.asarray(fits[k])[-1:] for k in ("pos_norms", "rot_norms")}  # all poses' fit
-    return ~p.valid & ~outliers.judged(fin, p.target, p.n_points, p.opts).flags[0]
+    det = outliers.judged(fin, p.target, p.n_points, p.opts)
+    return ~p.valid & ~(det.sigmas[0] > det.threshold[0] * _prediction_spread(p, fr, final, fits))
+
+
+def _prediction_spread(p: _Problem, fr: _Frames, final: _Selected, fits) -> np.ndarray:
+    """``(K,)`` each pose's prediction error in units of the noise of its rows, ``sqrt(1 + h_k)``,
+    ``h_k`` the mean over its rows of ``J_k C J_k^T``, ``C`` the final fit's parameter covariance
+    per unit noise (its weighted normal equations over the poses it was fitted on, with its
+    priors): a posture the other poses barely constrain is predicted only as well as the
+    parameters it alone pins down are known, so a miss beyond the noise alone is no gross error."""
+    lin, _ = _linear(p, core.member(fits["model"], -1), fr.sig[[-1]])
+    free = final.prior < PIN
+    J = lin.J[:, :, free]
+    N = np.einsum("kri,krj->ij", J[p.valid], J[p.valid]) + np.diag(final.prior[free] ** 2)
+    h = np.einsum("kri,ij,krj->kr", J, np.linalg.pinv(N), J)
+    return np.sqrt(1.0 + h.sum(1) / np.maximum(lin.seen.sum(1), 1))
