@@ -14,7 +14,8 @@ from jaxcal.calibration import _outliers as outliers
 from jaxcal.calibration import calibrate, calibrate_batch
 from jaxcal.simulation import simulate
 
-TIAGO = Path(jaxcal.__file__).parent / "data" / "tiago_mocap"
+ROOT = Path(__file__).resolve().parents[2]
+TIAGO = ROOT / "jaxcal" / "data" / "tiago_mocap"
 K, NOISE = 60, 0.02  # 60 poses: the pose bucket (64) of other tests' fits, one compile for both
 
 
@@ -350,46 +351,22 @@ def test_clean_poses_of_an_arm_far_from_its_nominal_are_not_left_out():
 def test_a_clean_posture_alone_at_the_end_of_a_range_is_not_left_out():
     """The bundled TIAGo's 37 real postures (row 20 alone has arm_3 at -2.85 rad, row 8 arm_5 at
     -1.69), every joint origin of the URDF off by 1-3 mm and 1-5 mrad, four points, 0.25 mm noise,
-    no outlier; forward kinematics by yourdfpy. The detector's prior-held misfit at such postures is
-    beyond the threshold, and the model fitted without them misses them by more than the noise,
-    but no more than the other poses leave its parameters in doubt there (its prediction's
-    spread): they are clean, and taken back."""
-    import io
-    import xml.etree.ElementTree as ET
+    no outlier; forward kinematics by yourdfpy (docs/studies/simulated_sessions.py's arm). The
+    detector's prior-held misfit at such postures is beyond the threshold, and the model fitted
+    without them misses them by more than the noise, but no more than the other poses leave its
+    parameters in doubt there (its prediction's spread): they are clean, and taken back."""
+    import importlib.util
 
-    import yourdfpy
-    from scipy.spatial.transform import Rotation
-
-    rng = np.random.default_rng(4)
-    root = ET.parse(TIAGO / "tiago_arm.urdf").getroot()
-    for j in root.iter("joint"):
-        if j.get("type") == "fixed":
-            continue
-        o = j.find("origin")
-        xyz = np.array(o.get("xyz").split(), float) + rng.choice([-1, 1], 3) * rng.uniform(1e-3, 3e-3, 3)
-        turn = Rotation.from_rotvec(rng.choice([-1, 1], 3) * rng.uniform(1e-3, 5e-3, 3))
-        rpy = (Rotation.from_euler("xyz", np.array(o.get("rpy").split(), float)) * turn).as_euler("xyz")
-        o.set("xyz", " ".join(f"{v:.17g}" for v in xyz))
-        o.set("rpy", " ".join(f"{v:.17g}" for v in rpy))
-    true = yourdfpy.URDF.load(io.StringIO(ET.tostring(root, encoding="unicode")), load_meshes=False)
+    spec = importlib.util.spec_from_file_location("simulated_sessions", ROOT / "docs/studies/simulated_sessions.py")
+    sessions = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sessions)
     rows = np.genfromtxt(TIAGO / "training.csv", delimiter=",", names=True)
-    joints = ["torso_lift_joint"] + [f"arm_{i}_joint" for i in range(1, 8)]
-    q = np.stack([rows[n] for n in joints], 1)
-    offsets = np.r_[0.0, rng.uniform(-2e-3, 2e-3, 7)]
-    frame = np.eye(4)
-    frame[:3, :3], frame[:3, 3] = Rotation.from_euler("xyz", [0.02, -0.03, 0.6]).as_matrix(), [1500.0, -900.0, 250.0]
-    markers = np.array([[64.5, 2.2, 68.7], [77.8, -3.6, -88.9], [170.4, -1.6, -58.6], [168.4, 5.4, 48.5]])
-    points = []
-    for qk in q + offsets:
-        true.update_cfg(dict(zip(joints, qk)))
-        T = np.array(true.get_transform("wrist_ft_tool_link", "base_footprint"))
-        T[:3, 3] *= 1e3
-        T = frame @ T
-        points.append(markers @ T[:3, :3].T + T[:3, 3] + rng.normal(0, 0.25, (4, 3)))
+    q = np.stack([rows[n] for n in sessions.JOINTS], 1)
+    rng = np.random.default_rng(4)
+    points = sessions.points(sessions.Arm(rng), q, None, sessions.FRAME, rng)
     q_mm = q * np.r_[1e3, np.ones(7)]  # the torso slides: mm inside
     robot = jaxcal.load_robot(TIAGO / "tiago_arm.urdf")
-    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q_mm, np.array(points))).report
-    assert rep["outliers"] == []
+    assert jaxcal.calibrate_data(robot, jaxcal.Measurements(q_mm, points)).report["outliers"] == []
 
 
 def test_marker_labels_swapped_in_many_rows_are_named_as_a_swap():
