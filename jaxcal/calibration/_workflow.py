@@ -493,7 +493,8 @@ def _prediction_spread(p: _Problem, fr: _Frames, final: _Selected, fits) -> np.n
     parameters it alone pins down are known, so a miss beyond the noise alone is no gross error."""
     lin, _ = _linear(p, core.member(fits["model"], -1), fr.sig[[-1]])
     free = final.prior < PIN
+    A = selection.sums(lin, p.valid[None].astype(float))[0][0]
+    N = A[np.ix_(free, free)] + np.diag(final.prior[free] ** 2)
     J = lin.J[:, :, free]
-    N = np.einsum("kri,krj->ij", J[p.valid], J[p.valid]) + np.diag(final.prior[free] ** 2)
     h = np.einsum("kri,ij,krj->kr", J, np.linalg.pinv(N), J)
     return np.sqrt(1.0 + h.sum(1) / np.maximum(lin.seen.sum(1), 1))
