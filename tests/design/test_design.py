@@ -419,6 +419,38 @@ def test_matching_count_interpolates_and_extrapolates_in_log_count():
     assert design.matching_count(five, [2, 2, 3, 4, 5], 1.0) == pytest.approx(5.0)  # at the smallest count
 
 
+def test_the_report_shows_a_bound_beyond_the_largest_count_and_a_dash_where_none_can_be_told():
+    """The 'random poses to match' cell: a count within those drawn is interpolated (RMS as
+    K^-1/2, so 4x the information of 10 poses is 40), one beyond the largest drawn is only its
+    bound, and a criterion whose random figures are singular at all but one count has none."""
+    counts = [10, 20, 30]
+    validation = [1 / np.sqrt(k) for k in counts]
+    d = design.PoseDesign(
+        q=np.zeros((12, 2)),
+        criterion="validation",
+        values={"log_det": 100.0, "a_trace": 0.5, "validation_rms_mm": 1 / np.sqrt(25.0)},
+        random_values={"log_det": np.zeros(3), "a_trace": np.ones(3), "validation_rms_mm": np.ones(3)},
+        method="pool",
+        base_names=("a", "b"),
+        feasible=True,
+        min_distance=0.1,
+        random_by_count={
+            "counts": counts,
+            "log_det": [1.0, 2.0, 3.0],  # 100 is far beyond: extrapolated past 30
+            "a_trace": [np.inf, np.inf, 0.1],  # singular at 10 and 20: one count left
+            "validation_rms_mm": validation,
+        },
+    )
+    cells = {line[:44].strip(): line[-22:].strip() for line in d.report().splitlines()[2:5]}
+    assert cells == {
+        "log det information (D, larger is better)": "> 30",
+        "trace of scaled covariance (A)": "-",
+        "expected validation RMS, mm (CRLB)": "25.0",
+    }
+    assert d.equivalent_random_poses("validation") == pytest.approx(25.0, rel=1e-12)
+    assert np.isnan(d.to_dict()["equivalent_random_poses"]["a"])
+
+
 def test_a_position_only_design_without_a_point_is_for_a_marker_off_the_last_axis(robot):
     """The tool origin of a DH flange lies on the last joint's axis, where a point hides that
     joint's parameters (22 base parameters instead of 26) and the bound is some 20 % optimistic
