@@ -348,13 +348,16 @@ def test_clean_poses_of_an_arm_far_from_its_nominal_are_not_left_out():
     assert rep["outlier_detection"]["noise_pos_mm"] < 0.03 and rep["heldout_rms_mm"] < 0.06
 
 
-def test_a_clean_posture_alone_at_the_end_of_a_range_is_not_left_out():
+@pytest.mark.parametrize("seed", [4, [0, 0]])
+def test_a_clean_posture_alone_at_the_end_of_a_range_is_not_left_out(seed):
     """The bundled TIAGo's 37 real postures (row 20 alone has arm_3 at -2.85 rad, row 8 arm_5 at
     -1.69), every joint origin of the URDF off by 1-3 mm and 1-5 mrad, four points, 0.25 mm noise,
     no outlier; forward kinematics by yourdfpy (docs/studies/simulated_sessions.py's arm). The
     detector's prior-held misfit at such postures is beyond the threshold, and the model fitted
     without them misses them by more than the noise, but no more than the other poses leave its
-    parameters in doubt there (its prediction's spread): they are clean, and taken back."""
+    parameters in doubt there (its prediction's spread): they are clean, and taken back. With the
+    second arm, row 20 is predicted within the threshold only by the model refitted with the poses
+    taken back first: the second look is made again after each refit."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("simulated_sessions", ROOT / "docs/studies/simulated_sessions.py")
@@ -362,7 +365,7 @@ def test_a_clean_posture_alone_at_the_end_of_a_range_is_not_left_out():
     spec.loader.exec_module(sessions)
     rows = np.genfromtxt(TIAGO / "training.csv", delimiter=",", names=True)
     q = np.stack([rows[n] for n in sessions.JOINTS], 1)
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(seed)
     points = sessions.points(sessions.Arm(rng), q, None, sessions.FRAME, rng)
     q_mm = q * np.r_[1e3, np.ones(7)]  # the torso slides: mm inside
     robot = jaxcal.load_robot(TIAGO / "tiago_arm.urdf")
