@@ -27,39 +27,18 @@ The best candidate of each cut (known only afterwards) gives the "oracle" line.
     python docs/studies/camera_selection.py > docs/studies/camera_selection.txt
 """
 
-import dataclasses
 from collections import Counter
 
 import numpy as np
+from scoring_rule import problem
 
 import jaxcal
-from jaxcal.calibration import _core as core
 from jaxcal.calibration import _selection as selection
-from jaxcal.calibration import _workflow as workflow
-from jaxcal.calibration._options import make_options
 from jaxcal.calibration._single import prior_of
 from jaxcal.measurements import franka_csv_path
 from jaxcal.solvers import PIN
 
 CUTS, SEED, FOLDS = 60, 11, 5
-
-
-def problem():
-    """The workflow's problem with every camera model, outliers left out, linearised at the
-    frames-only fit of all poses (the stages of ``calibrate_data``)."""
-    robot = jaxcal.preset("panda")
-    meas = jaxcal.read_measurements(franka_csv_path(), robot, length_unit="m")
-    opts = make_options(None, dict(camera="auto"), camera_auto=True)
-    p = workflow._prepare(robot, meas, opts, None)
-    fr = workflow._frames(p)
-    det = workflow._outliers_found(p, fr)
-    p = dataclasses.replace(p, valid=~det.flags[0])
-    fr = workflow._frames(p)
-    ref = fr.member(-1)
-    J = np.asarray(core.analyse(ref, p.layout, p.q)[0])
-    w = core.weights_of(p.layout, fr.sig[[-1]])[0]
-    lin = selection.linearise(J, np.asarray(workflow._errors(ref, p.q, p.target)), w, p.n_points)
-    return p, lin, J
 
 
 def candidates(p, lever, camera_prior: bool):
@@ -125,7 +104,8 @@ def prune_by_score(lin, rule, free, prior, pen):
 
 
 def main():
-    p, lin, J = problem()
+    panda = jaxcal.preset("panda")
+    p, lin, J = problem(panda, jaxcal.read_measurements(franka_csv_path(), panda, length_unit="m"), camera="auto")
     q, clean = np.asarray(p.q), p.valid
     lever = selection.lever(J[clean], p.n_points)
     complexity = [c.complexity for c in p.candidates]

@@ -11,50 +11,47 @@ over many cuts, the mean tomorrow error of the model it chooses, the regret (tha
 the best candidate's), and the rank correlation of its score with the tomorrow error; then each
 candidate's mean tomorrow error, and the tomorrow error of jaxcal's choice after its pruning
 (:data:`jaxcal.calibration._selection.PRUNE_SE`: 0 is no pruning beyond 1 %, 0.5 jaxcal's, 1 the
-full one-standard-error rule). All on the problem linearised at the frames-only fit, as the
+full one-standard-error rule), and that of two fixed candidates pruned as jaxcal prunes
+its choice. All on the problem linearised at the frames-only fit, as the
 selection itself runs.
 
     python docs/studies/scoring_rule.py > docs/studies/scoring_rule.txt
 """
+
+import dataclasses
 
 import numpy as np
 from scipy.stats import spearmanr
 
 import jaxcal
 from jaxcal.calibration import _selection as selection
-from jaxcal.calibration._param_sets import parse_params
-from jaxcal.calibration._single import make_layout, prior_of
-from jaxcal.model import errors, jacobian
-from jaxcal.solvers import PIN
+from jaxcal.calibration import _workflow as workflow
+from jaxcal.calibration._options import make_options
+from jaxcal.measurements import franka_csv_path
 
 CUTS, SEED, FOLDS = 60, 11, 5
 PRUNE_SE = (0.0, 0.5, 1.0)
+FIXED = ("all, prior 1 mm", "all, prior 3 mm")
+"""Candidates also pruned on their own, whatever the rule chooses."""
 
 
 def data_sets():
     tiago = jaxcal.load_robot("jaxcal/data/tiago_mocap/tiago_arm.urdf")
     yield "TIAGo (4 points)", tiago, jaxcal.read_measurements("jaxcal/data/tiago_mocap/training.csv", tiago)
     panda = jaxcal.preset("panda")
-    path = "jaxcal/data/franka_panda_camera/measurements.csv"
-    yield "Franka Panda (poses)", panda, jaxcal.read_measurements(path, panda, length_unit="m")
+    yield "Franka Panda (poses)", panda, jaxcal.read_measurements(franka_csv_path(), panda, length_unit="m")
 
 
-def candidates(robot, meas):
-    """The linearised problem and the auto candidates' free sets and priors (compliance included)."""
-    opts = jaxcal.Options(compliance="auto")
-    n_points = meas.n_points
-    res = jaxcal.calibrate(robot, meas.q, meas.measured, params="frames")
-    layout = make_layout(robot, opts, n_points, compliance=True)
-    ref = res.model
-    J = np.asarray(jacobian(ref, layout, meas.q))
-    w = np.r_[np.full(3, 1 / res.sigma_pos_mm), np.full(3, 1 / res.sigma_rot_rad)] if n_points == 0 else None
-    w = np.full(layout.rows, 1 / res.sigma_pos_mm) if w is None else w
-    lin = selection.linearise(J, np.asarray(errors(ref, meas.q, meas.measured)), w, n_points)
-    ident = jaxcal.calibration.identify(robot, meas.q, opts, n_points=n_points, compliance="yes")
-    lever = selection.lever(J, n_points)
-    cands = parse_params("auto", robot, compliance=True)
-    full = np.stack([prior_of(layout, ident, c, lever=lever) for c in cands])
-    return lin, cands, full < PIN, np.where(full < PIN, full, 0.0)
+def problem(robot, meas, **options):
+    """``calibrate_data``'s problem (its stages, :mod:`jaxcal.calibration._workflow`): the outliers
+    its detection finds left out, linearised at the frames-only fit of the other poses; ``(p, lin,
+    J)``."""
+    p = workflow._prepare(robot, meas, make_options(None, options, camera_auto=True), None)
+    det = workflow._outliers_found(p, workflow._frames(p))
+    p = dataclasses.replace(p, valid=~det.flags[0])
+    fr = workflow._frames(p)
+    lin, J = workflow._linear(p, fr.member(-1), fr.sig[[-1]])
+    return p, lin, np.asarray(J)
 
 
 def tomorrow_error(lin, today, tomorrow, free, prior):
@@ -63,39 +60,48 @@ def tomorrow_error(lin, today, tomorrow, free, prior):
     return np.sqrt(np.nanmean(e**2, axis=(1, 2)))
 
 
-def study(name, robot, meas, rng):
-    lin, cands, free, prior = candidates(robot, meas)
-    names, complexity = [c.name for c in cands], [c.complexity for c in cands]
-    q, K = np.asarray(meas.q), len(meas.q)
-    found = jaxcal.calibrate(robot, q, meas.measured, ridge_mm=1.0, compliance="yes").outliers
-    clean = ~np.isin(np.arange(K), found)  # the poses calibrate_data would keep
+def cut(q, valid, rng):
+    """One pseudo-session: ``(today, tomorrow)`` among the ``valid`` poses."""
     moving = [j for j in range(q.shape[1]) if np.ptp(q[:, j]) > 1e-9]
+    j, hi = moving[rng.integers(len(moving))], bool(rng.integers(2))
+    lim = np.quantile(q[:, j], 0.8 if hi else 0.2)
+    beyond = q[:, j] > lim if hi else q[:, j] < lim
+    tomorrow = (beyond | (rng.uniform(size=len(q)) < 0.2)) & valid
+    return ~tomorrow & valid, tomorrow
+
+
+def study(name, robot, meas, rng):
+    p, lin, J = problem(robot, meas)
+    names = [c.name for c in p.candidates]
+    q, K = np.asarray(p.q), len(p.q)
     rules = ("K-fold", "K-fold + range ends", "K-fold + range ends, one-SE (jaxcal)")
     rows, truths, pruned = {r: [] for r in rules}, [], {v: [] for v in PRUNE_SE}
-    penalised = prior[[c.name for c in cands].index("all, prior 1 mm")] > 0
+    fixed = {names.index(n): [] for n in FIXED}
     for _ in range(CUTS):
-        j, hi = moving[rng.integers(len(moving))], bool(rng.integers(2))
-        lim = np.quantile(q[:, j], 0.8 if hi else 0.2)
-        beyond = q[:, j] > lim if hi else q[:, j] < lim
-        tomorrow = (beyond | (rng.uniform(size=K) < 0.2)) & clean
-        today = ~tomorrow & clean
+        today, tomorrow = cut(q, p.valid, rng)
+        seed = int(rng.integers(1 << 30))
+        for v in PRUNE_SE:  # the workflow's selection (stage 4) on today's poses
+            selection.PRUNE_SE, keep = v, selection.PRUNE_SE
+            sel = workflow._select(p, lin, J, today, seed)
+            selection.PRUNE_SE = keep
+            free, prior, ch = sel.free, sel.priors, sel.choice
+            pruned[v].append(tomorrow_error(lin, today, tomorrow, ch.free[None], prior[ch.index][None])[0])
         truth = tomorrow_error(lin, today, tomorrow, free, prior)
         truths.append(truth)
-        rule = selection.Rule.of(lin, q, today, FOLDS, int(rng.integers(1 << 30)))
+        rule = selection.Rule.of(lin, q, today, FOLDS, seed)
         a, b = selection.score_parts(lin, rule, free, prior)
         mixed = np.sqrt(0.5 * a**2 + 0.5 * b**2)
-        best = int(np.nanargmin(mixed))
-        se = selection.score_error(lin, rule, free[best], prior[best])[1]
-        picks = (int(np.nanargmin(a)), best, selection.choose(mixed, complexity, se))
-        for r, s, c in zip(rules, (a, mixed, mixed), picks):
-            rows[r].append((truth[c], truth[c] - np.nanmin(truth), spearmanr(s, truth).statistic))
-        for v in PRUNE_SE:
-            selection.PRUNE_SE, keep = v, selection.PRUNE_SE
-            ch = selection.select(lin, rule, free, prior, complexity, penalised)
-            selection.PRUNE_SE = keep
-            pruned[v].append(tomorrow_error(lin, today, tomorrow, ch.free[None], prior[ch.index][None])[0])
+        for r, sc, c in zip(rules, (a, mixed, mixed), (int(np.nanargmin(a)), int(np.nanargmin(mixed)), ch.index)):
+            rows[r].append((truth[c], truth[c] - np.nanmin(truth), spearmanr(sc, truth).statistic))
+        penalised = np.zeros(lin.m, bool)
+        penalised[: p.layout.n_kin] = True
+        penalised[list(p.layout.compliances)] = True
+        for c in fixed:
+            start = float(selection.score(lin, rule, free[c][None], prior[c][None])[0])
+            kept = selection.prune(lin, rule, free[c], prior[c], penalised, start)[0]
+            fixed[c].append(tomorrow_error(lin, today, tomorrow, kept[None], prior[c][None])[0])
     print(
-        f"\n{name}: {K} poses ({len(found)} outliers left out), {len(names)} candidates, {CUTS} cuts "
+        f"\n{name}: {K} poses ({int((~p.valid).sum())} outliers left out), {len(names)} candidates, {CUTS} cuts "
         "(tomorrow: ~20 % beyond one range end + 20 % of the rest)"
     )
     print(f"{'rule':>40s} {'tomorrow RMS of choice (mm)':>28s} {'regret (mm)':>12s} {'rank correlation':>17s}")
@@ -110,6 +116,9 @@ def study(name, robot, meas, rng):
     print(f"{'pruning of the choice (PRUNE_SE)':>40s} {'tomorrow RMS (mm)':>28s}")
     for v, e in pruned.items():
         print(f"{v:>40g} {np.mean(e):28.3f}")
+    print(f"{'candidate, pruned (PRUNE_SE 0.5)':>40s} {'tomorrow RMS (mm)':>28s}")
+    for c, e in fixed.items():
+        print(f"{names[c]:>40s} {np.mean(e):28.3f}")
 
 
 def main():

@@ -14,7 +14,8 @@ between sessions a motion-capture frame moved by 0.3-1 mm and 0.2-0.4 mrad.
 Models: ``jaxcal calibrate``'s default (``calibrate_data``), the same with the outliers' second
 look in the plain threshold (a left-out pose's prediction spread taken as 1), ``--params all``
 and ``--params offsets``. For each: the RMS of point 1's error (mm) over the later sessions,
-beyond the training ranges, and the poses the default left out.
+beyond the training ranges, and the poses each left out (file row, and in brackets its
+error in standard deviations of the noise).
 
     python docs/studies/simulated_sessions.py > docs/studies/simulated_sessions.txt
 """
@@ -138,7 +139,7 @@ def fits(robot, meas):
             res = jaxcal.calibrate_data(robot, meas, **kw)
         finally:
             _workflow._prediction_spread = spread
-        out[name] = (res.model, [o["row"] for o in res.report["outliers"]])
+        out[name] = (res.model, [f"{o['row']} ({o['sigmas']:.0f})" for o in res.report["outliers"]])
     return out
 
 
@@ -184,6 +185,7 @@ def main():
                 e = np.linalg.norm(np.asarray(predict(model, ql * to_mm))[:, 0] - p1, axis=-1)
                 rms, far = float(np.sqrt(np.mean(e**2))), float(np.sqrt(np.mean(e[out] ** 2)))
                 table.setdefault((scenario, name), []).append((rms, far))
+                left = ", ".join(left) or "-"
                 print(f"{scenario:>16s} {seed:>4d} {name:>28s} {rms:>15.3f} {far:>12.3f}  {left}", flush=True)
     print(f"\nmean over seeds {list(SEEDS)}")
     print(f"{'scenario':>16s} {'model':>28s} {'later RMS (mm)':>15s} {'beyond (mm)':>12s}")
