@@ -143,6 +143,10 @@ class BatchResult:
     far from its file), fitted again with the set identifiable at their fit, as
     :func:`calibrate` does; ``x`` keeps the batch's layout, with the parameters that set holds
     at 0."""
+    estimated: np.ndarray | None = None
+    """``(R, m)``: the parameters each data set estimated (:attr:`CalibrationResult.free` as a
+    mask); the others are held at 0 in ``x``. A member in :attr:`rechosen` has its own. None for
+    the elimination methods."""
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -612,6 +616,7 @@ def calibrate_batch(
         devices=tuple(describe(devs)),
         problems=problems,
         rechosen=rechosen,
+        estimated=np.asarray(prior) < PIN,
     )
 
 

@@ -108,3 +108,7 @@ def test_calibrate_batch_chooses_the_set_again_for_a_member_that_ran_there(far_a
     assert _error_on_new_postures(apply(start, res.layout, res.x[1]), q, nominal) < 0.03
     offsets = [i for i, n in enumerate(res.names) if n.startswith("offset")]
     assert np.all(np.abs(res.x[:, offsets]) <= np.pi)  # the refit can wander by turns: wrapped, as calibrate's
+    for r, data in enumerate((gross, noisy[:N_TRAIN])):  # each member's own set, as calibrate's fit of it
+        assert np.flatnonzero(res.estimated[r]).tolist() == list(calibrate(robot, q[:N_TRAIN], data).free)
+        assert np.all(res.x[r, ~res.estimated[r]] == 0.0)
+    assert (res.estimated[0] != res.estimated[1]).any()
