@@ -14,6 +14,7 @@ import dataclasses
 
 import jax
 import numpy as np
+from jaxtyping import Bool
 
 from .._config import as_f64
 from ..camera import n_params as camera_size
@@ -143,10 +144,10 @@ class BatchResult:
     far from its file), fitted again with the set identifiable at their fit, as
     :func:`calibrate` does; ``x`` keeps the batch's layout, with the parameters that set holds
     at 0."""
-    estimated: np.ndarray | None = None
-    """``(R, m)``: the parameters each data set estimated (:attr:`CalibrationResult.free` as a
-    mask); the others are held at 0 in ``x``. A member in :attr:`rechosen` has its own. None for
-    the elimination methods."""
+    estimated: Bool[np.ndarray, "R m"] | None = None
+    """The parameters each data set estimated (:attr:`CalibrationResult.free` as a mask); the
+    others are held at 0 in ``x``. A member in :attr:`rechosen` has its own; one named in
+    :attr:`problems` or :attr:`nonfinite` none. None for the elimination methods."""
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -616,7 +617,7 @@ def calibrate_batch(
         devices=tuple(describe(devs)),
         problems=problems,
         rechosen=rechosen,
-        estimated=np.asarray(prior) < PIN,
+        estimated=(np.asarray(prior) < PIN) & ~(nonfinite | np.array([bool(p) for p in problems]))[:, None],
     )
 
 

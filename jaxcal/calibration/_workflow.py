@@ -398,21 +398,14 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)
     p, lin, final, per_fold, fits = _fitted(p, fr)
-    for _ in range(READMIT_ROUNDS):  # poses the detector's model could not fit but the calibrated one predicts
-        back = _readmitted(p, fr, final, fits)
-        if not back.any():
-            break
+    # poses the detector's model could not fit but the calibrated one predicts; each refit predicts
+    # the poses still left out anew, so it looks again (the poses kept only grow: it ends)
+    while (back := _readmitted(p, fr, final, fits)).any():
         p = dataclasses.replace(p, valid=p.valid | back)
         fr = _frames(p)
         # a set chosen at the fit may be singular at the nominal: from the last fit
         p, lin, final, per_fold, fits = _fitted(p, fr, fits["x"] if p.ident is not nominal_set else None)
     return report_of(p, fr, det, lin, final, per_fold, fits)
-
-
-READMIT_ROUNDS = 3
-"""Most second looks (:func:`_readmitted`), each followed by a refit: the model refitted with the
-poses taken back predicts the others anew, and one it now predicts within the threshold must not
-stay out."""
 
 
 def _fitted(p: _Problem, fr: _Frames, x0=None):

@@ -420,9 +420,10 @@ def test_matching_count_interpolates_and_extrapolates_in_log_count():
 
 
 def test_the_report_shows_a_bound_beyond_the_largest_count_and_a_dash_where_none_can_be_told():
-    """The 'random poses to match' cell: a count within those drawn is interpolated (RMS as
-    K^-1/2, so 4x the information of 10 poses is 40), one beyond the largest drawn is only its
-    bound, and a criterion whose random figures are singular at all but one count has none."""
+    """The 'random poses to match' cell: a count within those drawn is interpolated (random
+    medians of RMS 1/sqrt(K), so the design's 1/5 is matched by 25 poses), one beyond the largest
+    drawn is only its bound, and a criterion whose random figures are singular at all but one
+    count has none."""
     counts = [10, 20, 30]
     validation = [1 / np.sqrt(k) for k in counts]
     d = design.PoseDesign(
