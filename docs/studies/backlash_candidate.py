@@ -2,12 +2,13 @@
 
 A joint with backlash sits at one end of its play or the other, by the sign of the load on it:
 ``q_i + b_i sign(tau_i(q))``, ``tau_i`` the gravity moment of :func:`jaxcal.kinematics.gravity_moments`
-(a unit weight at the tool) and ``b_i`` one unknown per revolute joint. Its identification column
-is the joint offset's times ``sign(tau_i)``. This study adds those columns to the problem
+(a unit weight at the tool) and ``b_i`` one unknown per joint whose moment changes sign over the
+data (where it keeps one sign, the term is the joint's offset). Its identification column is the
+joint offset's times ``sign(tau_i)``. This study adds those columns to the problem
 ``calibrate_data`` selects on (``scoring_rule.problem``: linearised at the frames-only fit, its
-outliers left out) and the
-candidates ``all + backlash`` under a prior of 1 and 3 mm (the columns under the same physically
-scaled prior) and none, on the pseudo-sessions of ``docs/studies/scoring_rule.py`` (same cuts).
+outliers left out) and the candidates ``all + backlash`` under a prior of 1 and 3 mm (the columns
+under the same physically scaled prior) and none, on the pseudo-sessions of
+``docs/studies/scoring_rule.py`` (same cuts).
 It reports each candidate's mean tomorrow error and that of the model jaxcal's rule chooses (not
 pruned) among the usual candidates and among them with the backlash ones.
 
@@ -30,7 +31,7 @@ def backlash_columns(robot, p, lin, J):
     offset = "offset" if robot.convention == "joint" else "theta"
     sign = np.sign(np.asarray(gravity_moments(robot, p.q)))
     cols = [(p.layout.names().index(f"{offset}{i + 1}"), sign[:, i]) for i in range(robot.n_joints)]
-    cols = [(j, s) for j, s in cols if np.any(s)]
+    cols = [(j, s) for j, s in cols if (s > 0).any() and (s < 0).any()]  # else the offset's own column
     return tuple(np.stack([A[:, :, j] * s[:, None] for j, s in cols], -1) for A in (lin.J, J))
 
 
@@ -56,7 +57,8 @@ def study(name, robot, meas, rng):
             P.append(np.r_[sel.priors[i], np.zeros(n) if s is None else lever / s])
             C.append((C[i][0] + 2000, C[i][1]))
         F, P = np.array(F), np.array(P)
-        truth = tomorrow_error(lin2, today, tomorrow, F, P)
+        usual = tomorrow_error(lin, today, tomorrow, sel.free, sel.priors)  # as scoring_rule's
+        truth = np.r_[usual, tomorrow_error(lin2, today, tomorrow, F[len(names) :], P[len(names) :])]
         truths.append(truth)
         rule = selection.Rule.of(lin2, q, today, FOLDS, seed)
         every = selection.select(lin2, rule, F, P, C, np.zeros(lin2.m, bool))  # unpruned: nothing prunable
