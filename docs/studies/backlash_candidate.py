@@ -16,7 +16,7 @@ pruned) among the usual candidates and among them with the backlash ones.
 """
 
 import numpy as np
-from scoring_rule import CUTS, FOLDS, SEED, cut, data_sets, problem, tomorrow_error
+from scoring_rule import CUTS, FOLDS, cut, problem, run, tomorrow_error
 
 from jaxcal.calibration import _selection as selection
 from jaxcal.calibration import _workflow as workflow
@@ -74,11 +74,5 @@ def study(name, robot, meas, rng):
         print(f"{way:>40s} {np.mean(v):24.3f}")
 
 
-def main():
-    rng = np.random.default_rng(SEED)
-    for name, robot, meas in data_sets():
-        study(name, robot, meas, rng)
-
-
 if __name__ == "__main__":
-    main()
+    run(study)

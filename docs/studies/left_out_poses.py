@@ -19,7 +19,7 @@ of tomorrow's poses (the faults included, which no model predicts).
 """
 
 import numpy as np
-from scoring_rule import CUTS, SEED, cut, data_sets, problem
+from scoring_rule import CUTS, cut, problem, run
 
 from jaxcal.calibration import _selection as selection
 from jaxcal.calibration import _workflow as workflow
@@ -61,11 +61,5 @@ def study(name, robot, meas, rng):
         print(f"{w:>26s} {rows:>32s} {m[0]:25.3f} {m[1]:19.3f}")
 
 
-def main():
-    rng = np.random.default_rng(SEED)
-    for name, robot, meas in data_sets():
-        study(name, robot, meas, rng)
-
-
 if __name__ == "__main__":
-    main()
+    run(study)

@@ -123,11 +123,12 @@ def study(name, robot, meas, rng):
         print(f"{names[c]:>40s} {np.mean(e):28.3f}")
 
 
-def main():
+def run(study):
+    """``study(name, robot, meas, rng)`` on each data set, one seeded stream of cuts."""
     rng = np.random.default_rng(SEED)
     for name, robot, meas in data_sets():
         study(name, robot, meas, rng)
 
 
 if __name__ == "__main__":
-    main()
+    run(study)

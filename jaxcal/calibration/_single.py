@@ -601,7 +601,8 @@ def calibrate_batch(
         idx = np.flatnonzero(rechosen)
         x[idx] = core.relative_x(robot, layout, core.wrapped(core.take(b["model"], idx), robot))
     x[nonfinite] = 0.0
-    ok = np.asarray(b["converged"]) & ~nonfinite & ~np.array([bool(p) for p in problems])
+    failed = nonfinite | np.array([bool(p) for p in problems])
+    ok = np.asarray(b["converged"]) & ~failed
     share = det.flags.mean(-1)
     return BatchResult(
         x=x,
@@ -617,7 +618,7 @@ def calibrate_batch(
         devices=tuple(describe(devs)),
         problems=problems,
         rechosen=rechosen,
-        estimated=(np.asarray(prior) < PIN) & ~(nonfinite | np.array([bool(p) for p in problems]))[:, None],
+        estimated=(np.asarray(prior) < PIN) & ~failed[:, None],
     )
 
 
