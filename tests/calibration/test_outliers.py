@@ -369,7 +369,8 @@ def test_a_clean_posture_alone_at_the_end_of_a_range_is_not_left_out(seed):
     points = sessions.points(sessions.Arm(rng), q, None, sessions.FRAME, rng)
     q_mm = q * np.r_[1e3, np.ones(7)]  # the torso slides: mm inside
     robot = jaxcal.load_robot(TIAGO / "tiago_arm.urdf")
-    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q_mm, points)).report
+    data = jaxcal.Measurements(q_mm, points)
+    rep = jaxcal.calibrate_data(robot, data, nested_max_poses=0).report  # held-out figures not checked: off
     assert rep["outliers"] == []
     assert 20 in rep["outlier_detection"]["taken_back_rows"]  # flagged by the detection first: named
 
