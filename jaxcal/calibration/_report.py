@@ -390,6 +390,11 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         "notes": list(still_joint_notes(robot, q)) + list(p.notes) + [n for n in [_odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h)
+    if back := rep["outlier_detection"]["taken_back_rows"]:
+        rep["notes"].append(
+            f"taken back: row(s) {', '.join(map(str, back))}, flagged by the outlier detection, are predicted "
+            "by the calibrated model within the threshold in the spread of their own prediction, and fitted"
+        )
     if p.n_points:
         rep["points_mm"] = np.asarray(f.model.points).tolist()
         rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.nanmean(h["pe"][p.valid] ** 2, 0))]

@@ -386,12 +386,6 @@ def show_outliers(rep: dict) -> None:
     d, found = rep["outlier_detection"], rep["outliers"]
     noise = f"{d['noise_pos_mm']:.3g} mm" + (f", {d['noise_rot_deg']:.3g} deg" if d.get("noise_rot_deg") else "")
     rule = f"a residual beyond {d['threshold_sigmas']:.3g} sigma of the noise ({noise} per coordinate, robust)"
-    back = d.get("taken_back_rows") or []
-    if back:
-        console.print(
-            f"taken back: row(s) {', '.join(map(str, back))}, flagged by the detection, are predicted by the "
-            "calibrated model within the threshold in the spread of their own prediction, and fitted"
-        )
     if not found:
         console.print(f"outliers: none ({rule})")
         return

@@ -218,13 +218,6 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
             if outliers is not None
             else "<p>No outlier analysis in this report.</p>"
         )
-    back = (rep.get("outlier_detection") or {}).get("taken_back_rows") or []
-    if back:
-        parts.append(
-            f"<p>Taken back by the second look: rows {', '.join(map(str, back))}, flagged by the detection, "
-            "are predicted by the calibrated model within the threshold in the spread of their own "
-            "prediction, and fitted.</p>"
-        )
     parts.append("<h2>Accuracy map</h2>")
     if result.covariance is not None:
         acc = accuracy_map(result, data.q, workspace_poses=workspace_poses, seed=seed)

@@ -372,7 +372,8 @@ def test_a_clean_posture_alone_at_the_end_of_a_range_is_not_left_out(seed):
     data = jaxcal.Measurements(q_mm, points)
     rep = jaxcal.calibrate_data(robot, data, nested_max_poses=0).report  # held-out figures not checked: off
     assert rep["outliers"] == []
-    assert 20 in rep["outlier_detection"]["taken_back_rows"]  # flagged by the detection first: named
+    back = rep["outlier_detection"]["taken_back_rows"]  # flagged by the detection first: named
+    assert 20 in back and any(n.startswith(f"taken back: row(s) {', '.join(map(str, back))},") for n in rep["notes"])
 
 
 def test_marker_labels_swapped_in_many_rows_are_named_as_a_swap():

@@ -173,16 +173,3 @@ def test_four_points_with_occluded_markers(tmp_path, monkeypatch, capsys):
     row4 = next(p for p in ev["poses"] if p["row"] == 4)
     assert row4["error_mm"][1] is None and all(v is not None for v in row4["error_mm"][::2])
     assert np.isfinite(ev["position_rms_mm"]) and len(ev["lost_points"]) == 3
-
-
-def test_the_poses_taken_back_are_named_with_the_outliers(capsys):
-    """Poses the detection flagged and the second look took back are named on the terminal, as
-    the report lists them, whether or not any outlier is left."""
-    from jaxcal.cli._calibrate import show_outliers
-
-    d = {"noise_pos_mm": 0.25, "threshold_sigmas": 7.34, "excluded": True, "heldout_rms_mm_all_poses": 1.0}
-    show_outliers({"outliers": [], "outlier_detection": d | {"taken_back_rows": [8, 20]}})
-    out = capsys.readouterr().out
-    assert "taken back: row(s) 8, 20, flagged by the detection" in out and "outliers: none" in out
-    show_outliers({"outliers": [], "outlier_detection": d | {"taken_back_rows": []}})
-    assert "taken back" not in capsys.readouterr().out
