@@ -364,15 +364,17 @@ def save_model(
     base_link=None,
     tip_link=None,
     training_ranges: dict | None = None,
+    point_numbers=None,
 ):
     """Write a model atomically: a URDF (``.urdf``, joint-frame robots; ``template`` the nominal
     URDF whose other links it keeps) or a TOML robot file, with the measured points and the
-    ``training_ranges`` it was fitted on (:func:`jaxcal.robot.read_training_ranges`). The camera
+    ``training_ranges`` it was fitted on (:func:`jaxcal.robot.read_training_ranges`), and the
+    points' ``point_numbers`` in the data file (:func:`jaxcal.robot.read_point_numbers`). The camera
     model's unknowns are a sensor's, not the robot's, and are not written."""
     from .robot import save_robot
 
     pts = np.asarray(model.points) if model.n_points else None
     save_robot(
         model.robot, path, comment=comment, points=pts, template=template, base_link=base_link, tip_link=tip_link,
-        training_ranges=training_ranges,
+        training_ranges=training_ranges, point_numbers=point_numbers,
     )  # fmt: skip

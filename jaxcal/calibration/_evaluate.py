@@ -191,8 +191,8 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             if M == 0
             else " (choose the file's point it was fitted on: --points J)"
             if model.n_points == 1
-            else f" (choose the file's {model.n_points} points it was fitted on: --points with {model.n_points} "
-            f"numbers, such as --points {','.join(str(j) for j in range(1, model.n_points + 1))})"
+            else f" (choose the file's {model.n_points} points it was fitted on: --points with the "
+            f"{model.n_points} numbers calibrate was given)"
             if 1 < model.n_points < M
             else ""
         )

@@ -181,6 +181,8 @@ def calibrate(
         "convention": res.robot.convention,
         "gauge": JOINT_GAUGE if res.robot.convention == "joint" else GAUGE,
     }
+    # the data file's number of each point, so that evaluate and compensate read the same ones
+    numbers = (meas.point_numbers or tuple(range(1, meas.n_points + 1))) if meas.n_points else None
     if out_robot is not None and nominal.convention != "joint":
         several = res.model.n_points > 1  # no one point is the tool: they are written beside it
         # one point is the tool's origin, written as the point (0, 0, 0): the file then says that
@@ -188,7 +190,7 @@ def calibrate(
         points = np.asarray(res.model.points) if several else np.zeros((res.model.n_points, 3))
         save_robot(
             res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
-            training_ranges=res.training_ranges, points=points,
+            training_ranges=res.training_ranges, points=points, point_numbers=numbers,
         )  # fmt: skip
         console.print(f"calibrated robot written to {out_robot}")
         if res.model.n_points == 1:
@@ -211,7 +213,7 @@ def calibrate(
         model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
         save_model(
             model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link,
-            training_ranges=res.training_ranges,
+            training_ranges=res.training_ranges, point_numbers=numbers,
         )  # fmt: skip
         console.print(f"calibrated model written to {path}")
     if json_out is not None:

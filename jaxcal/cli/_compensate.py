@@ -22,7 +22,8 @@ def compensate(
     angle_unit: str = typer.Option(None, help="rad | deg (default: the robot file's); also the unit written to --out"),
     point: int = typer.Option(
         None,
-        help="a model with measured points (--out-model): the point to bring to the targets (default: its only one)",
+        help="a model with measured points (--out-model): the point to bring to the targets, by its number in the "
+        "data file it was fitted to (default: its only one)",
     ),
 ):
     """Joint commands that make the calibrated model reach the targets (damped Newton IK), on
@@ -108,6 +109,7 @@ def _target_frame(model, calibrated: str, point: int | None, *, commands_only: b
 
     from ..errors import DataError
     from ..model import Model, measured_robot
+    from ..robot import PRESETS, read_point_numbers
 
     M = model.n_points
     if point is not None and (M == 0 or commands_only):
@@ -115,12 +117,21 @@ def _target_frame(model, calibrated: str, point: int | None, *, commands_only: b
         raise DataError(f"--point: {calibrated} {why}", option="point")
     if M == 0 or commands_only:
         return model.robot
+    # the points by their numbers in the data file, where the model file records them
+    numbers = None if calibrated in PRESETS else read_point_numbers(calibrated)
+    numbers = list(numbers) if numbers is not None and len(numbers) == M else list(range(1, M + 1))
+    named = ", ".join(map(str, numbers))
     if point is None and M > 1:
         raise DataError(
-            f"{calibrated} measures {M} points: choose the one the targets are for with --point 1..{M}", option="point"
+            f"{calibrated} measures {M} points (the data file's {named}): choose the one the targets are for with "
+            f"--point",
+            option="point",
         )
-    j = 1 if point is None else point
-    if not 1 <= j <= M:
-        raise DataError(f"--point {j}: {calibrated} measures points 1..{M}", option="point")
-    console.print(f"compensating measured point {j} of {M} (the targets are where it should go)", highlight=False)
-    return measured_robot(Model(model.robot, np.asarray(model.points)[[j - 1]]))
+    j = numbers[0] if point is None else point
+    if j not in numbers:
+        raise DataError(f"--point {j}: {calibrated} measures the data file's point(s) {named}", option="point")
+    console.print(
+        f"compensating measured point {j} (the model's points: {named}; the targets are where it should go)",
+        highlight=False,
+    )
+    return measured_robot(Model(model.robot, np.asarray(model.points)[[numbers.index(j)]]))

@@ -27,7 +27,8 @@ def evaluate(
     json_out: Path = typer.Option(None, "--json", help="write the JSON report here"),
     points: str = typer.Option(
         None,
-        help="score only these measured points, e.g. 1 or 1,3 (default: all; a one-point model: the one it fitted)",
+        help="score only these of the file's measured points, e.g. 1 or 1,3 (default: the ones the model was "
+        "fitted on, as its file records them; else all)",
     ),
     length_unit: str = typer.Option(None, help="m | mm (default: the model file's)"),
     angle_unit: str = typer.Option(None, help="rad | deg (default: the model file's)"),
@@ -44,11 +45,18 @@ def evaluate(
 
     if json_out is not None:
         check_writable(json_out, "json_out")
-    from ..robot import PRESETS, preset, read_training_ranges
+    from ..robot import PRESETS, preset, read_point_numbers, read_training_ranges
 
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
     m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
     chosen = None if points is None else parse_points(points)
+    src, header, _ = read_table(data, "")
+    in_file = len(measurement_columns(header, src)[0])
+    recorded = None if nominal else read_point_numbers(model)
+    if recorded is not None and len(recorded) == m.n_points:
+        m, chosen = _recorded_points(m, model, recorded, chosen, in_file)
+    elif chosen is not None and 1 < m.n_points == in_file:  # the model's points are the file's
+        m = Model(m.robot, np.asarray(m.points)[[p - 1 for p in chosen]], m.camera_params, camera=m.camera)
     # chosen before the unit checks, so that a point left out (a lost marker's sentinel) is not read
     meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     train = None
@@ -59,10 +67,6 @@ def evaluate(
         have = len(measurement_columns(header, src)[0])
         same = chosen if chosen is not None and max(chosen) <= have else None
         train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same)
-    if chosen is not None and m.n_points > 1:
-        src, header, _ = read_table(data, "")
-        if m.n_points == len(measurement_columns(header, src)[0]):  # the model's points are the file's
-            m = Model(m.robot, np.asarray(m.points)[[p - 1 for p in chosen]], m.camera_params, camera=m.camera)
     rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
     table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
     for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
@@ -87,3 +91,23 @@ def evaluate(
     if json_out is not None:
         write_atomic(json_out, json_text(rep))
         console.print(f"report written to {json_out}")
+
+
+def _recorded_points(m, path: Path, recorded: tuple[int, ...], chosen, in_file: int):
+    """The model's points and the file's to score, where the model file records the data file's
+    number of each of its points: those by default, or the ones of them ``chosen``."""
+    from ..errors import DataError
+    from ..model import Model
+
+    if chosen is None:
+        # a file with fewer points than the numbers name is another export: its points are read as they are
+        return m, (list(recorded) if max(recorded) <= in_file else None)
+    missing = [j for j in chosen if j not in recorded]
+    if missing:
+        raise DataError(
+            f"--points {','.join(map(str, missing))}: {path} was fitted on the data file's point(s) "
+            f"{','.join(map(str, recorded))} only",
+            option="points",
+        )
+    keep = [recorded.index(j) for j in chosen]
+    return Model(m.robot, np.asarray(m.points)[keep], m.camera_params, camera=m.camera), chosen

@@ -9,10 +9,10 @@ import numpy as np
 
 from ..errors import RobotFileError
 from ._robot import ANGLE_UNITS, LENGTH_UNITS, Robot
-from ._toml import read_toml, save_toml, training_ranges_toml
+from ._toml import point_numbers_toml, read_toml, save_toml, training_ranges_toml
 from ._ur import read_ur_kinematics
 from ._urdf import calibrated_chain as _urdf_chain
-from ._urdf import read_urdf, save_urdf, training_ranges_urdf
+from ._urdf import point_numbers_urdf, read_urdf, save_urdf, training_ranges_urdf
 
 
 def _is_urdf(path) -> bool:
@@ -49,6 +49,15 @@ def read_training_ranges(path) -> dict | None:
     return training_ranges_urdf(path) if _is_urdf(path) else training_ranges_toml(path)
 
 
+def read_point_numbers(path) -> tuple[int, ...] | None:
+    """The data file's number of each measured point a calibrated model holds, as its file
+    records them (``(1, 3)`` for a fit with ``--points 1,3``), or ``None`` (no points, a nominal
+    file, a UR kinematics file)."""
+    if _is_yaml(path):
+        return None
+    return point_numbers_urdf(path) if _is_urdf(path) else point_numbers_toml(path)
+
+
 def load_robot(path, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:
     """Read a robot file: TOML (a DH table, :mod:`jaxcal.robot._toml`), URDF (the chain from
     ``base_link`` to ``tip_link``, :mod:`jaxcal.robot._urdf`) or a UR kinematics file (``.yaml``,
@@ -66,11 +75,13 @@ def save_robot(
     base_link: str | None = None,
     tip_link: str | None = None,
     training_ranges: dict | None = None,
+    point_numbers=None,
 ) -> None:
     """Write a robot file atomically: URDF for a path ending in ``.urdf`` (a joint-frame robot;
     ``template`` the nominal URDF whose chain it keeps), TOML otherwise (a DH robot). ``points``
     (mm, tool frame) are written with it, and ``training_ranges`` (joint name -> ``(lowest,
-    highest)``, mm and rad: :func:`read_training_ranges`)."""
+    highest)``, mm and rad: :func:`read_training_ranges`), and ``point_numbers``, the data
+    file's number of each point (:func:`read_point_numbers`)."""
     points = None if points is None or not len(np.asarray(points)) else np.asarray(points)
     if _is_urdf(path):
         if robot.convention != "joint":
@@ -79,7 +90,7 @@ def save_robot(
             )
         save_urdf(
             robot, path, points=points, template=template, base_link=base_link, tip_link=tip_link, comment=comment,
-            training_ranges=training_ranges,
+            training_ranges=training_ranges, point_numbers=point_numbers,
         )  # fmt: skip
     else:
         if training_ranges:
@@ -87,4 +98,4 @@ def save_robot(
             kind = dict(zip(robot.joint_names, robot.joint_types))
             file = {n: [v / (au if kind[n] == "R" else lu) for v in r] for n, r in training_ranges.items()}
             comment = dict(comment or {}) | {"training_ranges": file}
-        save_toml(robot, path, comment=comment, points=points)
+        save_toml(robot, path, comment=comment, points=points, point_numbers=point_numbers)

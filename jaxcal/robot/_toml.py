@@ -40,7 +40,8 @@ from ._robot import DEFAULT_LIMITS, Robot
 from ._robot import LENGTH_UNITS as LENGTH
 
 TOP_KEYS = {
-    "name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points", "load"
+    "name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points", "load",
+    "point_numbers",
 }  # fmt: skip
 JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits", "compliance"}
 FRAME_KEYS = {"xyz", "rpy"}
@@ -168,13 +169,41 @@ def read_toml(path) -> tuple[Robot, np.ndarray | None]:
     if not isinstance(pts, list) or not all(isinstance(p, list) and len(p) == 3 for p in pts):
         raise RobotFileError(f"{path}: points must be a list of [x, y, z]")
     lu = LENGTH[robot.units[0]]
+    _numbers(doc, len(pts), path)
     return robot, np.array([[_num(v, f"points[{i}]") * lu for v in p] for i, p in enumerate(pts)])
 
 
-def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> dict:
+def _numbers(doc: dict, n_points: int, path) -> tuple[int, ...] | None:
+    """``point_numbers``, checked: the data file's number of each of the ``points``."""
+    if "point_numbers" not in doc:
+        return None
+    v = doc["point_numbers"]
+    if (
+        not isinstance(v, list)
+        or len(v) != n_points
+        or not all(isinstance(j, int) and not isinstance(j, bool) and j >= 1 for j in v)
+        or len(set(v)) != len(v)
+    ):
+        raise RobotFileError(
+            f"{path}: point_numbers must list the data file's number (1, 2, ...) of each of the {n_points} "
+            f"points, each once; got {v!r}"
+        )
+    return tuple(v)
+
+
+def point_numbers_toml(path) -> tuple[int, ...] | None:
+    """The data file's number of each measured point a calibrated robot file holds
+    (``point_numbers``), or ``None``."""
+    with Path(path).open("rb") as f:
+        doc = tomllib.load(f)
+    return _numbers(doc, len(doc.get("points", [])), path)
+
+
+def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None, point_numbers=None) -> dict:
     """A TOML-ready document in the robot's own units (``robot.units``, full float precision);
     ``comment`` adds a ``[calibration]`` table that says how the values were obtained,
-    ``points`` the measured points on the tool (mm in, the file's unit out)."""
+    ``points`` the measured points on the tool (mm in, the file's unit out), ``point_numbers``
+    their numbers in the data file they were fitted to (so that a subset is scored as itself)."""
     if robot.convention == "joint":
         raise RobotFileError("a joint-frame robot is written as URDF (a path ending in .urdf)")
     lu_name, au_name = robot.units
@@ -213,6 +242,8 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None) -> 
             }
     if points is not None and len(points):
         doc["points"] = [[float(v) / lu for v in p] for p in np.asarray(points)]
+        if point_numbers is not None:
+            doc["point_numbers"] = [int(j) for j in point_numbers]
     if comment:
         doc["calibration"] = dict(comment)
     return doc
@@ -238,7 +269,8 @@ def training_ranges_toml(path) -> dict | None:
     return out
 
 
-def save_toml(robot: Robot, path, *, comment: dict | None = None, points=None) -> None:
+def save_toml(robot: Robot, path, *, comment: dict | None = None, points=None, point_numbers=None) -> None:
     """Write a robot TOML file in the robot's own units, atomically (a reader never sees half a
     file, and an existing file is replaced only once the new one is complete)."""
-    write_atomic(path, tomli_w.dumps(robot_to_dict(robot, comment=comment, points=points)))
+    doc = robot_to_dict(robot, comment=comment, points=points, point_numbers=point_numbers)
+    write_atomic(path, tomli_w.dumps(doc))

@@ -16,12 +16,14 @@ stays the file's root, and three kinds of link are added, fixed joints only:
   the frame the data were measured in, wherever the base link sits in the tree;
 * ``jaxcal_tool`` under the chain's tip link (the calibrated tool frame; identity when it did
   not change);
-* ``jaxcal_point1..M`` under ``jaxcal_tool``: the measured points.
+* ``jaxcal_point<J>`` under ``jaxcal_tool``: the measured points, ``J`` each one's number in
+  the data file (``jaxcal_point1`` and ``jaxcal_point3`` for a fit to its points 1 and 3,
+  which ``<jaxcal_point_numbers numbers="1 3"/>`` records).
 
 These links are the file's record of its chain: reading a file that has them takes the chain
 from the measurement frame's parent to ``jaxcal_tool`` with no link options (options given must
 name that chain), and any URDF parser's transform from ``jaxcal_measurement_frame`` to
-``jaxcal_point1`` is what was measured. Files of the earlier layout (the measurement frame as
+``jaxcal_point<J>`` is what was measured of point ``J``. Files of the earlier layout (the measurement frame as
 the root, above the base link; ``jaxcal_tool`` only where the tool changed) read the same way.
 """
 
@@ -45,6 +47,9 @@ RANGE = "jaxcal_training_range"
 COMPLIANCE = "jaxcal_compliance"
 """Element of a calibrated file holding a joint's compliance (:attr:`jaxcal.Robot.compliance`,
 in rad per metre of gravity moment arm)."""
+POINT_NUMBERS = "jaxcal_point_numbers"
+"""Element of a calibrated file holding the data file's number of each measured point (files
+without it, of an earlier layout, do not say which of the data's points they were fitted on)."""
 TOOL_LINK = "jaxcal_tool"
 POINT_LINK = "jaxcal_point"
 MOVABLE = {"revolute": "R", "continuous": "R", "prismatic": "P"}
@@ -346,6 +351,19 @@ def training_ranges_urdf(path) -> dict | None:
     return out or None
 
 
+def point_numbers_urdf(path) -> tuple[int, ...] | None:
+    """The data file's number of each measured point a calibrated file holds (its
+    ``<jaxcal_point_numbers>``, in the order :func:`read_urdf` reads the points), or ``None``."""
+    from lxml import etree  # yourdfpy's XML library
+
+    for el in etree.parse(str(path)).getroot().iter(POINT_NUMBERS):
+        text = (el.get("numbers") or "").split()
+        if not text or not all(t.isdigit() and int(t) >= 1 for t in text) or len(set(text)) != len(text):
+            raise RobotFileError(f"{path}: <{POINT_NUMBERS} numbers=...> needs distinct numbers 1, 2, ...")
+        return tuple(int(t) for t in text)
+    return None
+
+
 def urdf_text(
     robot: Robot,
     *,
@@ -355,6 +373,7 @@ def urdf_text(
     tip_link=None,
     comment: dict | None = None,
     training_ranges: dict | None = None,
+    point_numbers=None,
 ) -> str:
     """The URDF of a joint-frame ``robot`` (see the module docstring): the ``template`` file it
     was read from (with the same ``base_link`` and ``tip_link``), every element kept as it was
@@ -426,10 +445,14 @@ def urdf_text(
     fixed(base_link, MEASUREMENT_FRAME, np.linalg.inv(np.asarray(robot.base)))
     tool = np.linalg.solve(nominal_tool, np.asarray(robot.tool))
     fixed(tip_link, TOOL_LINK, np.eye(4) if np.allclose(tool, np.eye(4), atol=1e-12, rtol=0) else tool)
-    for k, p in enumerate(np.zeros((0, 3)) if points is None else np.asarray(points), start=1):
+    pts = np.zeros((0, 3)) if points is None else np.asarray(points)
+    # each point's link is named by its number in the data file, so that a subset reads back as itself
+    for k, p in zip(range(1, len(pts) + 1) if point_numbers is None else point_numbers, pts):
         T = np.eye(4)
         T[:3, 3] = p
         fixed(TOOL_LINK, f"{POINT_LINK}{k}", T)
+    if point_numbers is not None and len(pts):
+        root.append(etree.Element(POINT_NUMBERS, numbers=" ".join(str(int(j)) for j in point_numbers)))
     if robot.compliance is not None:  # not URDF's: an element of jaxcal's own, other readers skip it
         for nm, c in zip(robot.joint_names, np.asarray(robot.compliance)):
             root.append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM)))
@@ -452,7 +475,7 @@ def _drop_ours(root) -> None:
     elements."""
     for el in list(root):
         ours = (
-            el.tag in (COMPLIANCE, RANGE)
+            el.tag in (COMPLIANCE, RANGE, POINT_NUMBERS)
             or (el.tag == "link" and _is_ours(el.get("name", "")))
             or (el.tag == "joint" and any(_is_ours(c.get("link", "")) for c in el if c.tag in ("parent", "child")))
         )
@@ -509,7 +532,16 @@ def _tool_of(doc, last_joint: str, tip_link: str) -> np.ndarray:
 
 
 def save_urdf(
-    robot: Robot, path, *, points=None, template=None, base_link=None, tip_link=None, comment=None, training_ranges=None
+    robot: Robot,
+    path,
+    *,
+    points=None,
+    template=None,
+    base_link=None,
+    tip_link=None,
+    comment=None,
+    training_ranges=None,
+    point_numbers=None,
 ) -> None:
     """Write :func:`urdf_text` atomically."""
     text = urdf_text(
@@ -520,5 +552,6 @@ def save_urdf(
         tip_link=tip_link,
         comment=comment,
         training_ranges=training_ranges,
+        point_numbers=point_numbers,
     )
     write_atomic(path, text)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from helpers import run_cli
 
-from jaxcal import load_model, read_measurements
+from jaxcal import load_model, read_measurements, save_model
 from jaxcal.measurements import tiago_paths
 from jaxcal.model import predict
 
@@ -74,14 +74,34 @@ def test_calibrate_then_evaluate(monkeypatch, capsys, split):
 
 
 def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):
+    """A model fitted on the file's marker 2 records it: evaluate scores marker 2 by default, as
+    yourdfpy's forward kinematics of the written file does, and refuses marker 1; a file that
+    does not record its points' numbers is refused, not scored on a guess."""
+    import yourdfpy
+
     d = split
     code, out, err = run_cli(
         monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--params", "frames", "--folds", "3",
-        "--points", "2", "--out-model", d / "one.urdf",
+        "--points", "2", "--out-model", d / "one.urdf", "--json", d / "one.json",
     )  # fmt: skip
     assert code in (0, None), err
-    assert load_model(d / "one.urdf").n_points == 1
-    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "one.urdf", d / "test.csv")
+    assert load_model(d / "one.urdf").n_points == 1 and json.loads((d / "one.json").read_text())["point_numbers"] == [2]
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "one.urdf", d / "test.csv", "--json", d / "e.json")
+    assert code in (0, None), err
+    ev = json.loads((d / "e.json").read_text())
+    data = read_measurements(d / "test.csv", load_model(d / "one.urdf").robot)
+    urdf = yourdfpy.URDF.load(str(d / "one.urdf"), load_meshes=False)
+    names = ["torso_lift_joint"] + [f"arm_{i}_joint" for i in range(1, 8)]
+    err_mm = []
+    for qk, p in zip(np.asarray(data.q), np.asarray(data.measured)[:, 1]):  # the file's marker 2
+        urdf.update_cfg(dict(zip(names, np.r_[qk[0] / 1000.0, qk[1:]])))  # the torso in metres
+        err_mm.append(np.linalg.norm(urdf.get_transform("jaxcal_point2", "jaxcal_measurement_frame")[:3, 3] * 1e3 - p))
+    assert [p["point"] for p in ev["points"]] == [2]
+    assert ev["position_rms_mm"] == pytest.approx(np.sqrt(np.mean(np.square(err_mm))), rel=1e-9)
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "one.urdf", d / "test.csv", "--points", "1")
+    assert code == 2 and "--points 1: " in err and "fitted on the data file's point(s) 2 only" in err
+    save_model(load_model(d / "one.urdf"), d / "bare.urdf", template=URDF)  # no record of the numbers
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "bare.urdf", d / "test.csv")
     assert code == 2 and "the data measure 4 point(s) per pose, the model predicts 1 point(s)" in err
     code, out, err = run_cli(
         monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--points", "5", "--out-model", d / "bad.urdf"
@@ -99,9 +119,9 @@ def test_output_kind_is_checked_before_the_fit(monkeypatch, capsys, split):
 
 
 def test_compensate_brings_the_measured_point_to_the_targets(monkeypatch, capsys, split, tmp_path):
-    """A model calibrated on one marker: `compensate` brings that marker (the link
-    jaxcal_point1, as yourdfpy reads the written URDF) to the targets, not the tool frame the
-    points hang from; a model of four markers asks which one."""
+    """A model calibrated on the file's marker 2: `compensate` brings that marker (the link
+    jaxcal_point2, named by its number in the data file, as yourdfpy reads the written URDF) to
+    the targets, not the tool frame the points hang from; a model of four markers asks which one."""
     import yourdfpy
 
     d = split
@@ -120,16 +140,20 @@ def test_compensate_brings_the_measured_point_to_the_targets(monkeypatch, capsys
     code, out, err = run_cli(
         monkeypatch, capsys, "compensate", tmp_path / "p2.urdf", tmp_path / "targets.csv", "--out", tmp_path / "q.csv"
     )
-    assert "compensating measured point 1 of 1" in out
+    assert "compensating measured point 2 (the model's points: 2;" in out
     got = np.loadtxt(tmp_path / "q.csv", delimiter=",", skiprows=1)
     urdf = yourdfpy.URDF.load(str(tmp_path / "p2.urdf"), load_meshes=False)
     names = header.split(",")[:8]
     for qk, t, reached in zip(got[:, :8], targets, got[:, -2]):
         urdf.update_cfg(dict(zip(names, qk)))
-        T = urdf.get_transform("jaxcal_point1", "jaxcal_measurement_frame")
+        T = urdf.get_transform("jaxcal_point2", "jaxcal_measurement_frame")
         assert reached == 1 and np.linalg.norm(T[:3, 3] - t) * 1000 < 1e-6
     from jaxcal import Model, load_robot, save_model
 
     save_model(Model(load_robot(URDF), np.eye(4)[:, :3] * 50.0), tmp_path / "p4.urdf", template=URDF)
     code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "p4.urdf", tmp_path / "targets.csv")
-    assert code == 2 and "--point 1..4" in err
+    assert code == 2 and "4 points (the data file's 1, 2, 3, 4): choose the one" in err and "--point" in err
+    code, out, err = run_cli(
+        monkeypatch, capsys, "compensate", tmp_path / "p2.urdf", tmp_path / "targets.csv", "--point", "1"
+    )
+    assert code == 2 and "--point 1: " in err and "measures the data file's point(s) 2" in err

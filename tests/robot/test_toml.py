@@ -145,3 +145,23 @@ def test_training_ranges_round_trip_in_the_files_units(tmp_path):
         assert back[n] == pytest.approx(ranges[n], rel=1e-14)
     save_robot(r, tmp_path / "plain.toml")
     assert read_training_ranges(tmp_path / "plain.toml") is None
+
+
+@pytest.mark.parametrize(
+    "numbers, ok", [([1, 3], True), ([3], False), ([1, 1], False), ([0, 2], False), ([1, True], False)]
+)
+def test_point_numbers_are_checked_against_the_points(tmp_path, numbers, ok):
+    """``point_numbers`` names each point's number in the data file: one distinct number >= 1 per
+    point, or the file is refused naming the key; a file without points' numbers records none."""
+    from jaxcal.robot import read_point_numbers
+
+    text = "points = [[0.01, 0.0, 0.0], [0.0, 0.02, 0.0]]\n"  # top-level keys come before the tables
+    path = tmp_path / "p.toml"
+    path.write_text(text + f"point_numbers = {str(numbers).replace('True', 'true')}\n" + PAPER_TOML)
+    if ok:
+        assert read_point_numbers(path) == tuple(numbers) and load_robot(path).n_joints == 6
+    else:
+        with pytest.raises(RobotFileError, match="point_numbers"):
+            load_robot(path)
+    path.write_text(text + PAPER_TOML)
+    assert read_point_numbers(path) is None
