@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import re
+from pathlib import Path
 
 import typer
 from rich.console import Console
@@ -27,6 +28,30 @@ says ``--poses`` for ``n_poses``)."""
 
 def flag(option: str) -> str:
     return COMMAND_FLAGS.get(option) or FLAGS.get(option, "--" + option.replace("_", "-"))
+
+
+def check_outputs(outputs: dict, inputs: dict) -> None:
+    """Each of ``outputs`` (option name -> path or None; ``plots``, a folder) writable
+    (:func:`jaxcal._io.check_writable`), none of them one of the ``inputs`` (how the command names
+    it -> path, preset name or None) and no two of them one file: else a :class:`DataError` naming
+    both, before any work (an output would silently replace the data it was computed from, or
+    another output)."""
+    from .._io import check_writable
+    from ..errors import DataError
+
+    given = {k: Path(v) for k, v in outputs.items() if v is not None}
+    for name, path in given.items():
+        check_writable(path / "x.png" if name == "plots" else path, name)
+    read = {k: Path(v).resolve() for k, v in inputs.items() if v is not None and Path(v).is_file()}
+    seen: dict[Path, str] = {}
+    for name, path in given.items():
+        where = path.resolve()
+        for other, src in read.items():
+            if where == src:
+                raise DataError(f"{name} {path}: is the {other} file; it would be overwritten", option=name)
+        if where in seen:
+            raise DataError(f"{name} {path}: is also {flag(seen[where])}; each output needs its own file", option=name)
+        seen[where] = name
 
 
 def say_error(message: str, option: str | None) -> str:

@@ -8,7 +8,17 @@ import typer
 from rich.table import Table
 
 from ..calibration import Options
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg, lost_notes, parse_points, progress
+from ._app import (
+    BASE_LINK_HELP,
+    TIP_LINK_HELP,
+    app,
+    check_outputs,
+    console,
+    load_robot_arg,
+    lost_notes,
+    parse_points,
+    progress,
+)
 
 _D = Options()
 
@@ -109,7 +119,7 @@ def calibrate(
     """Calibrate from measured data with K-fold held-out validation (base and tool estimated)."""
     import numpy as np
 
-    from .._io import check_writable, write_atomic
+    from .._io import write_atomic
     from ..calibration import GAUGE, JOINT_GAUGE, calibrate_data
     from ..errors import DataError, ImplausibleFitError
     from ..export import check_dh, check_ur
@@ -119,9 +129,7 @@ def calibrate(
 
     outputs = {"json_out": json_out, "out_robot": out_robot, "out_model": out_model, "plots": plots}
     outputs |= {"out_ur_kinematics": out_ur_kinematics, "out_dh": out_dh, "report": report}
-    for name, path in outputs.items():
-        if path is not None:
-            check_writable(path / "x.png" if name == "plots" else path, name)
+    check_outputs(outputs, {"robot": robot, "data": data})
     nominal = load_robot_arg(robot, base_link, tip_link)
     if out_ur_kinematics is not None:
         check_ur(nominal, "out_ur_kinematics")

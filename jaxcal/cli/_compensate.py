@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import app, console, load_robot_arg
+from ._app import app, check_outputs, console, load_robot_arg
 
 
 @app.command()
@@ -30,13 +30,12 @@ def compensate(
     the branch of the nominal commands and checked against the joint limits."""
     import numpy as np
 
-    from .._io import check_writable, write_atomic
+    from .._io import write_atomic
     from ..compensation import compensate_targets, orientation_note, read_targets
     from ..measurements import unit_scale
     from ..robot import ANGLE_UNITS, LENGTH_UNITS, calibrated_chain
 
-    if out is not None:
-        check_writable(out, "out")
+    check_outputs({"out": out}, {"calibrated robot": calibrated, "targets": targets, "--nominal": nominal})
     model = _model_of(calibrated)
     nom = None
     if nominal is not None:  # a nominal URDF: the chain the calibrated URDF records

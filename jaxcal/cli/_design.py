@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import BASE_LINK_HELP, COMMAND_FLAGS, TIP_LINK_HELP, app, console, load_robot_arg
+from ._app import BASE_LINK_HELP, COMMAND_FLAGS, TIP_LINK_HELP, app, check_outputs, console, load_robot_arg
 from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, numbers, read_poses_for, region_arg, view_arg
 
 
@@ -68,7 +68,7 @@ def design(
     chosen from a pool; compared with random poses of the same count."""
     import numpy as np
 
-    from .._io import check_writable, json_text, write_atomic
+    from .._io import json_text, write_atomic
     from ..design import DEFAULT_POINT_MM, design_problem, optimal_poses, select_poses, write_poses
     from ..errors import DataError
 
@@ -76,9 +76,8 @@ def design(
         n_poses="--poses", sigma_pos_mm="--noise-mm", sigma_rot_rad="--noise-rad", n_random="--random-sets",
         n_val="--val-poses",
     )  # fmt: skip
-    check_writable(out, "out")
-    if json_out is not None:
-        check_writable(json_out, "json_out")
+    inputs = {"robot": robot, "--pool": pool, "--validation": validation, "--params-from": params_from}
+    check_outputs({"out": out, "json_out": json_out}, inputs)
     r = load_robot_arg(robot, base_link, tip_link)
     box, cone = region_arg(region), view_arg(view)
     points = [numbers(p, 3, "point") for p in point] if point else None

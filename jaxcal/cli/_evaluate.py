@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, lost_notes, parse_points
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, check_outputs, console, lost_notes, parse_points
 
 
 def _fmt(v):
@@ -38,13 +38,12 @@ def evaluate(
     """Predict a data file's measurements with a saved model (frames included, nothing
     re-fitted) and report the errors in mm (rotation in deg)."""
 
-    from .._io import check_writable, json_text, write_atomic
+    from .._io import json_text, write_atomic
     from ..calibration import evaluate as run
     from ..measurements import measurement_columns, read_measurements, read_table
     from ..model import Model, load_model
 
-    if json_out is not None:
-        check_writable(json_out, "json_out")
+    check_outputs({"json_out": json_out}, {"model": model, "data": data, "--training": training})
     from ..robot import PRESETS, preset, read_point_numbers, read_training_ranges
 
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated

@@ -10,7 +10,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, err_console, load_robot_arg, progress
+from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, check_outputs, console, err_console, load_robot_arg, progress
 from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, read_poses_for, region_arg, view_arg
 
 
@@ -83,8 +83,8 @@ def montecarlo(
     from .._io import check_writable, json_text, write_atomic
     from ..experiments import run_montecarlo
 
-    if json_out is not None:
-        check_writable(json_out, "json_out")
+    inputs = {"robot": robot, "--poses-file": poses_file, "--validation": validation}
+    check_outputs({"json_out": json_out}, inputs)
     if out_dir is not None:
         check_writable(out_dir / "study.json", "out")
     r = load_robot_arg(robot, base_link, tip_link)

@@ -221,3 +221,24 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", "ur5", data, "--points", "1")
     assert code in (0, None), err
     assert "if this model was never calibrated" in " ".join((out + err).split())
+
+
+def test_an_output_that_is_an_input_or_another_output_is_refused(tmp_path, monkeypatch, capsys):
+    """`--json DATA.csv` would replace the measurements by their report, and two outputs on one
+    path would keep only the last: each is refused before any work, naming both, and the data
+    file is left as it was (also through another spelling of its path)."""
+    from jaxcal.measurements import tiago_paths
+
+    urdf, csv = tiago_paths()
+    data = tmp_path / "t.csv"
+    data.write_bytes(csv.read_bytes())
+    calib = ("calibrate", urdf, data, "--params", "frames")
+    code, out, err = run_cli(monkeypatch, capsys, *calib, "--json", tmp_path / "sub" / ".." / "t.csv")
+    assert code == 2 and "--json" in err and "is the data file; it would be overwritten" in err, err
+    code, out, err = run_cli(monkeypatch, capsys, *calib, "--json", tmp_path / "a.out", "--report", tmp_path / "a.out")
+    assert code == 2 and "--report" in err and "is also --json; each output needs its own file" in err, err
+    code, out, err = run_cli(monkeypatch, capsys, *calib, "--out-model", urdf)
+    assert code == 2 and "is the robot file" in err, err
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", urdf, data, "--json", data)
+    assert code == 2 and "is the data file" in err, err
+    assert data.read_bytes() == csv.read_bytes() and not (tmp_path / "a.out").exists()
