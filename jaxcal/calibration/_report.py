@@ -387,7 +387,13 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         "tool": frame_doc(f.model.robot.tool),
         "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
         "plausible": not why,
-        "implausible": why or None,
+        # judged where the solver stopped: when that is not a solution, that comes first
+        "implausible": (
+            why
+            if not why or fin["converged"][0]
+            else f"the final fit did not converge in {int(fin['steps'][0])} step(s); where it stopped: {why}"
+        )
+        or None,
         "notes": list(still_joint_notes(robot, q)) + list(p.notes) + [n for n in [_odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h)

@@ -14,6 +14,7 @@ from ._app import (
     app,
     check_outputs,
     console,
+    err_console,
     load_robot_arg,
     lost_notes,
     parse_points,
@@ -177,11 +178,16 @@ def calibrate(
         res = calibrate_data(nominal, meas, opts, progress=bar)
     rep = res.report
     show(rep, meas)
+    if not rep["converged"]:  # before plausibility: a fit that stopped short is judged where it stopped
+        err_console.print(
+            f"[red]error:[/red] the final fit did not converge in {rep['steps']} step(s) (--max-steps "
+            f"{opts.max_steps}); nothing was written",
+            highlight=False,
+            soft_wrap=True,
+        )
+        raise typer.Exit(1)
     if not rep["plausible"]:
         raise ImplausibleFitError(rep["implausible"] + "; nothing was written")
-    if not rep["converged"]:
-        console.print("[yellow]warning:[/yellow] the final fit did not converge; nothing was written")
-        raise typer.Exit(1)
     comment = {
         "data": str(data),
         "heldout_rms_mm": rep["heldout_rms_mm"],

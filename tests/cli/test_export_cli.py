@@ -85,6 +85,15 @@ def test_nothing_written_unless_the_fit_converged(tmp_path, monkeypatch, capsys,
     assert (tmp_path / "dh.csv").read_text() == "the user's table\n"
 
 
+def test_a_fit_stopped_short_is_not_judged_as_a_calibration(tmp_path, monkeypatch, capsys, tracker_csv):
+    """One solver step (--max-steps 1) leaves the parameters where they started: the command says
+    the fit did not converge (exit 1), not that the data do not determine the parameters it never
+    moved (exit 3, with a likely input mistake)."""
+    code, out, err = _calibrate(monkeypatch, capsys, tmp_path, tracker_csv, "ur5", "--max-steps", "1")
+    assert code == 1 and "error: the final fit did not converge in 1 step(s) (--max-steps 1)" in " ".join(err.split())
+    assert "not a calibration" not in err and not (tmp_path / "cal.toml").exists()
+
+
 def _no_fit(*a, **kw):
     raise AssertionError("calibrate_data was called: the refusal came after the fit")
 
