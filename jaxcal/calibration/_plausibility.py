@@ -267,13 +267,22 @@ TIE = 1e-3
 """Residuals within this share of each other are a tie."""
 
 
+LIKELY = ". Likely cause: "
+"""Where :func:`explain` names the input mistake it found (:func:`names_a_cause`)."""
+
+
+def names_a_cause(why: str | None) -> bool:
+    """Whether :func:`explain`'s message names a likely input mistake (not only what is wrong)."""
+    return bool(why) and LIKELY in why
+
+
 def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str = "") -> str:
     """One message: what is implausible, the likely cause it found (or the ones it ruled out).
     A correction counts when it brings the frames-only residual within the limits and to less
     than a fifth of the residual as given. ``cause``: one already found in the data."""
     head = "not a calibration: " + "; ".join(found)
     if cause:
-        return f"{head}. Likely cause: {cause}"
+        return f"{head}{LIKELY}{cause}"
     b0 = badness(*before, limits)
     fixes = [(m, p, r) for m, p, r in ranked if badness(p, r, limits) < min(1.0, 0.2 * b0)]
     if fixes:
@@ -283,14 +292,14 @@ def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str 
         )
         if m.startswith(MIRROR_IMAGES) and len(mirrors) > 1:  # reflections differ by a turn the base takes
             return (
-                f"{head}. Likely cause: a position axis swapped or mirrored ({'; '.join(mirrors)}: from positions "
+                f"{head}{LIKELY}a position axis swapped or mirrored ({'; '.join(mirrors)}: from positions "
                 f"alone these mirror images fit alike, so which one cannot be told; with one corrected the "
                 f"frames-only RMS residual drops from {_fmt(*before)} to {_fmt(p, r)}). Check the data file's "
                 f"position columns; if they are right, a sign in the robot model (an alpha, a joint axis) makes "
                 f"it the mirror image of the arm measured"
             )
         return (
-            f"{head}. Likely cause: {m} (with that corrected, the frames-only RMS residual drops from "
+            f"{head}{LIKELY}{m} (with that corrected, the frames-only RMS residual drops from "
             f"{_fmt(*before)} to {_fmt(p, r)}). Check the data file's columns and units"
         )
     tried = ", ".join(m for m, *_ in ranked)

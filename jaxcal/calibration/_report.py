@@ -14,6 +14,7 @@ from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 from ..solvers import robust_scale
 from . import _core as core
 from . import _outliers as outliers
+from . import _plausibility as plausibility
 from . import _selection as selection
 from ._param_sets import Candidate
 from ._single import estimated, judge, still_joint_notes
@@ -394,6 +395,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
             else f"the final fit did not converge in {int(fin['steps'][0])} step(s); where it stopped: {why}"
         )
         or None,
+        "likely_input_mistake": plausibility.names_a_cause(why),
         "notes": list(still_joint_notes(robot, q)) + list(p.notes) + [n for n in [_odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h)

@@ -178,7 +178,9 @@ def calibrate(
         res = calibrate_data(nominal, meas, opts, progress=bar)
     rep = res.report
     show(rep, meas)
-    if not rep["converged"]:  # before plausibility: a fit that stopped short is judged where it stopped
+    # a fit that stopped short is judged where it stopped: refused as implausible only where an
+    # input mistake explains it (reversed joints), else said not to have converged
+    if not rep["converged"] and not rep["likely_input_mistake"]:
         err_console.print(
             f"[red]error:[/red] the final fit did not converge in {rep['steps']} step(s) (--max-steps "
             f"{opts.max_steps}); nothing was written",
