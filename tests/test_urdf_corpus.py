@@ -152,3 +152,11 @@ def test_a_failed_candidate_is_reported(monkeypatch, capsys, simulated):
     assert float(re.search(r"condition number (\S+) ", why).group(1)) > 1e6
     assert rep["choice"] != "all" and rows["all"]["score_mm"] is None  # JSON has no inf: null
     assert "failed: all: its parameters are not separable" in " ".join(out.split())
+    # asked for alone, it is refused with that reason (not blamed on the data or a camera model)
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", DATA / "xarm7.urdf", d / "train.csv", "--base-link=link_base",
+        "--params", "all", "--nested-max-poses", "0",
+    )  # fmt: skip
+    msg = " ".join(err.split())
+    assert code == 2 and "no candidate parameter set could be fitted (all: its parameters are not separable" in msg
+    assert "try a smaller set (--params)" in msg

@@ -165,16 +165,6 @@ def _odd_point(p, pe) -> str:
     )
 
 
-def _failure(condition: float) -> str:
-    """Why a candidate failed: its parameters are not separable on these poses."""
-    from ._selection import MAX_CONDITION
-
-    return (
-        f"its parameters are not separable on these poses: condition number {condition:.3g} of its "
-        f"column-scaled equations, above {MAX_CONDITION:.0e} (a fit would be singular)"
-    )
-
-
 def _why_not(p, final, names) -> dict:
     """Why each parameter of the layout is not estimated (identifiability, the chosen set, or
     pruned by the selection)."""
@@ -283,7 +273,7 @@ def _choice(p, final, per_fold, names) -> dict:
                 "heldout_rms_mm": float(kfold[i]),
                 "extrapolation_rms_mm": float(ends[i]),
                 "free_parameters": int(final.free[i].sum()),
-                "failure": None if np.isfinite(ch.scores[i]) else _failure(ch.conditions[i]),
+                "failure": None if np.isfinite(ch.scores[i]) else selection.failure(ch.conditions[i]),
             }
             for i, c in enumerate(p.candidates)
         ],

@@ -70,6 +70,17 @@ than this fails: its parameters are not separable on these poses, and its full f
 equations (condition number squared) would be rounding error."""
 
 
+def failure(condition: float) -> str:
+    """Why a candidate failed (a non-finite score): its parameters are not separable on these
+    poses, or else its held-out fits did not give finite errors."""
+    if condition >= MAX_CONDITION or not np.isfinite(condition):
+        return (
+            f"its parameters are not separable on these poses: condition number {condition:.3g} of its "
+            f"column-scaled equations, above {MAX_CONDITION:.0e} (a fit would be singular)"
+        )
+    return "its held-out fits gave non-finite errors"
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Linear:
     """The calibration problem linearised at a reference (module docstring)."""

@@ -312,9 +312,9 @@ def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selecte
     complexity = [c.complexity for c in p.candidates]
     ch = selection.select(lin, rule, free, priors, complexity, penalised & p.auto)
     if ch.index < 0:
+        why = "; ".join(f"{c.name}: {selection.failure(k)}" for c, k in zip(p.candidates, ch.conditions))
         raise DataError(
-            f"every candidate parameter set ({', '.join(c.name for c in p.candidates)}) failed to fit "
-            f"(non-finite held-out errors); the data or the camera model may be degenerate"
+            f"no candidate parameter set could be fitted ({why}); try a smaller set (params)", option="params"
         )
     prior = np.where(ch.free, priors[ch.index], PIN)
     return _Selected(ch, p.candidates[ch.index], prior, free, priors, lev)
