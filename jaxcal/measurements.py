@@ -375,6 +375,8 @@ def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray,
         for name, i in zip(columns, idx):
             text = rec[i].strip()
             try:
+                if "_" in text:  # Python reads 1_000 as 1000; no data file means that
+                    raise ValueError(text)
                 v = float(text) if text else math.nan
             except ValueError:
                 comma = " (a decimal comma? write decimals with a point)" if re.fullmatch(r"[-+]?\d*,\d+", text) else ""
@@ -485,7 +487,12 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
     columns, quat = measurement_columns(header, src)
     pcols = [c for p in columns for c in p]
     used = set(jcols) | set(pcols) | set(quat or [])
-    ignored = tuple(c for c in header if c not in used and c.strip())
+    # a column without a name is listed only where it holds data (not a trailing comma's)
+    ignored = tuple(
+        c if c.strip() else f"column {i + 1} (no name)"
+        for i, c in enumerate(header)
+        if c not in used and (c.strip() or any(i < len(r) and r[i].strip() for _, r in records))
+    )
     require_rows(records, src)
     values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else columns)
     seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(columns), 3).any(-1)).any(-1)

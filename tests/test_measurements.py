@@ -158,6 +158,9 @@ def test_joint_columns_by_name_and_other_columns_listed(tmp_path, panda):
     )
     assert_allclose(m.q[0], [0.1, 0.2, 0.3, -1, 0.5, 0.6, 0.7])
     assert m.ignored == ("stamp", "note")
+    # a column without a name that holds data is listed by its position
+    m = read_measurements(_csv(tmp_path, text.replace("note\n", "note,\n").replace("ok\n", "ok,42\n")), named)
+    assert m.ignored == ("stamp", "note", "column 13 (no name)")
     # orientations in forms jaxcal does not read are named (calibrate then warns: positions alone)
     names = ["stamp", "r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R", "note", "A1", "x2"]
     assert orientation_like(names) == ["r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R"]
@@ -405,3 +408,11 @@ def test_a_joint_named_like_a_position_column(tmp_path):
         DataError, match="duplicated column name 'z'.*if a joint is named like a measurement column.*q1..qN"
     ):
         read_measurements(tmp_path / "named.csv", r)
+
+
+def test_a_number_with_underscores_is_not_a_number(tmp_path):
+    """Python's float reads 1_000 as 1000; a data file's 1_000 is a typo or a foreign format and
+    is refused naming its row and column."""
+    robot = Robot(np.zeros((2, 4)))
+    with pytest.raises(DataError, match=r"row 2 \(line 3\), column 'y': not a number: '1_000'"):
+        read_measurements(_csv(tmp_path, "q1,q2,x,y,z\n0.1,0.2,1,2,3\n0.2,0.3,1,1_000,3\n"), robot)

@@ -141,7 +141,8 @@ def calibrate(
             kind = (
                 "a URDF robot is written as URDF (.urdf, .xml)"
                 if nominal.convention == "joint"
-                else "a DH robot as TOML"
+                else "a DH robot is written as TOML (.toml); for a URDF, convert the calibrated one with "
+                "jaxcal.to_joint and jaxcal.save_robot (docs/using-the-result.md)"
             )
             raise DataError(f"{name}: {kind}; nothing was computed", option=name)
     chosen = None if points is None else parse_points(points)

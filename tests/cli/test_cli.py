@@ -212,7 +212,9 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     )  # fmt: skip
     assert code in (0, None), err
     assert "point_numbers = [ 1, 3, ]" in " ".join((tmp_path / "c13.toml").read_text().split())
-    code, out, err = run_cli(monkeypatch, capsys, "evaluate", tmp_path / "c13.toml", data, "--json", tmp_path / "e.json")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "evaluate", tmp_path / "c13.toml", data, "--json", tmp_path / "e.json"
+    )
     assert code in (0, None), err
     ev, train = json.loads((tmp_path / "e.json").read_text()), json.loads((tmp_path / "r13.json").read_text())
     assert [p["point"] for p in ev["points"]] == [1, 3] == train["point_numbers"]
