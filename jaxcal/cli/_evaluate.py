@@ -49,7 +49,7 @@ def evaluate(
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
     m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
     chosen = None if points is None else parse_points(points)
-    src, header, _ = read_table(data, "")
+    src, header, _ = read_table(data, "expected a header row of joint and measurement columns, as for calibrate")
     in_file = len(measurement_columns(header, src)[0])
     recorded = None if nominal else read_point_numbers(model)
     if recorded is not None and len(recorded) == m.n_points:
