@@ -14,6 +14,10 @@ from ..kinematics import check_q
 from ..measurements import joint_columns, parse_rows, read_table, require_rows, unit_scale
 from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 
+LIMIT_ULPS = 16
+"""How far (in units in the last place of the limit, or of 1) a pose file's value may lie beyond
+a joint limit and still be read as at it: the rounding of a unit conversion, not an excess."""
+
 
 def _scales(robot: Robot, length_unit, angle_unit) -> np.ndarray:
     lu, _ = unit_scale(length_unit, LENGTH_UNITS, "length_unit", robot.units[0])
@@ -32,7 +36,10 @@ def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.n
     q = values * _scales(robot, length_unit, angle_unit)
     check_q(robot, q)
     lim = np.asarray(robot.q_limits)
-    bad = (q < lim[:, 0]) | (q > lim[:, 1])
+    # a value at a limit in degrees or metres converts to one a few ulps beyond it (designs end
+    # on the limits): within LIMIT_ULPS it is the limit
+    tol = LIMIT_ULPS * np.spacing(np.maximum(np.abs(lim), 1.0))
+    bad = (q < lim[:, 0] - tol[:, 0]) | (q > lim[:, 1] + tol[:, 1])
     if bad.any():
         k, j = np.argwhere(bad)[0]
         raise DataError(
@@ -41,14 +48,14 @@ def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.n
             f"{lim[j, 1] / _scales(robot, length_unit, angle_unit)[j]:.6g}] ({int(bad.any(1).sum())} such row(s))",
             option="q",
         )
-    return q
+    return np.clip(q, lim[:, 0], lim[:, 1])
 
 
 def write_poses(path, q, robot: Robot, *, length_unit=None, angle_unit=None) -> None:
     """Write joint values ``q (K, n)`` (rad, mm) as a pose file, atomically: columns ``q1..qN``
     (the robot's joint names if it has its own), values in the robot file's units with ``repr``
-    precision (they read back bit-identically in mm and rad). The caller's array is not
-    modified."""
+    precision (they read back bit-identically in mm and rad, and to the last bits of a unit
+    conversion in m or degrees). The caller's array is not modified."""
     q = np.array(q, dtype=np.float64, copy=True)
     n = robot.n_joints
     if q.ndim != 2 or q.shape[1] != n or len(q) == 0:

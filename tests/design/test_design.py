@@ -199,6 +199,23 @@ def test_pose_file_round_trip_and_errors(robot, tmp_path):
     assert text.startswith("j0,j1,j2,j3,j4,j5\n")
     np.testing.assert_allclose(float(text.splitlines()[1].split(",")[0]), np.rad2deg(q[0, 0]), rtol=1e-15)
     np.testing.assert_allclose(design.read_poses(tmp_path / "p.csv", named), q, rtol=1e-14)
+    # limits of a robot in degrees made in a script (deg * pi / 180), and a design at both of
+    # them: read back at the limits, not refused for the last bits the unit conversion moved (a
+    # value beyond them by more still is)
+    rng = np.random.default_rng(3)
+    deg = np.round(np.stack([-rng.uniform(10, 179, (30, 6)), rng.uniform(10, 179, (30, 6))], -1), 4)
+    for lim in deg * np.pi / 180:
+        r = named.replace(q_limits=lim)
+        design.write_poses(tmp_path / "lim.csv", lim.T, r)
+        back = design.read_poses(tmp_path / "lim.csv", r)
+        assert np.all(back >= lim[:, 0]) and np.all(back <= lim[:, 1])
+        np.testing.assert_allclose(back, lim.T, rtol=1e-14)
+    text = (tmp_path / "lim.csv").read_text().splitlines()
+    over = text[1].split(",")
+    over[2] = repr(float(over[2]) - 1e-9)  # a nanodegree beyond the lower limit
+    (tmp_path / "over.csv").write_text("\n".join([text[0], ",".join(over)]) + "\n")
+    with pytest.raises(DataError, match=r"row 1 .*column 'j2'.*outside the joint limits"):
+        design.read_poses(tmp_path / "over.csv", r)
     (tmp_path / "bad.csv").write_text("q1,q2,q3,q4,q5,q6\n0,0,0,0,x,0\n")
     with pytest.raises(DataError, match=r"row 1 .*column 'q5'"):
         design.read_poses(tmp_path / "bad.csv", robot)
