@@ -30,14 +30,18 @@ def _kept_on_interrupt(out_dir):
 
 
 def _conditions_line(c: dict, n_val: int) -> str:
-    """The study's conditions in a line: where the calibration and inspection poses came from."""
-    where = [f"calibration poses {c['calibration_poses']}"]
+    """The study's conditions in a line: where the calibration and inspection poses came from
+    (given poses: whether they meet the conditions, as checked)."""
+    conds = []
     if c["region"]:
-        where.append("in the box")
+        conds.append("in the box")
     if c["view"]:
-        where.append(f"in the view cone ({c['view']['half_angle_deg']:g} deg)")
+        conds.append(f"in the view cone ({c['view']['half_angle_deg']:g} deg)")
     if c["min_spread"]:
-        where.append(f"{c['min_spread']:g} apart")
+        conds.append(f"{c['min_spread']:g} apart")
+    if c.get("given_poses_meet_conditions") is False:
+        conds = ["NOT all " + " and ".join(conds)]
+    where = [f"calibration poses {c['calibration_poses']}", *conds]
     if c["acceptance"] is not None:
         where.append(f"{c['acceptance']:.0%} of random configurations admitted")
     return ", ".join(where) + f"; {n_val} inspection poses {c['validation_poses']}"
@@ -159,6 +163,12 @@ def montecarlo(
     for k, v in rows:
         t.add_row(k, v)
     console.print(t)
+    if out["conditions"].get("given_poses_meet_conditions") is False:
+        console.print(
+            "[yellow]warning:[/yellow] some of the given calibration poses are outside the --region/--view or "
+            "closer than --min-spread: the study calibrates on them as given",
+            highlight=False,
+        )
     if json_out and out["complete"]:  # a summary of part of a study is not written
         write_atomic(json_out, json_text(out))
         console.print(f"wrote {json_out}")

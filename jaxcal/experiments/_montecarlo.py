@@ -313,6 +313,12 @@ def run_montecarlo(
         )
     design = None
     if method.startswith("elimination"):  # its pair design; n_poses sets the pairs per step
+        if q is not None:
+            raise DataError(
+                f"method {method} calibrates on its own pair design: given calibration poses need a least-squares "
+                f"method ({', '.join(METHODS)})",
+                option="method",
+            )
         design = (max(1, (n_poses - 2) // (2 * (robot.n_joints - 1))), 2)
         n_poses = 2 * (robot.n_joints - 1) * design[0] + design[1]
         q = None

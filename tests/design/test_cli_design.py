@@ -28,6 +28,30 @@ def test_design_then_montecarlo_on_its_poses(monkeypatch, capsys, tmp_path):
     predicted = d["values"]["validation_rms_mm"]
     # 64 robots x 50 validation poses: the empirical RMS within ~15 % of the bound it attains
     assert 0.8 * predicted < m["validation_pos_rms_mm"] < 1.3 * predicted
+    # the elimination calibrates on its own pair design: given poses are refused, not ignored
+    code, _, err = run_cli(
+        monkeypatch, capsys, "montecarlo", "paper-6r", "--poses-file", out, "--method", "elimination", "--robots", "8"
+    )
+    assert code == 2 and "--method" in err and "pair design" in err
+    # a box that half of the given poses' tool points (NumPy forward kinematics) lie beyond: the
+    # study says so instead of "in the box"
+    from helpers import dh_fk
+
+    import jaxcal
+
+    r = jaxcal.preset("paper-6r")
+    p = dh_fk(r.dh, jaxcal.design.read_poses(out, r), convention=r.convention, base=r.base, tool=r.tool)[:, :3, 3]
+    lo, hi = p.min(0) - 50.0, p.max(0) + 50.0
+    hi[0] = np.median(p[:, 0])
+    box = ",".join(f"{v:.3f}" for v in np.r_[lo, hi])
+    code, stdout, err = run_cli(
+        monkeypatch, capsys, "montecarlo", "paper-6r", "--poses-file", out, "--robots", "8", "--repeats", "0",
+        "--region", box, "--json", mc,
+    )  # fmt: skip
+    assert code in (0, None), err
+    text = " ".join(stdout.split())
+    assert "given, NOT all in" in text and "warning: some of the given calibration poses are outside" in text
+    assert json.loads(mc.read_text())["conditions"]["given_poses_meet_conditions"] is False
 
 
 def test_design_bad_region_names_the_flag(monkeypatch, capsys, tmp_path):
