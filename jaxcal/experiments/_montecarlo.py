@@ -67,26 +67,28 @@ def _points(layout: Layout, R: int, x_true=None):
 
 @eqx.filter_jit
 def _information(robot, q, w, points, *, layout: Layout, base: tuple[int, ...]):
-    """``(R, r, r)`` Fisher information ``Jb^T Jb`` of the base columns, rows weighted by ``w``:
-    each robot's Jacobian reduced where it is made (its measured ``points`` (R, M, 3), or None)."""
+    """``(R, r, r)`` Fisher information ``Jb^T Jb`` of the base columns, each robot's rows
+    weighted by its ``w (R, rows)`` (0 for a pose its fit left out): each robot's Jacobian reduced
+    where it is made (its measured ``points`` (R, M, 3), or None)."""
 
-    def one(q_, p_):
+    def one(q_, w_, p_):
         model = Model(robot, p_, camera=layout.camera)
-        Jb = jacobian(model, layout, q_).reshape(-1, layout.size)[:, list(base)] * w[:, None]
+        Jb = jacobian(model, layout, q_).reshape(-1, layout.size)[:, list(base)] * w_[:, None]
         return Jb.T @ Jb
 
-    return jax.vmap(one)(q, points)
+    return jax.vmap(one)(q, w, points)
 
 
 def crlb_variances(
-    robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None, x_true=None
+    robot: Robot, q, ident, layout: Layout, *, sigma_pos: float, sigma_rot: float | None, x_true=None, kept=None
 ) -> np.ndarray:
     """``(R, r)`` Cramér–Rao variances of the base parameters for each robot's pose set ``q (R,
     K, n)`` at the nominal model (its measured point where ``x_true`` puts it, :func:`_points`):
     the diagonal of :func:`jaxcal.identifiability.crlb`, from each robot's column-scaled
     information matrix, :data:`CRLB_SLICE` robots at a time (a slice's Jacobians are the largest
-    arrays of a study)."""
-    return _variances(_base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_true))
+    arrays of a study). ``kept (R, K)``: the poses each fit used (default all): the bound of the
+    data a fit that leaves out outliers is made from."""
+    return _variances(_base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_true, kept))
 
 
 def _variances(N) -> np.ndarray:
@@ -94,8 +96,11 @@ def _variances(N) -> np.ndarray:
     return np.diagonal(np.linalg.inv(N / (d[:, :, None] * d[:, None, :])), axis1=-2, axis2=-1) / d**2
 
 
-def _base_information(robot: Robot, q, ident, layout: Layout, sigma_pos, sigma_rot, x_true=None) -> np.ndarray:
-    """``(R, r, r)`` information of the base parameters of each robot's poses ``q (R, K, n)``."""
+def _base_information(
+    robot: Robot, q, ident, layout: Layout, sigma_pos, sigma_rot, x_true=None, kept=None
+) -> np.ndarray:
+    """``(R, r, r)`` information of the base parameters of each robot's poses ``q (R, K, n)``,
+    of those ``kept (R, K)`` where given."""
     q = np.asarray(q)
     R, K = q.shape[:2]
     pts = _points(layout, R, x_true)
@@ -105,12 +110,16 @@ def _base_information(robot: Robot, q, ident, layout: Layout, sigma_pos, sigma_r
         sigma_pos_mm=sigma_pos,
         sigma_rot_rad=None if layout.n_points else sigma_rot,
     )
+    kept = np.ones((R, K), bool) if kept is None else np.asarray(kept, bool)
+    w = np.repeat(kept, len(sig) // K, axis=1) / sig  # (R, rows), rows pose by pose
     step = min(R, CRLB_SLICE)
     pad = lambda a: None if a is None else np.concatenate([a, np.repeat(a[-1:], -R % step, 0)])  # noqa: E731
-    padded, pts = pad(q), pad(pts)  # whole slices: one compile
+    padded, pts, w = pad(q), pad(pts), pad(w)  # whole slices: one compile
     base = tuple(ident.base)
     piece = lambda a, s: None if a is None else a[s : s + step]  # noqa: E731
-    fn = lambda s: _information(robot.stripped(), piece(padded, s), 1 / sig, piece(pts, s), layout=layout, base=base)  # noqa: E731
+    fn = lambda s: _information(  # noqa: E731
+        robot.stripped(), piece(padded, s), piece(w, s), piece(pts, s), layout=layout, base=base
+    )
     return np.concatenate([np.asarray(fn(s)) for s in range(0, len(padded), step)])[:R]
 
 
@@ -404,7 +413,10 @@ def run_montecarlo(
             first = first[:2] + (None,)
         frames = estimate_base or estimate_tool
         exact = _truth_exactly(robot, q_i, true_q, position_only, opts, ident, devs) if frames else None
-        rec = _record(robot, res, x_true, q_i, q_val_i, true_val, ident, sigma_pos, sigma_rot, noisy, q_val is not None)
+        rec = _record(
+            robot, res, x_true, q_i, q_val_i, true_val, ident, sigma_pos, sigma_rot, noisy, q_val is not None,
+            keep_outliers,
+        )  # fmt: skip
         if exact is not None:  # the base-set errors against the truths' own coordinates
             fine = np.isfinite(exact[:, base_idx])
             rec["err"] = np.where(fine, res.x[:, base_idx] - exact[:, base_idx], rec["err"])
@@ -551,7 +563,9 @@ def _truth_exactly(robot, q, true_poses, position_only: bool, opts, ident, devs)
     return np.where(res.converged[:, None], res.x, np.nan)
 
 
-def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot, noisy, shared_val=False) -> dict:
+def _record(
+    robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot, noisy, shared_val=False, keep_outliers=False
+) -> dict:
     """One chunk's results: per robot the estimates, truths, base-set errors (against the truth
     mapped linearly), convergence and inspection RMS; the chunk's sum of Cramér–Rao covariances."""
     layout = res.layout
@@ -569,7 +583,9 @@ def _record(robot, res, x_true, q, q_val, true_val, ident, sigma_pos, sigma_rot,
         "val_rms": np.asarray(val),
     }
     if noisy:  # each robot's bound on the base set's variances, and on its inspection error
-        N = _base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_t)
+        # of the poses its fit used: a pose left out as an outlier informs nothing
+        kept = None if res.outlier_mask is None or keep_outliers else ~np.asarray(res.outlier_mask)
+        N = _base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_t, kept)
         rec["crlb_var"] = _variances(N)
         pts = _points(layout, len(x_t), x_t)
         one = shared_val and not (layout.n_points and layout.tool)  # the same inspection for every robot

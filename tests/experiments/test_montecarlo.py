@@ -98,6 +98,10 @@ def test_cli_montecarlo_with_gross_outliers(tmp_path):
     assert (found["outliers_found"], found["outliers_missed"], found["false_alarms"]) == (16, 0, 0)
     assert found["outliers"] == {"fraction": 0.1, "outlier_mm": [3.0, 6.0]} and "16 / 0; 0" in text
     assert found["validation_pos_rms_mm"] < 1.5 * clean["validation_pos_rms_mm"]
+    # the bound is of the 18 poses each fit kept (the same robots and poses as the clean study):
+    # about sqrt(20 / 18) above the clean one, not equal to it
+    ratio = found["crlb_validation_pos_rms_mm"] / clean["crlb_validation_pos_rms_mm"]
+    assert 1.02 < ratio < 1.15, ratio
     assert kept["validation_pos_rms_mm"] > 5 * clean["validation_pos_rms_mm"] and kept["keep_outliers"]
     r = CliRunner().invoke(app, ["montecarlo", "paper-6r", "--robots", "2", "--outlier-mm", "6"])
     assert isinstance(r.exception, jaxcal.DataError) and r.exception.option == "outlier_mm"
