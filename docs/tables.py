@@ -37,7 +37,7 @@ def reproduction() -> str:
     for lab, s in (("noise-free", nf), (f"{ny['noise']['sigma_pos_mm']} mm / {ny['noise']['sigma_rot_rad']} rad", ny)):
         rows.append(
             f"| {lab}: inspection RMS (mm) | {g(s['inspection_rms_mm']['nominal'])} | "
-            + " | ".join(g(s["inspection_rms_mm"][m]) for m, _ in methods)
+            + " | ".join(g(s["inspection_rms_mm"][m]) + ("" if s["converged"][m] else " (failed)") for m, _ in methods)
             + " |"
         )
         rows.append(

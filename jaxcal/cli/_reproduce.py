@@ -64,7 +64,7 @@ def reproduce(
             f"{s['num_steps'][mth]}"
             + (
                 ""
-                if mth in ("linear", "elimination-literal")
+                if mth == "linear"  # one step by design
                 else (" (converged)" if s["converged"][mth] else " (NOT converged)")
             ),
         )

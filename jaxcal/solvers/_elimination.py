@@ -96,6 +96,12 @@ class EliminationPlan:
         return "\n".join(lines)
 
 
+LITERAL_MAX_CONDITION = 1e8
+"""The literal variant fails (``ok`` False) where a step's column-scaled block is worse
+conditioned than this on the design: its normal equations (the condition squared) are beyond
+float64's precision, and their plain inverse returns rounding error."""
+
+
 def _cond(A) -> float:
     s = np.linalg.svd(A, compute_uv=False)
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
@@ -273,12 +279,15 @@ def eliminate(
 
     **Returns** ``(x, ok, num_steps)``: the ``4N`` DH error vector (layout of
     :func:`jaxcal.error_model.param_names`, fixed parameters 0), whether the iteration met
-    ``tol`` within ``max_steps`` with a finite result (literal: finite), and the number of sweeps.
+    ``tol`` within ``max_steps`` with a finite result (literal: finite, and every step's block
+    within :data:`LITERAL_MAX_CONDITION`), and the number of sweeps.
     """
     m = 4 * robot.n_joints
     if literal:
         x = _sweep(robot, q, measured, plan, True, sigma_pos, sigma_rot)
-        return x, jnp.all(jnp.isfinite(x)), jnp.asarray(1)
+        # a step whose block is singular on the design (parallel axes) gives finite nonsense
+        posed = max(st.cond_scaled for st in plan.steps) < LITERAL_MAX_CONDITION
+        return x, jnp.all(jnp.isfinite(x)) & posed, jnp.asarray(1)
 
     def cond(state):
         _, it, step = state

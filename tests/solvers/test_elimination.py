@@ -118,9 +118,14 @@ def test_literal_variant_works_on_a_generic_arm():
 def test_literal_variant_is_singular_on_the_paper_arm():
     robot = jaxcal.preset("paper-6r")
     q = design_poses(jax.random.PRNGKey(0), robot, n_pairs=4, n_abs=2)
-    steps = {s.joint: s for s in make_plan(robot, q).steps}
+    plan = make_plan(robot, q)
+    steps = {s.joint: s for s in plan.steps}
     assert steps[3].cond_raw > 1e12 and np.isinf(steps[3].cond_scaled)
     assert all(np.isfinite(steps[n].cond_scaled) for n in (6, 5, 4, 2, 1))
+    # its one pass returns finite numbers there, which it does not call a result
+    sim = S.simulate(robot, n_robots=2, q=q, seed=4)
+    x, ok, _ = eliminate_batch(robot, jnp.asarray(sim.q), jnp.asarray(sim.measured), 1.0, 1e-3, plan=plan, literal=True)
+    assert np.all(np.isfinite(np.asarray(x))) and not np.any(ok)
 
 
 # PUMA 560 (same fixed set as the paper arm) was dropped here for suite time; its elimination
