@@ -98,6 +98,12 @@ class PoseDesign:
             if self.details.get("random_from") == "pool"
             else f"(random: {R} sets of {N} poses within the joint limits, region and view if given)"
         )
+        if self.details.get("converged_starts") == 0:  # a solver that stopped short says so
+            lines.append(
+                f"warning: none of the {self.details['starts']} optimiser starts converged within its budget "
+                f"({self.details['max_evaluations']} evaluations): the poses are the best point reached, not an "
+                f"optimum (more --starts may reach a better one)"
+            )
         return "\n".join(lines)
 
     def to_dict(self) -> dict:

@@ -5,6 +5,8 @@ constraints, and the pool exchange against a brute-force check of every single s
 One small problem (paper 6R arm, full pose, frames known, 8 poses, 2 starts) serves every test,
 so that they share their compiled programs with the command-line test."""
 
+import dataclasses
+
 import jax
 import numpy as np
 import pytest
@@ -467,6 +469,10 @@ def test_the_report_shows_a_bound_beyond_the_largest_count_and_a_dash_where_none
     }
     assert d.equivalent_random_poses("validation") == pytest.approx(25.0, rel=1e-12)
     assert np.isnan(d.to_dict()["equivalent_random_poses"]["a"])
+    # a design none of whose optimiser starts converged says so
+    assert "converged" not in d.report()
+    stopped = dataclasses.replace(d, details={"starts": 2, "converged_starts": 0, "max_evaluations": 500})
+    assert "warning: none of the 2 optimiser starts converged within its budget (500 evaluations)" in stopped.report()
 
 
 def test_a_position_only_design_without_a_point_is_for_a_marker_off_the_last_axis(robot):
