@@ -105,7 +105,7 @@ def test_model_and_data_must_measure_the_same_thing():
     with pytest.raises(DataError, match="the model predicts poses"):
         evaluate(Model(ur5), meas)
     three = Measurements(np.zeros((3, 6)), np.ones((3, 3, 3)))  # a model fitted on two of three points
-    with pytest.raises(DataError, match="the model predicts 2 point.*--points with 2 numbers, such as --points 1,2"):
+    with pytest.raises(DataError, match="the model predicts 2 point.*--points with the 2 numbers calibrate was given"):
         evaluate(Model(ur5, np.zeros((2, 3))), three)
 
 
