@@ -525,13 +525,17 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
     return out
 
 
-def write_measurements(path, q, measured, *, position_only: bool = False, joint_names=None) -> None:
+def write_measurements(
+    path, q, measured, *, position_only: bool = False, joint_names=None, robot: Robot | None = None
+) -> None:
     """Write ``q`` ``(K, n)`` (rad / mm) and ``measured`` — poses ``(K, 4, 4)``, positions
     ``(K, 3)`` or points ``(K, M, 3)`` (mm) — as a measurement CSV, atomically.
 
-    Values are written in mm and rad with ``repr`` precision (they read back bit-identically; an
-    orientation goes through a quaternion, exact to ~1e-16, written with ``qw >= 0``). With
-    ``position_only`` only a pose's translation is written. The caller's arrays are not modified.
+    Values are written in mm and rad, or with ``robot`` in its units and with its joint names (as
+    :func:`read_measurements` reads a file for it by default: a URDF robot's metres), with
+    ``repr`` precision (in mm and rad they read back bit-identically; an orientation goes through a
+    quaternion, exact to ~1e-16, written with ``qw >= 0``). With ``position_only`` only a pose's
+    translation is written. The caller's arrays are not modified.
     """
     from scipy.spatial.transform import Rotation
 
@@ -548,6 +552,16 @@ def write_measurements(path, q, measured, *, position_only: bool = False, joint_
     for name, a in (("q", q), ("measured", meas)):
         if not np.isfinite(a).all():
             raise DataError(f"write_measurements: {name}[{int(np.argwhere(~np.isfinite(a))[0][0])}] is not finite")
+    if robot is not None:  # the robot's units, which read_measurements assumes for it
+        if q.shape[1] != robot.n_joints:
+            raise DataError(f"write_measurements: q has {q.shape[1]} joints, robot {robot.name!r} {robot.n_joints}")
+        lu, au = LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]
+        q = q / np.array([lu if t == "P" else au for t in robot.joint_types])
+        if meas.shape == (K, 4, 4):
+            meas[:, :3, 3] /= lu
+        else:
+            meas = meas / lu
+        joint_names = robot.joint_names if joint_names is None else joint_names
     names = [f"q{j}" for j in range(1, q.shape[1] + 1)] if joint_names is None else list(joint_names)
     pose = meas.shape == (K, 4, 4)
     if pose and position_only:

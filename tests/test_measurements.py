@@ -65,6 +65,35 @@ def test_round_trip(tmp_path, rng, panda, position_only):
         assert path.read_text().splitlines()[0] == HEADER7 + ",qw,qx,qy,qz"
 
 
+def test_written_for_a_robot_in_metres_and_degrees_reads_back_for_it(tmp_path, rng):
+    """With ``robot``, the file is in its units and joint names, which read_measurements assumes
+    for it: a URDF robot (metres) and a TOML one in m and deg with a prismatic joint read back
+    what was written, not 1000 times it; without, a metres robot refuses the mm file by its
+    prismatic joint (a positions check cannot see it: the points scale with the joint)."""
+    from jaxcal import load_robot
+    from jaxcal.measurements import tiago_paths
+
+    tiago = load_robot(tiago_paths()[0])
+    dh = Robot(np.array([[0.0, 300.0, 200.0, 0.0], [0.3, 0.0, 250.0, 0.5], [0.0, 0.0, 0.0, 0.0]]),
+               joint_types="RRP", q_limits=[[-2.0, 2.0], [-2.0, 2.0], [0.0, 300.0]], units=("m", "deg"))  # fmt: skip
+    for robot in (tiago, dh):
+        assert robot.units[0] == "m" and "P" in robot.joint_types
+        q = _random_q(rng, robot, 20)
+        points = np.asarray(fk(robot, q))[:, None, :3, 3] + rng.normal(size=(20, 2, 3))
+        path = tmp_path / f"{robot.name}.csv"
+        write_measurements(path, q, points, robot=robot)
+        m = read_measurements(path, robot)
+        assert path.read_text().startswith(",".join(robot.joint_names) + ",x1,y1,z1")
+        assert_allclose(m.q, q, rtol=1e-14, atol=1e-12)
+        assert_allclose(m.measured, points, rtol=1e-14, atol=1e-12)
+        write_measurements(path, q, points, joint_names=robot.joint_names)  # mm and rad
+        from jaxcal.calibration import check_angles
+
+        with pytest.raises(DataError, match="prismatic joint .* beyond 100 times its limits") as e:
+            check_angles(robot, read_measurements(path, robot).q)
+        assert e.value.option == "length_unit"
+
+
 def test_write_does_not_mutate_inputs(tmp_path, rng, panda):
     q = _random_q(rng, panda, 5)
     poses = np.asarray(fk(panda, q)).copy()

@@ -85,11 +85,19 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     return q, measured, measured.shape[-2]
 
 
+PRISMATIC_UNIT_FACTOR = 100.0
+"""A prismatic joint's values beyond this many times its limits' magnitude, in most poses, are in
+another length unit (a factor of 1000 between mm and m)."""
+
+
 def check_angles(robot: Robot, q) -> None:
     """Refuse joint angles that look like degrees: revolute values beyond both a full turn and
     the joint limits in most poses (a few such poses are left to the fit and its checks). A
     joint whose limits are the default ones may be a continuous joint turning several times: the
-    message says so, since its values may be radians."""
+    message says so, since its values may be radians. Prismatic values far beyond their given
+    limits in most poses are refused too (:data:`PRISMATIC_UNIT_FACTOR`): a positions check
+    cannot see millimetres read as metres when the points are scaled with the joint."""
+    _prismatic_units(robot, np.asarray(q))
     revolute = np.array([t == "R" for t in robot.joint_types])
     if not revolute.any() or q.shape[-2] < 3:
         return
@@ -110,6 +118,25 @@ def check_angles(robot: Robot, q) -> None:
             f"revolute joint beyond a full turn and its limits (q{list(idx)} = {q[idx]:.6g} rad); the "
             f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"{turns}',
             option="angle_unit",
+        )
+
+
+def _prismatic_units(robot: Robot, q: np.ndarray) -> None:
+    prismatic = np.array([t == "P" for t in robot.joint_types]) & robot.limits_given()
+    if not prismatic.any() or q.shape[-2] < 3:
+        return
+    size = np.abs(np.asarray(robot.q_limits)).max(axis=1)
+    over = (np.abs(q) > PRISMATIC_UNIT_FACTOR * np.maximum(size, 1e-9)) & prismatic
+    frac = over.mean(-2)
+    if np.any(frac > 0.5):
+        j = int(np.argmax(frac))
+        lo, hi = np.asarray(robot.q_limits)[j]
+        raise DataError(
+            f"q: prismatic joint {robot.joint_names[j]!r} is beyond {PRISMATIC_UNIT_FACTOR:g} times its limits "
+            f"[{lo:.6g}, {hi:.6g}] mm in {100 * float(frac[j]):.0f}% of the poses (up to {np.abs(q[..., j]).max():.6g} "
+            f"mm): lengths in another unit than the robot's ({robot.units[0]})? Give the data's unit "
+            f"(length_unit)",
+            option="length_unit",
         )
 
 
