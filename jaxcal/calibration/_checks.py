@@ -135,7 +135,7 @@ def _prismatic_units(robot: Robot, q: np.ndarray) -> None:
             f"q: prismatic joint {robot.joint_names[j]!r} is beyond {PRISMATIC_UNIT_FACTOR:g} times its limits "
             f"[{lo:.6g}, {hi:.6g}] mm in {100 * float(frac[j]):.0f}% of the poses (up to {np.abs(q[..., j]).max():.6g} "
             f"mm): lengths in another unit than the robot's ({robot.units[0]})? Give the data's unit "
-            f"(length_unit)",
+            f"(length_unit), or, if only this joint's column is in another unit, convert it",
             option="length_unit",
         )
 

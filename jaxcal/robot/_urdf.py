@@ -216,7 +216,9 @@ def _movable(j, source: str) -> np.ndarray:
         )
     if j.mimic is not None:
         raise RobotFileError(f"{source}: joint {j.name!r} mimics another joint; not supported in a chain")
-    axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=np.float64)
+    axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=np.float64).reshape(-1)
+    if axis.shape != (3,):
+        raise RobotFileError(f"{source}: joint {j.name!r} has axis {axis.tolist()}; an axis is three numbers x y z")
     n = np.linalg.norm(axis)
     if not (np.isfinite(n) and n > 0):
         raise RobotFileError(f"{source}: joint {j.name!r} has axis {axis.tolist()}; a movable joint needs a direction")
@@ -226,6 +228,32 @@ def _movable(j, source: str) -> np.ndarray:
             f"vectors, and readers differ on how far such a joint moves; write the unit axis"
         )
     return axis / n
+
+
+def _limits(j, kind: str, source: str) -> list[float]:
+    """A movable joint's ``[lower, upper]`` (rad, mm): :data:`DEFAULT_LIMITS` for a continuous
+    joint or one without bounds, URDF's default 0 for a bound not given; finite and increasing."""
+    lim = j.limit
+    if j.type == "continuous" or lim is None or (lim.lower is None and lim.upper is None):
+        return list(DEFAULT_LIMITS[kind])
+    lower, upper = (0.0 if v is None else float(v) for v in (lim.lower, lim.upper))
+    if not (np.isfinite(lower) and np.isfinite(upper)):
+        raise RobotFileError(
+            f"{source}: joint {j.name!r} has limits lower {lower} and upper {upper}; give finite limits, or make it "
+            f"continuous if it has none"
+        )
+    if not lower < upper:
+        raise RobotFileError(
+            f"{source}: joint {j.name!r} has limits lower {lower} "
+            + (
+                "= upper: it cannot move; if the file means no limit, make it continuous or give its range"
+                if lower == upper
+                else f"> upper {upper}"
+            )
+            + ("" if lim.lower is not None and lim.upper is not None else " (a bound not given is 0 in URDF)")
+        )
+    scale = 1.0 if kind == "R" else M_TO_MM
+    return [lower * scale, upper * scale]
 
 
 def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None):
@@ -256,21 +284,7 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         kind = MOVABLE[j.type]
         origins.append(pending @ T)
         pending = np.eye(4)
-        scale = 1.0 if kind == "R" else M_TO_MM
-        lim = j.limit
-        if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None:
-            limits.append(DEFAULT_LIMITS[kind])
-        elif not lim.lower < lim.upper:
-            raise RobotFileError(
-                f"{source}: joint {j.name!r} has limits lower {lim.lower} "
-                + (
-                    "= upper: it cannot move; if the file means no limit, make it continuous or give its range"
-                    if lim.lower == lim.upper
-                    else f"> upper {lim.upper}"
-                )
-            )
-        else:
-            limits.append([lim.lower * scale, lim.upper * scale])
+        limits.append(_limits(j, kind, source))
         types.append(kind)
         names.append(j.name)
     if not types:

@@ -307,6 +307,24 @@ BAD = {
         "prismatic joint 'lift' has axis [0.0, 0.0, 2.0] of length 2; URDF axes are unit vectors",
     ),
     "robot without a name": ("<robot></robot>", "not a readable URDF: a required attribute 'name' is missing"),
+    "axis of two numbers": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>',
+        "joint 'j2' has axis [0.0, 1.0]; an axis is three numbers x y z",
+    ),
+    "infinite limits": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/>'
+        '<limit lower="-inf" upper="inf" effort="1" velocity="1"/></joint></robot>',
+        "joint 'j2' has limits lower -inf and upper inf; give finite limits, or make it continuous",
+    ),
+    "only a negative upper limit": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/>'
+        '<limit upper="-0.5" effort="1" velocity="1"/></joint></robot>',
+        "joint 'j2' has limits lower 0.0 > upper -0.5 (a bound not given is 0 in URDF)",
+    ),
 }
 
 
@@ -325,6 +343,20 @@ def test_dh_robot_is_not_written_as_urdf(tmp_path):
     with pytest.raises(RobotFileError, match="written as TOML"):
         save_robot(preset("ur5"), tmp_path / "x.urdf")
     assert not (tmp_path / "x.urdf").exists()
+
+
+def test_one_limit_given_takes_urdfs_zero_for_the_other(tmp_path):
+    """``<limit upper="1">`` is 0..1 (URDF's default lower), not a full turn; a limit element
+    without bounds is taken as no limit (±pi)."""
+    p = tmp_path / "r.urdf"
+    p.write_text(
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
+        '<limit upper="1.0" effort="1" velocity="1"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.2 0 0"/>'
+        '<axis xyz="0 1 0"/><limit effort="1" velocity="1"/></joint></robot>'
+    )
+    np.testing.assert_allclose(np.asarray(load_robot(p).q_limits), [[0.0, 1.0], [-np.pi, np.pi]])
 
 
 def test_continuous_joint_and_default_axis(tmp_path):
