@@ -140,11 +140,16 @@ class Measurements:
         return out
 
     @property
+    def numbers(self) -> tuple[int, ...]:
+        """The file's number of each measured point (:attr:`point_numbers`, else 1..M)."""
+        return self.point_numbers or tuple(range(1, self.n_points + 1))
+
+    @property
     def lost_points(self) -> list[tuple[int, int]]:
         """``(data row, point number in the file)`` of every point not seen (NaN), in file order."""
         if self.n_points == 0:
             return []
-        numbers = self.point_numbers or tuple(range(1, self.n_points + 1))
+        numbers = self.numbers
         lost = np.argwhere(np.isnan(self.measured).any(-1))
         return [(int(self.rows[k]), numbers[j]) for k, j in lost]
 
@@ -174,7 +179,7 @@ class Measurements:
         if not seen.any():
             raise DataError(f"{self.source}: point(s) {idx} (points) were not seen in any row", option="points")
         gone = tuple(int(r) for r in self.rows[~seen])
-        numbers = self.point_numbers or tuple(range(1, self.n_points + 1))
+        numbers = self.numbers
         out = dataclasses.replace(
             self,
             measured=meas,

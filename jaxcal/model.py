@@ -355,6 +355,24 @@ def load_model(path, *, base_link: str | None = None, tip_link: str | None = Non
     return Model(robot, points)
 
 
+def model_points(model: "Model", recorded, chosen, *, option: str = "points") -> "Model":
+    """``model`` with only its points that the data file numbers ``chosen``, ``recorded`` being
+    the file's number of each of its points (:func:`jaxcal.robot.read_point_numbers`; None:
+    1..M). A number it was not fitted on is a :class:`jaxcal.DataError` naming ``option``."""
+    from .errors import DataError
+
+    recorded = list(range(1, model.n_points + 1)) if recorded is None else list(recorded)
+    missing = [j for j in chosen if j not in recorded]
+    if missing:
+        raise DataError(
+            f"{option} {','.join(map(str, missing))}: the model was fitted on the data file's point(s) "
+            f"{', '.join(map(str, recorded))} only",
+            option=option,
+        )
+    keep = [recorded.index(j) for j in chosen]
+    return Model(model.robot, np.asarray(model.points)[keep], model.camera_params, camera=model.camera)
+
+
 def save_model(
     model: Model,
     path,

@@ -89,9 +89,13 @@ def test_written_for_a_robot_in_metres_and_degrees_reads_back_for_it(tmp_path, r
         write_measurements(path, q, points, joint_names=robot.joint_names)  # mm and rad
         from jaxcal.calibration import check_angles
 
+        q_mm = read_measurements(path, robot).q
         with pytest.raises(DataError, match="prismatic joint .* beyond 100 times its limits") as e:
-            check_angles(robot, read_measurements(path, robot).q)
+            check_angles(robot, q_mm)
         assert e.value.option == "length_unit"
+        # a batch of data sets (calibrate_batch) with one such set: named the same way
+        with pytest.raises(DataError, match=f"prismatic joint {robot.joint_names[-1]!r}|prismatic joint 'torso"):
+            check_angles(robot, np.stack([q, q_mm]))
 
 
 def test_write_does_not_mutate_inputs(tmp_path, rng, panda):

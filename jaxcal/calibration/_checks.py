@@ -7,7 +7,7 @@ import numpy as np
 
 from .._config import as_f64
 from ..errors import DataError
-from ..robot import Robot
+from ..robot import LENGTH_UNITS, Robot
 
 
 def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None):
@@ -127,15 +127,16 @@ def _prismatic_units(robot: Robot, q: np.ndarray) -> None:
         return
     size = np.abs(np.asarray(robot.q_limits)).max(axis=1)
     over = (np.abs(q) > PRISMATIC_UNIT_FACTOR * np.maximum(size, 1e-9)) & prismatic
-    frac = over.mean(-2)
+    frac = over.mean(-2).reshape(-1, q.shape[-1]).max(0)  # per joint, the worst data set of a batch
     if np.any(frac > 0.5):
         j = int(np.argmax(frac))
-        lo, hi = np.asarray(robot.q_limits)[j]
+        lu = LENGTH_UNITS[robot.units[0]]  # in the robot's unit, which the data were read in
+        lo, hi = np.asarray(robot.q_limits)[j] / lu
         raise DataError(
             f"q: prismatic joint {robot.joint_names[j]!r} is beyond {PRISMATIC_UNIT_FACTOR:g} times its limits "
-            f"[{lo:.6g}, {hi:.6g}] mm in {100 * float(frac[j]):.0f}% of the poses (up to {np.abs(q[..., j]).max():.6g} "
-            f"mm): lengths in another unit than the robot's ({robot.units[0]})? Give the data's unit "
-            f"(length_unit), or, if only this joint's column is in another unit, convert it",
+            f"[{lo:.6g}, {hi:.6g}] {robot.units[0]} in {100 * float(frac[j]):.0f}% of the poses (up to "
+            f"{np.abs(q[..., j]).max() / lu:.6g} {robot.units[0]}): lengths in another unit than the robot's? Give "
+            f"the data's unit (length_unit), or, if only this joint's column is in another unit, convert it",
             option="length_unit",
         )
 

@@ -349,7 +349,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         "poses": len(q),
         "position_only": p.n_points > 0,
         "points": p.n_points,
-        "point_numbers": list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1)),
+        "point_numbers": list(getattr(p.data, "numbers", range(1, p.n_points + 1))),
         "method": opts.method,
         "folds": opts.folds,
         "range_end_folds": len(p.held) - p.n_kfold,

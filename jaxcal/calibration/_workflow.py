@@ -314,7 +314,9 @@ def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selecte
     if ch.index < 0:
         why = "; ".join(f"{c.name}: {selection.failure(k)}" for c, k in zip(p.candidates, ch.conditions))
         raise DataError(
-            f"no candidate parameter set could be fitted ({why}); try a smaller set (params)", option="params"
+            f"no candidate parameter set could be fitted ({why}); try a smaller set (params), or more or more "
+            f"varied poses",
+            option="params",
         )
     prior = np.where(ch.free, priors[ch.index], PIN)
     return _Selected(ch, p.candidates[ch.index], prior, free, priors, lev)

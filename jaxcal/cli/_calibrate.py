@@ -180,7 +180,8 @@ def calibrate(
     rep = res.report
     show(rep, meas)
     # a fit that stopped short is judged where it stopped: refused as implausible only where an
-    # input mistake explains it (reversed joints), else said not to have converged
+    # input mistake the check names explains it (reversed joints, units, swapped axes), else said
+    # not to have converged
     if not rep["converged"] and not rep["likely_input_mistake"]:
         err_console.print(
             f"[red]error:[/red] the final fit did not converge in {rep['steps']} step(s) (--max-steps "
@@ -199,7 +200,7 @@ def calibrate(
         "gauge": JOINT_GAUGE if res.robot.convention == "joint" else GAUGE,
     }
     # the data file's number of each point, so that evaluate and compensate read the same ones
-    numbers = (meas.point_numbers or tuple(range(1, meas.n_points + 1))) if meas.n_points else None
+    numbers = meas.numbers or None
     if out_robot is not None and nominal.convention != "joint":
         several = res.model.n_points > 1  # no one point is the tool: they are written beside it
         # one point is the tool's origin, written as the point (0, 0, 0): the file then says that

@@ -104,11 +104,10 @@ def _target_frame(model, calibrated: str, point: int | None, *, commands_only: b
     """The robot whose tool is what the targets are for: for target positions, a model's
     measured point (the one the data determined; its tool frame is only where the points hang);
     for commands only, the tool, where the nominal robot puts its own."""
-    import numpy as np
 
     from ..errors import DataError
-    from ..model import Model, measured_robot
-    from ..robot import PRESETS, read_point_numbers
+    from ..model import Model, measured_robot, model_points
+    from ..robot import read_point_numbers
 
     M = model.n_points
     if point is not None and (M == 0 or commands_only):
@@ -117,7 +116,7 @@ def _target_frame(model, calibrated: str, point: int | None, *, commands_only: b
     if M == 0 or commands_only:
         return model.robot
     # the points by their numbers in the data file, where the model file records them
-    numbers = None if calibrated in PRESETS else read_point_numbers(calibrated)
+    numbers = read_point_numbers(calibrated)
     numbers = list(numbers) if numbers is not None and len(numbers) == M else list(range(1, M + 1))
     named = ", ".join(map(str, numbers))
     if point is None and M > 1:
@@ -127,10 +126,9 @@ def _target_frame(model, calibrated: str, point: int | None, *, commands_only: b
             option="point",
         )
     j = numbers[0] if point is None else point
-    if j not in numbers:
-        raise DataError(f"--point {j}: {calibrated} measures the data file's point(s) {named}", option="point")
+    one = model_points(model, numbers, [j], option="point")
     console.print(
         f"compensating measured point {j} (the model's points: {named}; the targets are where it should go)",
         highlight=False,
     )
-    return measured_robot(Model(model.robot, np.asarray(model.points)[[numbers.index(j)]]))
+    return measured_robot(Model(one.robot, one.points))

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 from rich.table import Table
 
@@ -41,7 +40,7 @@ def evaluate(
     from .._io import json_text, write_atomic
     from ..calibration import evaluate as run
     from ..measurements import measurement_columns, read_measurements, read_table
-    from ..model import Model, load_model
+    from ..model import Model, load_model, model_points
 
     check_outputs({"json_out": json_out}, {"model": model, "data": data, "--training": training})
     from ..robot import PRESETS, preset, read_point_numbers, read_training_ranges
@@ -50,12 +49,16 @@ def evaluate(
     m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
     chosen = None if points is None else parse_points(points)
     src, header, _ = read_table(data, "expected a header row of joint and measurement columns, as for calibrate")
-    in_file = len(measurement_columns(header, src)[0])
+    columns, quat = measurement_columns(header, src)
+    in_file = 0 if quat else len(columns)  # a pose file has no points to choose
     recorded = None if nominal else read_point_numbers(model)
-    if recorded is not None and len(recorded) == m.n_points:
-        m, chosen = _recorded_points(m, model, recorded, chosen, in_file)
+    if recorded is not None and len(recorded) == m.n_points and in_file:
+        # the file's points the model was fitted on, by default; a file with fewer points than
+        # they name is another export, read as it is
+        chosen = chosen or (list(recorded) if max(recorded) <= in_file else None)
+        m = m if chosen is None else model_points(m, recorded, chosen)
     elif chosen is not None and 1 < m.n_points == in_file:  # the model's points are the file's
-        m = Model(m.robot, np.asarray(m.points)[[p - 1 for p in chosen]], m.camera_params, camera=m.camera)
+        m = model_points(m, None, chosen)
     # chosen before the unit checks, so that a point left out (a lost marker's sentinel) is not read
     meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     train = None
@@ -90,23 +93,3 @@ def evaluate(
     if json_out is not None:
         write_atomic(json_out, json_text(rep))
         console.print(f"report written to {json_out}")
-
-
-def _recorded_points(m, path: Path, recorded: tuple[int, ...], chosen, in_file: int):
-    """The model's points and the file's to score, where the model file records the data file's
-    number of each of its points: those by default, or the ones of them ``chosen``."""
-    from ..errors import DataError
-    from ..model import Model
-
-    if chosen is None:
-        # a file with fewer points than the numbers name is another export: its points are read as they are
-        return m, (list(recorded) if max(recorded) <= in_file else None)
-    missing = [j for j in chosen if j not in recorded]
-    if missing:
-        raise DataError(
-            f"--points {','.join(map(str, missing))}: {path} was fitted on the data file's point(s) "
-            f"{','.join(map(str, recorded))} only",
-            option="points",
-        )
-    keep = [recorded.index(j) for j in chosen]
-    return Model(m.robot, np.asarray(m.points)[keep], m.camera_params, camera=m.camera), chosen

@@ -85,12 +85,17 @@ def montecarlo(
 ):
     """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
     from .._io import check_writable, json_text, write_atomic
+    from ..errors import DataError
     from ..experiments import run_montecarlo
 
     inputs = {"robot": robot, "--poses-file": poses_file, "--validation": validation}
     check_outputs({"json_out": json_out}, inputs)
     if out_dir is not None:
         check_writable(out_dir / "study.json", "out")
+        own = json_out is not None and json_out.resolve().parent == out_dir.resolve()
+        if own and (json_out.name in ("study.json", "summary.json") or json_out.name.startswith("chunk-")):
+            raise DataError(f"json_out {json_out}: is one of the study's own files in --out; write it elsewhere",
+                            option="json_out")  # fmt: skip
     r = load_robot_arg(robot, base_link, tip_link)
     q = read_poses_for(poses_file, r, "poses_file")
     poses = poses if q is None else len(q)

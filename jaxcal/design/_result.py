@@ -100,9 +100,8 @@ class PoseDesign:
         )
         if self.details.get("converged_starts") == 0:  # a solver that stopped short says so
             lines.append(
-                f"warning: none of the {self.details['starts']} optimiser starts converged within its budget "
-                f"({self.details['max_evaluations']} evaluations): the poses are the best point reached, not an "
-                f"optimum (more --starts may reach a better one)"
+                f"warning: none of the {self.details['starts']} optimiser starts converged (the most evaluations "
+                f"one used: {self.details['max_evaluations']}): the poses are the best point reached, not an optimum"
             )
         return "\n".join(lines)
 

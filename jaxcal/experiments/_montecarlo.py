@@ -91,6 +91,15 @@ def crlb_variances(
     return _variances(_base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_true, kept))
 
 
+def _singular(N) -> np.ndarray:
+    """``(R,)`` which information matrices are singular once their columns are scaled."""
+    d = np.sqrt(np.abs(np.diagonal(N, axis1=-2, axis2=-1)))
+    s = np.where(d > 0, d, 1.0)  # a zero column is singular by itself
+    finite = np.all(np.isfinite(N), axis=(-2, -1))
+    cond = np.linalg.cond(np.where(finite[:, None, None], N, 0.0) / (s[:, :, None] * s[:, None, :]))
+    return ~finite | ~np.isfinite(cond) | (cond > 1e12) | np.any(d == 0, axis=-1)
+
+
 def _variances(N) -> np.ndarray:
     d = np.sqrt(np.diagonal(N, axis1=-2, axis2=-1))  # column scales: inv of a matrix with unit diagonal
     return np.diagonal(np.linalg.inv(N / (d[:, :, None] * d[:, None, :])), axis1=-2, axis2=-1) / d**2
@@ -330,7 +339,6 @@ def run_montecarlo(
             )
         design = (max(1, (n_poses - 2) // (2 * (robot.n_joints - 1))), 2)
         n_poses = 2 * (robot.n_joints - 1) * design[0] + design[1]
-        q = None
     elif q is not None:
         q = np.asarray(as_f64(q, "q"))
         if q.ndim != 2 or q.shape[1] != robot.n_joints or not np.all(np.isfinite(q)):
@@ -586,6 +594,9 @@ def _record(
         # of the poses its fit used: a pose left out as an outlier informs nothing
         kept = None if res.outlier_mask is None or keep_outliers else ~np.asarray(res.outlier_mask)
         N = _base_information(robot, q, ident, layout, sigma_pos, sigma_rot, x_t, kept)
+        if kept is not None and (lost := _singular(N)).any():  # so many left out that nothing bounds it:
+            # the bound of all its poses (finite) for such a robot; its fit on the rest was singular too
+            N[lost] = _base_information(robot, np.asarray(q)[lost], ident, layout, sigma_pos, sigma_rot, x_t[lost])
         rec["crlb_var"] = _variances(N)
         pts = _points(layout, len(x_t), x_t)
         one = shared_val and not (layout.n_points and layout.tool)  # the same inspection for every robot

@@ -83,6 +83,18 @@ def save_robot(
     highest)``, mm and rad: :func:`read_training_ranges`), and ``point_numbers``, the data
     file's number of each point (:func:`read_point_numbers`)."""
     points = None if points is None or not len(np.asarray(points)) else np.asarray(points)
+    if point_numbers is not None:  # as the readers check them: one distinct number >= 1 per point
+        nums = list(point_numbers)
+        if (
+            points is None
+            or len(nums) != len(points)
+            or len(set(nums)) != len(nums)
+            or not all(isinstance(j, (int, np.integer)) and not isinstance(j, bool) and j >= 1 for j in nums)
+        ):
+            raise RobotFileError(
+                f"{path}: point_numbers {nums} must give one distinct number >= 1 to each of the "
+                f"{0 if points is None else len(points)} points"
+            )
     if _is_urdf(path):
         if robot.convention != "joint":
             raise RobotFileError(

@@ -163,13 +163,13 @@ def read_toml(path) -> tuple[Robot, np.ndarray | None]:
     except tomllib.TOMLDecodeError as e:
         raise RobotFileError(f"{path}: not valid TOML: {e}") from None
     robot = robot_from_dict(doc, source=str(path))
-    if "points" not in doc:
-        return robot, None
-    pts = doc["points"]
+    pts = doc.get("points", [])
     if not isinstance(pts, list) or not all(isinstance(p, list) and len(p) == 3 for p in pts):
         raise RobotFileError(f"{path}: points must be a list of [x, y, z]")
-    lu = LENGTH[robot.units[0]]
     _numbers(doc, len(pts), path)
+    if "points" not in doc:
+        return robot, None
+    lu = LENGTH[robot.units[0]]
     return robot, np.array([[_num(v, f"points[{i}]") * lu for v in p] for i, p in enumerate(pts)])
 
 
@@ -180,6 +180,7 @@ def _numbers(doc: dict, n_points: int, path) -> tuple[int, ...] | None:
     v = doc["point_numbers"]
     if (
         not isinstance(v, list)
+        or not n_points
         or len(v) != n_points
         or not all(isinstance(j, int) and not isinstance(j, bool) and j >= 1 for j in v)
         or len(set(v)) != len(v)
@@ -196,7 +197,8 @@ def point_numbers_toml(path) -> tuple[int, ...] | None:
     (``point_numbers``), or ``None``."""
     with Path(path).open("rb") as f:
         doc = tomllib.load(f)
-    return _numbers(doc, len(doc.get("points", [])), path)
+    pts = doc.get("points", [])
+    return _numbers(doc, len(pts) if isinstance(pts, list) else 0, path)
 
 
 def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None, point_numbers=None) -> dict:

@@ -366,15 +366,16 @@ def training_ranges_urdf(path) -> dict | None:
 
 
 def point_numbers_urdf(path) -> tuple[int, ...] | None:
-    """The data file's number of each measured point a calibrated file holds (its
-    ``<jaxcal_point_numbers>``, in the order :func:`read_urdf` reads the points), or ``None``."""
+    """The data file's number of each measured point a calibrated file holds, in the order
+    :func:`read_urdf` reads the points (by their links' numbers, which are these), where its
+    ``<jaxcal_point_numbers>`` says the links are so named; else ``None``."""
     from lxml import etree  # yourdfpy's XML library
 
     for el in etree.parse(str(path)).getroot().iter(POINT_NUMBERS):
         text = (el.get("numbers") or "").split()
-        if not text or not all(t.isdigit() and int(t) >= 1 for t in text) or len(set(text)) != len(text):
+        if not text or not all(re.fullmatch(r"[0-9]+", t) and int(t) >= 1 for t in text) or len(set(text)) != len(text):
             raise RobotFileError(f"{path}: <{POINT_NUMBERS} numbers=...> needs distinct numbers 1, 2, ...")
-        return tuple(int(t) for t in text)
+        return tuple(sorted(int(t) for t in text))
     return None
 
 

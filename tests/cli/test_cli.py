@@ -205,19 +205,20 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     assert code in (0, None), err
     train = json.loads((tmp_path / "rep.json").read_text())["train_rms_mm"]
     assert json.loads((tmp_path / "ev.json").read_text())["position_rms_mm"] == pytest.approx(train, rel=1e-6)
-    # fitted on markers 1 and 3 only: the file records them, and evaluate scores those two by default
+    # fitted on markers 3 and 1 only (in that order): the file records them, and evaluate scores
+    # those two by default, each against its own point
     code, out, err = run_cli(
-        monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--points", "1,3",
-        "--out-robot", tmp_path / "c13.toml", "--json", tmp_path / "r13.json",
+        monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--points", "3,1",
+        "--out-robot", tmp_path / "c31.toml", "--json", tmp_path / "r31.json",
     )  # fmt: skip
     assert code in (0, None), err
-    assert "point_numbers = [ 1, 3, ]" in " ".join((tmp_path / "c13.toml").read_text().split())
+    assert "point_numbers = [ 3, 1, ]" in " ".join((tmp_path / "c31.toml").read_text().split())
     code, out, err = run_cli(
-        monkeypatch, capsys, "evaluate", tmp_path / "c13.toml", data, "--json", tmp_path / "e.json"
+        monkeypatch, capsys, "evaluate", tmp_path / "c31.toml", data, "--json", tmp_path / "e.json"
     )
     assert code in (0, None), err
-    ev, train = json.loads((tmp_path / "e.json").read_text()), json.loads((tmp_path / "r13.json").read_text())
-    assert [p["point"] for p in ev["points"]] == [1, 3] == train["point_numbers"]
+    ev, train = json.loads((tmp_path / "e.json").read_text()), json.loads((tmp_path / "r31.json").read_text())
+    assert [p["point"] for p in ev["points"]] == [3, 1] == train["point_numbers"]
     assert ev["position_rms_mm"] == pytest.approx(train["train_rms_mm"], rel=1e-6)
     # the preset itself, as calibrate takes it: its errors may be the arm's own, never calibrated
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", "ur5", data, "--points", "1")

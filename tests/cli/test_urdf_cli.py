@@ -73,6 +73,25 @@ def test_calibrate_then_evaluate(monkeypatch, capsys, split):
     assert code in (0, None) and "calibrated model of the chain base_footprint -> wrist_ft_tool_link" in out, err
 
 
+def test_points_chosen_out_of_order_read_back_as_themselves(monkeypatch, capsys, split):
+    """``--points 3,1``: the written URDF names each point's link by its number in the file, and
+    evaluate scores each against its own marker: the training error again, not a swap."""
+    d = split
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--params", "frames", "--folds", "3",
+        "--nested-max-poses", "0", "--points", "3,1", "--out-model", d / "p31.urdf", "--json", d / "r31.json",
+    )  # fmt: skip
+    assert code in (0, None), err
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "p31.urdf", d / "train.csv", "--json", d / "e.json")
+    assert code in (0, None), err
+    train, ev = json.loads((d / "r31.json").read_text()), json.loads((d / "e.json").read_text())
+    assert train["point_numbers"] == [3, 1] and sorted(p["point"] for p in ev["points"]) == [1, 3]
+    fitted = [o["row"] for o in train["outliers"] if o["excluded"]]
+    kept = [p for p in ev["poses"] if p["row"] not in fitted]
+    rms = np.sqrt(np.nanmean(np.square([p["error_mm"] for p in kept], dtype=float)))
+    assert rms == pytest.approx(train["train_rms_mm"], rel=1e-6)
+
+
 def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):
     """A model fitted on the file's marker 2 records it: evaluate scores marker 2 by default, as
     yourdfpy's forward kinematics of the written file does, and refuses marker 1; a file that
@@ -100,6 +119,14 @@ def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):
     assert ev["position_rms_mm"] == pytest.approx(np.sqrt(np.mean(np.square(err_mm))), rel=1e-9)
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "one.urdf", d / "test.csv", "--points", "1")
     assert code == 2 and "--points 1: " in err and "fitted on the data file's point(s) 2 only" in err
+    # a file of poses has no points to choose: it is refused for what it measures
+    header = ",".join(names) + ",x,y,z,qw,qx,qy,qz"
+    rows = [",".join(repr(float(v)) for v in np.r_[qk[0] / 1000.0, qk[1:], p / 1000.0, 1.0, 0.0, 0.0, 0.0]) for qk, p in
+            zip(np.asarray(data.q), np.asarray(data.measured)[:, 1])]  # fmt: skip
+    (d / "poses.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
+    save_model(load_model(d / "one.urdf"), d / "p1.urdf", template=URDF, point_numbers=[1])  # as from x, y, z
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "p1.urdf", d / "poses.csv")
+    assert code == 2 and "the data measure poses, the model predicts 1 point(s)" in err, err
     save_model(load_model(d / "one.urdf"), d / "bare.urdf", template=URDF)  # no record of the numbers
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", d / "bare.urdf", d / "test.csv")
     assert code == 2 and "the data measure 4 point(s) per pose, the model predicts 1 point(s)" in err
@@ -156,4 +183,4 @@ def test_compensate_brings_the_measured_point_to_the_targets(monkeypatch, capsys
     code, out, err = run_cli(
         monkeypatch, capsys, "compensate", tmp_path / "p2.urdf", tmp_path / "targets.csv", "--point", "1"
     )
-    assert code == 2 and "--point 1: " in err and "measures the data file's point(s) 2" in err
+    assert code == 2 and "--point 1: " in err and "fitted on the data file's point(s) 2 only" in err

@@ -472,7 +472,7 @@ def test_the_report_shows_a_bound_beyond_the_largest_count_and_a_dash_where_none
     # a design none of whose optimiser starts converged says so
     assert "converged" not in d.report()
     stopped = dataclasses.replace(d, details={"starts": 2, "converged_starts": 0, "max_evaluations": 500})
-    assert "warning: none of the 2 optimiser starts converged within its budget (500 evaluations)" in stopped.report()
+    assert "warning: none of the 2 optimiser starts converged (the most evaluations one used: 500)" in stopped.report()
 
 
 def test_a_position_only_design_without_a_point_is_for_a_marker_off_the_last_axis(robot):

@@ -75,6 +75,11 @@ def test_cli_montecarlo_writes_json(tmp_path):
     ):
         assert key in d
     assert d["n_robots"] == 8 and d["robots_per_second"] > 0
+    # --json onto the study folder's own summary is refused before any work
+    study = tmp_path / "study"
+    r = CliRunner().invoke(app, ["montecarlo", "paper-6r", "--out", str(study), "--json", str(study / "summary.json")])
+    assert isinstance(r.exception, jaxcal.DataError) and r.exception.option == "json_out"
+    assert not (study / "study.json").exists()
 
 
 def test_cli_montecarlo_with_gross_outliers(tmp_path):
@@ -228,3 +233,26 @@ def test_position_only_study_estimates_every_parameter_a_tool_point_reveals():
     # absorption of DH errors makes miss by about 1e-3
     assert max(out["param_rms_error"].values()) < 2e-4, out["param_rms_error"]
     assert out["robots_per_second"] is None and out["compile_seconds"] is None  # no warm run: not measured
+
+
+def test_a_robot_whose_fit_left_out_nearly_every_pose_keeps_a_finite_bound(monkeypatch):
+    """The bound is of the poses each fit kept; where a fit left out so many that the rest bound
+    nothing (here robot 0 keeps 3 of 20 poses), that robot keeps the bound of all its poses and
+    the study still reports one, not a singular-matrix error."""
+    import dataclasses
+
+    import jaxcal.experiments._montecarlo as mc
+
+    real = mc.calibrate_batch
+
+    def flags_most(*a, **kw):
+        res = real(*a, **kw)
+        if res.outlier_mask is None:
+            return res
+        mask = np.array(res.outlier_mask)
+        mask[0, 3:] = True
+        return dataclasses.replace(res, outlier_mask=mask)
+
+    monkeypatch.setattr(mc, "calibrate_batch", flags_most)
+    out = run_montecarlo(jaxcal.preset("paper-6r"), n_robots=4, n_poses=20, n_val=5, repeats=0, seed=2)
+    assert np.isfinite(out["crlb_validation_pos_rms_mm"]) and np.isfinite(out["crlb_efficiency_mean"])

@@ -165,3 +165,20 @@ def test_point_numbers_are_checked_against_the_points(tmp_path, numbers, ok):
             load_robot(path)
     path.write_text(text + PAPER_TOML)
     assert read_point_numbers(path) is None
+    path.write_text("point_numbers = [1]\n" + PAPER_TOML)  # numbers of points the file does not hold
+    with pytest.raises(RobotFileError, match="point_numbers"):
+        load_robot(path)
+
+
+def test_point_numbers_are_checked_when_written(tmp_path):
+    """Writing refuses numbers that do not name each point once, as reading would."""
+    from jaxcal.robot import read_point_numbers
+
+    r = preset("paper-6r")
+    pts = np.array([[10.0, 0.0, 0.0], [0.0, 20.0, 0.0]])
+    for bad in ([3], [1, 1], [0, 2]):
+        with pytest.raises(RobotFileError, match="point_numbers"):
+            save_robot(r, tmp_path / "p.toml", points=pts, point_numbers=bad)
+    assert not (tmp_path / "p.toml").exists()
+    save_robot(r, tmp_path / "p.toml", points=pts, point_numbers=[4, 2])
+    assert read_point_numbers(tmp_path / "p.toml") == (4, 2)
