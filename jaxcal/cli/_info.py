@@ -34,11 +34,18 @@ def info(
                 " ".join(f"{v:.6g}" for v in rpy), f"{lim[0]:.4g} .. {lim[1]:.4g}",
             )  # fmt: skip
     else:
-        for col in ("joint", "name", "type", "theta (rad)", "d (mm)", "a (mm)", "alpha (rad)"):
+        for col in ("joint", "name", "type", "theta (rad)", "d (mm)", "a (mm)", "alpha (rad)", "limits"):
             table.add_column(col)
-        for i, (row, t, n) in enumerate(zip(np.asarray(r.dh), r.joint_types, r.joint_names), start=1):
-            table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row))
+        rows = zip(np.asarray(r.dh), r.joint_types, r.joint_names, np.asarray(r.q_limits))
+        for i, (row, t, n, lim) in enumerate(rows, start=1):
+            table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row), f"{lim[0]:.4g} .. {lim[1]:.4g}")
     console.print(table)
+    # the frames a calibration estimates (identity in a nominal file): part of the model as the chain is
+    for what in ("base", "tool"):
+        T = np.asarray(getattr(r, what))
+        xyz = " ".join(f"{v:.6g}" for v in T[:3, 3])
+        rpy = " ".join(f"{v:.6g}" for v in np.asarray(matrix_to_rpy(T[:3, :3])))
+        console.print(f"{what}: xyz {xyz} mm, rpy {rpy} rad", highlight=False)
     chain = calibrated_chain(robot)
     if chain is not None:
         console.print(

@@ -245,3 +245,19 @@ def test_an_output_that_is_an_input_or_another_output_is_refused(tmp_path, monke
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", urdf, data, "--json", data)
     assert code == 2 and "is the data file" in err, err
     assert data.read_bytes() == csv.read_bytes() and not (tmp_path / "a.out").exists()
+
+
+def test_info_shows_the_frames_and_limits_of_a_dh_robot(tmp_path, monkeypatch, capsys):
+    """A calibrated DH file's base and tool frames are part of its model: `info` prints them (rpy
+    as scipy's fixed-axis x-y-z angles of the same matrix) beside each joint's limits."""
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", [0.1, 0.2, 0.3]).as_matrix()
+    T[:3, 3] = [10.0, -20.0, 30.0]
+    r = preset("ur5").replace(base=T, q_limits=np.tile([-1.25, 2.75], (6, 1)))
+    save_robot(r, tmp_path / "r.toml")
+    code, out, err = run_cli(monkeypatch, capsys, "info", tmp_path / "r.toml")
+    assert code in (0, None), err
+    assert "base: xyz 10 -20 30 mm, rpy 0.1 0.2 0.3 rad" in out and "tool: xyz 0 0 0 mm" in out
+    assert out.count("-1.25") == 6  # each joint's lower limit (the column may wrap)
