@@ -199,6 +199,20 @@ def calibrate(
         "convention": res.robot.convention,
         "gauge": JOINT_GAUGE if res.robot.convention == "joint" else GAUGE,
     }
+    writes = any(p is not None for p in (out_robot, out_model, out_ur_kinematics, out_dh))
+    if rep["camera_model"] != "none" and writes:  # the files hold the robot alone, not the sensor's model
+        from ..calibration import evaluate
+
+        fitted = ~np.isin(meas.rows, [o["row"] for o in rep["outliers"] if o["excluded"]])
+        alone = evaluate(Model(res.model.robot, res.model.points), meas.subset(fitted))["position_rms_mm"]
+        comment |= {"camera_model": rep["camera_model"], "robot_alone_train_rms_mm": alone}
+        console.print(
+            f"[yellow]warning:[/yellow] the camera model ({rep['camera_model']}) corrects the camera's measurements "
+            f"and is not in the robot files: without it the calibrated robot predicts the fitted poses to "
+            f"{alone:.3g} mm RMS (with it {rep['train_rms_mm']:.3g} mm; the held-out figures are with it too); "
+            f"its values are the report's camera_parameters",
+            highlight=False,
+        )
     # the data file's number of each point, so that evaluate and compensate read the same ones
     numbers = meas.numbers or None
     if out_robot is not None and nominal.convention != "joint":

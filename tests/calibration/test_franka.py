@@ -103,6 +103,25 @@ def test_franka_calibrate_with_quadratic_camera_model(tmp_path, monkeypatch, cap
     assert not any(k.startswith("camera") for k in rep["parameters"])
     assert rep["heldout_rms_mm"] < 1.2  # the issue's goal; the plain model is at 1.44
     assert rep["heldout_rms_mm"] >= rep["train_rms_mm"]
+    # the robot file holds the robot alone: the command says what it predicts without the camera
+    # model, and the file records it; evaluate of that file on the fitted rows gives the same
+    import tomllib
+
+    assert "warning: the camera model (quadratic) corrects the camera's measurements" in " ".join(out.split())
+    cal = tomllib.loads((tmp_path / "cal.toml").read_text())["calibration"]
+    assert cal["camera_model"] == "quadratic" and cal["robot_alone_train_rms_mm"] > 2 * rep["train_rms_mm"]
+    fitted = franka_csv_path().read_text().splitlines()
+    out_rows = {o["row"] for o in rep["outliers"] if o["excluded"]}
+    (tmp_path / "fitted.csv").write_text(
+        "\n".join([fitted[0]] + [r for k, r in enumerate(fitted[1:], 1) if k not in out_rows]) + "\n"
+    )
+    code, _, ev_err = run_cli(
+        monkeypatch, capsys, "evaluate", tmp_path / "cal.toml", tmp_path / "fitted.csv", "--length-unit", "m",
+        "--json", tmp_path / "e.json",
+    )  # fmt: skip
+    assert code in (0, None), ev_err
+    alone = json.loads((tmp_path / "e.json").read_text())["position_rms_mm"]
+    np.testing.assert_allclose(alone, cal["robot_alone_train_rms_mm"], rtol=1e-9)
     # independent check: the written robot (which carries no camera model) through the documented
     # camera formula t' = (I + A) t + z Q (u^2, v^2, uv), t = -R^T p, reproduces the training RMS
     c = [v["value"] for v in cam.values()]
