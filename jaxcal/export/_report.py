@@ -126,7 +126,9 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
                     rep["frames_only_heldout_rot_rms_deg"],
                 ],
                 [
-                    f"calibrated ({rep['choice']})",
+                    f"calibrated ({rep['choice']}"
+                    + ("" if rep["camera_model"] == "none" else f", camera model {rep['camera_model']}")
+                    + ")",
                     rep["train_rms_mm"],
                     rep["heldout_rms_mm"],
                     rep["extrapolation_rms_mm"],
@@ -202,10 +204,23 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
             + [[f"point {j} on the tool", *p, None, None, None] for j, p in enumerate(rep.get("points_mm") or [], 1)],
         ),  # fmt: skip
     ]
-    frame_se = [(k, v) for k, v in result.deltas.items() if k.startswith(("base_", "tool_", "point", "camera_"))]
+    frame_se = [(k, v) for k, v in result.deltas.items() if k.startswith(("base_", "tool_", "point"))]
     if frame_se:
         parts.append(
             _table("frame-errors", ["frame parameter", "std error", "unit"], [[k, v[1], v[2]] for k, v in frame_se])
+        )
+    if rep.get("camera_parameters"):  # the sensor's unknowns: values too, as they are in no robot file
+        parts.append(
+            f"<p>Camera model {html.escape(rep['camera_model'])}: its unknowns, not written to the robot files "
+            "(the robot alone does not predict the raw measurements as well).</p>"
+        )
+        cam = rep["camera_parameters"]
+        parts.append(
+            _table(
+                "camera",
+                ["camera parameter", "value", "std error"],
+                [[k, v["value"], v["std_error"]] for k, v in cam.items()],
+            )
         )
     parts.append("<h2>Outliers</h2>")
     outliers = rep.get("outliers")

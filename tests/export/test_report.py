@@ -92,6 +92,17 @@ def test_tables(page):
     assert "Accuracy map" in p.headings and "Outliers" in p.headings
 
 
+def test_a_camera_model_is_named_with_its_values():
+    """A calibration with a camera model: the summary row names it, and its unknowns are shown with
+    their values (they are in no robot file), not only their standard errors."""
+    _, _, data, res = ur5_tracker()
+    cam = {"camera_depth_scale": {"value": -0.00723, "std_error": 0.00156}}
+    rep = dict(res.report, camera_model="depth", camera_parameters=cam)
+    p = Page(report_html(dataclasses.replace(res, report=rep), data, workspace_poses=20))
+    assert p.tables["summary"]["rows"][1][0].endswith(", camera model depth)")
+    assert p.tables["camera"]["rows"] == [["camera_depth_scale", "-0.00723", "0.00156"]]
+
+
 def test_figures_embedded(page):
     p, _ = page
     assert set(p.images) == {"accuracy-map", "pose-errors", "parameter-errors"}
