@@ -243,6 +243,14 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
             f"{len(sw)} poses drawn within the joint limits and at the data's poses, beside the measured held-out "
             "errors. A held-out error adds the measurement noise to the model's: the right panel compares "
             "the measured errors with sqrt(σ<sub>model</sub>² + 3 σ<sub>pos</sub>²).</p>"
+            + (
+                ""
+                if rep["camera_model"] == "none"
+                else f"<p>With the camera model ({html.escape(rep['camera_model'])}) the predicted σ is of the "
+                "robot alone, its base and tool uncertain by what they trade with the camera unknowns, while the "
+                "measured errors are of the measurements the camera model corrects: the panels do not compare "
+                "like with like.</p>"
+            )
         )
         parts.append(
             _table(

@@ -101,6 +101,8 @@ def test_a_camera_model_is_named_with_its_values():
     p = Page(report_html(dataclasses.replace(res, report=rep), data, workspace_poses=20))
     assert p.tables["summary"]["rows"][1][0].endswith(", camera model depth)")
     assert p.tables["camera"]["rows"] == [["camera_depth_scale", "-0.00723", "0.00156"]]
+    html = report_html(dataclasses.replace(res, report=rep), data, workspace_poses=20)
+    assert "the panels do not compare like with like" in html
 
 
 def test_figures_embedded(page):
