@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import io
 import json
 import math
 import os
@@ -54,11 +57,50 @@ def _umask() -> int:
     return mask
 
 
-def write_atomic(path, data: str | bytes) -> None:
+_STAGED: contextvars.ContextVar[list | None] = contextvars.ContextVar("jaxcal_staged_outputs", default=None)
+
+
+@contextlib.contextmanager
+def all_or_nothing():
+    """Hold every output :func:`write_atomic` is asked for inside the block, and write them when
+    the block ends without an error, each atomically, after checking that every one can be: a
+    command whose later output fails (a plot, an export) leaves none of its files, not half of
+    them, and an earlier result beside a newer one."""
+    staged: list = []
+    token = _STAGED.set(staged)
+    try:
+        yield
+    finally:
+        _STAGED.reset(token)
+    for path, _ in staged:
+        check_writable(path)
+    for path, data in staged:
+        _write_now(path, data)
+
+
+def write_atomic(path, data: str | bytes, *, now: bool = False) -> None:
     """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``: a reader
     (or a crash, or Ctrl-C) never leaves half a file, and an existing file is kept until the new
-    one is complete."""
-    path = Path(path)
+    one is complete. Inside :func:`all_or_nothing`, held until its block ends, unless ``now`` (a
+    cache, not an output)."""
+    staged = _STAGED.get()
+    if staged is not None and not now:
+        staged.append((Path(path), data))
+    else:
+        _write_now(path, data)
+
+
+def write_figure(fig, path, **kwargs) -> None:
+    """A matplotlib figure as PNG through :func:`write_atomic`."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", **kwargs)
+    write_atomic(path, buf.getvalue())
+
+
+def _write_now(path, data: str | bytes) -> None:
+    # a link (a package's file linked into a workspace) keeps pointing where it did: its target is
+    # the file replaced, not the link
+    path = Path(os.path.realpath(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     mode = "wb" if isinstance(data, bytes) else "w"
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)

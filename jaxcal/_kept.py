@@ -254,7 +254,7 @@ class Store:
         except Exception:  # effects, callbacks or anything export does not take: plain jit
             return None
         try:
-            write_atomic(Path(folder) / f"{key}.jaxcal", blob)
+            write_atomic(Path(folder) / f"{key}.jaxcal", blob, now=True)
         except OSError:  # a read-only folder: this process still uses what it traced
             pass
         return self._runner(exported), shape["skeleton"]

@@ -16,7 +16,7 @@ from jaxtyping import Array, Float
 
 from ._chain import chain, link_inputs
 from ._joints import joint_chain, joint_fk, joint_frames_after
-from .errors import DataError
+from .errors import DataError, RobotFileError
 from .lie import compose, make_transform
 from .robot import Robot
 from .trig import DOMAIN
@@ -201,7 +201,7 @@ def _tx(a):
 
 def _dh_only(robot: Robot, what: str):
     if robot.convention == "joint":
-        raise ValueError(f"{what} needs a DH robot; {robot.name!r} is described by joint frames")
+        raise RobotFileError(f"{what} needs a DH robot; {robot.name!r} is described by joint frames")
 
 
 def _rz(theta):
@@ -260,6 +260,14 @@ def to_sdh(robot: Robot) -> Robot:
     if robot.convention == "sdh":
         return robot
     dh = np.asarray(robot.dh)
+    c = robot.compliance
+    if c is not None and np.any(np.asarray(c) != 0) and dh[0, 3] != 0:
+        # gravity is along -z of frame 0, which the moved Rx(alpha_1) would tilt: the compliances'
+        # moments, and so the end pose, would change
+        raise RobotFileError(
+            f"to_sdh: {robot.name!r} has joint compliances and alpha_1 = {dh[0, 3]:.6g} rad; its standard-DH "
+            "frame 0 would be tilted from the one gravity is taken in (to_joint keeps it)"
+        )
     new = dh.copy()
     new[:-1, 2:] = dh[1:, 2:]
     new[-1, 2:] = 0.0

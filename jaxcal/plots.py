@@ -12,6 +12,8 @@ from pathlib import Path  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ._io import write_figure  # noqa: E402
+
 STYLE = {
     "nominal": dict(color="0.4", marker="o"),
     "linear": dict(color="tab:orange", marker="s"),
@@ -58,7 +60,7 @@ def axis_deviation(path, axis: str, deviations: dict, *, title: str) -> None:
     bottom.legend(fontsize=8, ncol=2)
     bottom.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -87,7 +89,7 @@ def timing(path, runs_ms: dict, compile_s: dict, *, title: str) -> None:
     right.set_title("JIT compilation (not in the left panel)", fontsize=10)
     right.grid(alpha=0.3, axis="y")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -209,11 +211,10 @@ def calibration_figures(result, out_dir) -> list[Path]:
     and ``parameters.png`` (estimated DH errors with 1-sigma error bars) into ``out_dir``.
     **Returns** the paths written."""
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, make in (("pose_errors.png", pose_errors_figure), ("parameters.png", parameters_figure)):
         fig = make(result)
         paths.append(out / name)
-        fig.savefig(paths[-1], dpi=120)
+        write_figure(fig, paths[-1], dpi=120)
         plt.close(fig)
     return paths

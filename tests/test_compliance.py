@@ -180,3 +180,22 @@ def test_a_point_folded_into_the_tool_keeps_the_compliances_weight(tmp_path, rng
     # a rigid choice (every compliance 0) has no weight to keep: no load, and its file has none
     rigid = measured_robot(Model(ur5.replace(compliance=np.zeros(6)), model.points))
     assert rigid.load is None
+
+
+def test_conversions_keep_a_compliant_arms_pose_or_refuse(rng):
+    """Gravity is along -z of frame 0: ``to_mdh`` and ``to_joint`` keep that frame and so the
+    deflected end pose; ``to_sdh`` of an MDH arm whose first twist is not 0 would tilt it and is
+    refused, while with a zero first twist it converts exactly."""
+    r = jaxcal.preset("panda")  # MDH, alpha_1 = 0
+    r = r.replace(compliance=np.full(7, 3e-6))
+    q = rng.uniform(-1.5, 1.5, (20, 7))
+    want = np.asarray(jaxcal.fk(r, q))
+    for other in (jaxcal.to_sdh(r), to_joint(r), jaxcal.to_mdh(jaxcal.to_sdh(r))):
+        assert_allclose(np.asarray(jaxcal.fk(other, q)), want, atol=1e-9)
+    dh = np.asarray(r.dh).copy()
+    dh[0, 3] = 0.4
+    tilted = r.replace(dh=dh)
+    with pytest.raises(jaxcal.RobotFileError, match="to_sdh: .* has joint compliances and alpha_1 = 0.4"):
+        jaxcal.to_sdh(tilted)
+    rigid = np.asarray(jaxcal.fk(tilted.replace(compliance=np.zeros(7)), q))
+    assert_allclose(np.asarray(jaxcal.fk(jaxcal.to_sdh(tilted.replace(compliance=np.zeros(7))), q)), rigid, atol=1e-9)

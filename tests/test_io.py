@@ -34,3 +34,46 @@ def test_json_text_writes_non_finite_numbers_as_null():
 
     back = json.loads(json_text(obj), parse_constant=refuse)
     assert back == {"a": None, "b": [1.5, None, None], "c": [[2.0, None]], "d": [3]}
+
+
+def test_all_or_nothing_writes_none_when_the_block_fails(tmp_path):
+    """A command's outputs are written together: an error after the first leaves none of them,
+    and an older file in place."""
+    import pytest
+
+    from jaxcal._io import all_or_nothing
+
+    (tmp_path / "b.txt").write_text("old")
+    with pytest.raises(RuntimeError), all_or_nothing():
+        write_atomic(tmp_path / "a.txt", "new")
+        write_atomic(tmp_path / "b.txt", "new")
+        raise RuntimeError("a later output failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.txt"] and (tmp_path / "b.txt").read_text() == "old"
+    with all_or_nothing():
+        write_atomic(tmp_path / "a.txt", "new")
+        assert not (tmp_path / "a.txt").exists()  # held until the block ends
+    assert (tmp_path / "a.txt").read_text() == "new"
+
+
+def test_all_or_nothing_checks_every_output_before_writing_one(tmp_path):
+    import pytest
+
+    from jaxcal._io import all_or_nothing
+    from jaxcal.errors import DataError
+
+    (tmp_path / "plots" / "parameters.png").mkdir(parents=True)  # a folder where a file goes
+    with pytest.raises(DataError, match="parameters.png: is a directory"), all_or_nothing():
+        write_atomic(tmp_path / "a.txt", "new")
+        write_atomic(tmp_path / "plots" / "parameters.png", b"png")
+    assert not (tmp_path / "a.txt").exists()
+
+
+def test_a_link_keeps_pointing_at_the_file_it_names(tmp_path):
+    """An output named by a symbolic link (a package's file linked into a workspace) replaces
+    the link's target, not the link: whatever reads the target reads the new file."""
+    (tmp_path / "pkg").mkdir()
+    target = tmp_path / "pkg" / "cal.yaml"
+    target.write_text("old")
+    (tmp_path / "cal.yaml").symlink_to(target)
+    write_atomic(tmp_path / "cal.yaml", "new")
+    assert (tmp_path / "cal.yaml").is_symlink() and target.read_text() == "new"

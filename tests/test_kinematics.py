@@ -136,3 +136,14 @@ def test_ur5_home_pose():
     z = d1 - d5 = -5.491 (mm)."""
     T = np.asarray(fk(preset("ur5"), jnp.zeros(6)))
     assert_allclose(T[:3, 3], [-817.25, -191.45, 89.159 - 94.65], atol=1e-9)
+
+
+def test_dh_conversions_of_a_joint_frame_robot_are_jaxcal_errors():
+    """Every refusal jaxcal means is a JaxcalError (a RobotFileError here), not a bare ValueError."""
+    from jaxcal import RobotFileError, to_joint
+    from jaxcal.robot import preset
+
+    r = to_joint(preset("ur5"))
+    for convert in (to_mdh, to_sdh):
+        with pytest.raises(RobotFileError, match="needs a DH robot; 'ur5' is described by joint frames"):
+            convert(r)

@@ -120,7 +120,7 @@ def calibrate(
     """Calibrate from measured data with K-fold held-out validation (base and tool estimated)."""
     import numpy as np
 
-    from .._io import write_atomic
+    from .._io import all_or_nothing, write_atomic
     from ..calibration import GAUGE, JOINT_GAUGE, calibrate_data
     from ..errors import DataError, ImplausibleFitError
     from ..export import check_dh, check_ur
@@ -136,7 +136,18 @@ def calibrate(
         check_ur(nominal, "out_ur_kinematics")
     if out_dh is not None:
         check_dh(nominal, "out_dh")
+    if out_ur_kinematics is not None and out_ur_kinematics.suffix.lower() not in (".yaml", ".yml"):
+        raise DataError(
+            "out_ur_kinematics: a UR kinematics file is YAML (.yaml, .yml); nothing was computed",
+            option="out_ur_kinematics",
+        )
     for name, path in (("out_robot", out_robot), ("out_model", out_model)):
+        if path is not None and path.suffix.lower() in (".yaml", ".yml"):  # read back as UR's format
+            raise DataError(
+                f"{name}: a robot file is TOML (.toml) or URDF (.urdf); .yaml is --out-ur-kinematics's format; "
+                "nothing was computed",
+                option=name,
+            )
         if path is not None and (path.suffix.lower() in (".urdf", ".xml")) != (nominal.convention == "joint"):
             kind = (
                 "a URDF robot is written as URDF (.urdf, .xml)"
@@ -192,71 +203,73 @@ def calibrate(
         raise typer.Exit(1)
     if not rep["plausible"]:
         raise ImplausibleFitError(rep["implausible"] + "; nothing was written")
-    comment = {
-        "data": str(data),
-        "heldout_rms_mm": rep["heldout_rms_mm"],
-        "choice": rep["choice"],
-        "convention": res.robot.convention,
-        "gauge": JOINT_GAUGE if res.robot.convention == "joint" else GAUGE,
-    }
-    writes = any(p is not None for p in (out_robot, out_model, out_ur_kinematics, out_dh))
-    if rep["camera_model"] != "none" and writes:  # the files hold the robot alone, not the sensor's model
-        from ..calibration import evaluate
+    # every output or none: one that fails late (a plot, an export) leaves no others behind
+    with all_or_nothing():
+        comment = {
+            "data": str(data),
+            "heldout_rms_mm": rep["heldout_rms_mm"],
+            "choice": rep["choice"],
+            "convention": res.robot.convention,
+            "gauge": JOINT_GAUGE if res.robot.convention == "joint" else GAUGE,
+        }
+        writes = any(p is not None for p in (out_robot, out_model, out_ur_kinematics, out_dh))
+        if rep["camera_model"] != "none" and writes:  # the files hold the robot alone, not the sensor's model
+            from ..calibration import evaluate
 
-        fitted = ~np.isin(meas.rows, [o["row"] for o in rep["outliers"] if o["excluded"]])
-        alone = evaluate(Model(res.model.robot, res.model.points), meas.subset(fitted))["position_rms_mm"]
-        comment |= {"camera_model": rep["camera_model"], "robot_alone_train_rms_mm": alone}
-        console.print(
-            f"[yellow]warning:[/yellow] the camera model ({rep['camera_model']}) corrects the camera's measurements "
-            f"and is not in the robot files: without it the calibrated robot predicts the fitted poses to "
-            f"{alone:.3g} mm RMS (with it {rep['train_rms_mm']:.3g} mm; the held-out figures are with it too); "
-            f"its values are the report's camera_parameters",
-            highlight=False,
-        )
-    # the data file's number of each point, so that evaluate and compensate read the same ones
-    numbers = meas.numbers or None
-    if out_robot is not None and nominal.convention != "joint":
-        several = res.model.n_points > 1  # no one point is the tool: they are written beside it
-        # one point is the tool's origin, written as the point (0, 0, 0): the file then says that
-        # only positions were measured (the tool's orientation is the nominal one, not calibrated)
-        points = np.asarray(res.model.points) if several else np.zeros((res.model.n_points, 3))
-        save_robot(
-            res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
-            training_ranges=res.training_ranges, points=points, point_numbers=numbers,
-        )  # fmt: skip
-        console.print(f"calibrated robot written to {out_robot}")
-        if res.model.n_points == 1:
+            fitted = ~np.isin(meas.rows, [o["row"] for o in rep["outliers"] if o["excluded"]])
+            alone = evaluate(Model(res.model.robot, res.model.points), meas.subset(fitted))["position_rms_mm"]
+            comment |= {"camera_model": rep["camera_model"], "robot_alone_train_rms_mm": alone}
             console.print(
-                "  its tool origin is the measured point; the tool's orientation was not measured (the nominal "
-                "one), so the file marks the point (`points`) and pose targets warn",
+                f"[yellow]warning:[/yellow] the camera model ({rep['camera_model']}) corrects the camera's "
+                f"measurements and is not in the robot files: without it the calibrated robot predicts the "
+                f"fitted poses to {alone:.3g} mm RMS (with it {rep['train_rms_mm']:.3g} mm; the held-out "
+                f"figures are with it too); its values are the report's camera_parameters",
                 highlight=False,
             )
-        if several:
-            console.print(
-                f"  with the {res.model.n_points} measured points (`points`, tool frame); its tool frame is where "
-                f"they hang, not one of them",
-                highlight=False,
-            )
-    # a URDF robot's --out-robot is its model too: the points are links of the written URDF
-    for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
-        if path is None:
-            continue
-        urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
-        model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
-        save_model(
-            model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link,
-            training_ranges=res.training_ranges, point_numbers=numbers,
-        )  # fmt: skip
-        console.print(f"calibrated model written to {path}")
-    if json_out is not None:
-        write_atomic(json_out, res.to_json())
-        console.print(f"report written to {json_out}")
-    if plots is not None:
-        from ..plots import calibration_figures
+        # the data file's number of each point, so that evaluate and compensate read the same ones
+        numbers = meas.numbers or None
+        if out_robot is not None and nominal.convention != "joint":
+            several = res.model.n_points > 1  # no one point is the tool: they are written beside it
+            # one point is the tool's origin, written as the point (0, 0, 0): the file then says that
+            # only positions were measured (the tool's orientation is the nominal one, not calibrated)
+            points = np.asarray(res.model.points) if several else np.zeros((res.model.n_points, 3))
+            save_robot(
+                res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
+                training_ranges=res.training_ranges, points=points, point_numbers=numbers,
+            )  # fmt: skip
+            console.print(f"calibrated robot written to {out_robot}")
+            if res.model.n_points == 1:
+                console.print(
+                    "  its tool origin is the measured point; the tool's orientation was not measured (the nominal "
+                    "one), so the file marks the point (`points`) and pose targets warn",
+                    highlight=False,
+                )
+            if several:
+                console.print(
+                    f"  with the {res.model.n_points} measured points (`points`, tool frame); its tool frame is where "
+                    f"they hang, not one of them",
+                    highlight=False,
+                )
+        # a URDF robot's --out-robot is its model too: the points are links of the written URDF
+        for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
+            if path is None:
+                continue
+            urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
+            model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
+            save_model(
+                model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link,
+                training_ranges=res.training_ranges, point_numbers=numbers,
+            )  # fmt: skip
+            console.print(f"calibrated model written to {path}")
+        if json_out is not None:
+            write_atomic(json_out, res.to_json())
+            console.print(f"report written to {json_out}")
+        if plots is not None:
+            from ..plots import calibration_figures
 
-        for p in calibration_figures(res, plots):
-            console.print(f"plot written to {p}")
-    _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment)
+            for p in calibration_figures(res, plots):
+                console.print(f"plot written to {p}")
+        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment)
 
 
 def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:

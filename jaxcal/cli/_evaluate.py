@@ -70,6 +70,12 @@ def evaluate(
         same = chosen if chosen is not None and max(chosen) <= have else None
         train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same)
     rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
+    if not nominal and model.suffix.lower() in (".yaml", ".yml"):  # UR's format: the arm alone
+        rep["warnings"].append(
+            f"{model.name} is a UR kinematics file, which holds no base or tool frame: the data are predicted "
+            "with the base at the measurement frame and the tool at tool0; the --out-robot file of the same "
+            "calibration holds both (its header comments give them too)"
+        )
     table = Table(title=f"{model.name} on {meas.source}: {len(meas)} poses, nothing re-fitted")
     for col in ("point", "RMS (mm)", "max (mm)", "median (mm)"):
         table.add_column(col, justify="right")

@@ -93,5 +93,10 @@ def check_dh(robot, option: str | None = None) -> None:
 
 def save_dh_table(result, path) -> None:
     """Write :func:`dh_table` of a DH robot's calibration atomically."""
+    if not all(hasattr(result, k) for k in ("nominal", "report", "deltas")):
+        raise RobotFileError(
+            f"{path}: save_dh_table takes the result of jaxcal.calibrate_data (the nominal table, the estimates "
+            f"and their standard errors), not a {type(result).__name__}"
+        )
     check_dh(result.nominal)
     write_atomic(path, dh_table(result))

@@ -29,6 +29,7 @@ Both are written as comments at the top of the file and returned by :func:`ur_ki
 from __future__ import annotations
 
 import hashlib
+from pathlib import Path
 
 import numpy as np
 
@@ -69,7 +70,7 @@ def _xyz_rpy(T) -> list[float]:
 
 def _said(T) -> str:
     v = _xyz_rpy(T)
-    return f"xyz [{', '.join(f'{x:.9g}' for x in v[:3])}] m, rpy [{', '.join(f'{x:.9g}' for x in v[3:])}] rad"
+    return f"xyz [{', '.join(f'{x!r}' for x in v[:3])}] m, rpy [{', '.join(f'{x!r}' for x in v[3:])}] rad"
 
 
 def ur_kinematics(robot: Robot) -> tuple[dict, np.ndarray, np.ndarray]:
@@ -111,7 +112,14 @@ def save_ur_kinematics(robot: Robot, path, *, comment: dict | None = None) -> tu
     kinematics file, atomically; **returns** ``(base, tool)``, the transforms (mm) the file does
     not hold (module docstring). Read it back with :func:`jaxcal.load_robot`.
 
-    **Raises** :class:`jaxcal.RobotFileError` for any other robot."""
+    **Raises** :class:`jaxcal.RobotFileError` for any other robot, or a path not ending in
+    ``.yaml``/``.yml`` (how :func:`jaxcal.load_robot` knows the file)."""
+    if not isinstance(robot, Robot):
+        raise RobotFileError(
+            f"{path}: save_ur_kinematics takes a jaxcal.Robot (a result's .robot), not a {type(robot).__name__}"
+        )
+    if Path(path).suffix.lower() not in (".yaml", ".yml"):
+        raise RobotFileError(f"{path}: a UR kinematics file is YAML and its name ends in .yaml (or .yml)")
     text, base, tool = ur_kinematics_text(robot, comment=comment)
     write_atomic(path, text)
     return base, tool

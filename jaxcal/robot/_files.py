@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._io import check_writable
 from ..errors import RobotFileError
 from ._robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 from ._toml import point_numbers_toml, read_toml, save_toml, training_ranges_toml
@@ -82,6 +83,16 @@ def save_robot(
     (mm, tool frame) are written with it, and ``training_ranges`` (joint name -> ``(lowest,
     highest)``, mm and rad: :func:`read_training_ranges`), and ``point_numbers``, the data
     file's number of each point (:func:`read_point_numbers`)."""
+    if not isinstance(robot, Robot):
+        raise RobotFileError(
+            f"{path}: save_robot takes a jaxcal.Robot (a result's .robot), not a {type(robot).__name__}"
+        )
+    if _is_yaml(path):  # load_robot reads .yaml as UR's kinematics file, which this is not
+        raise RobotFileError(
+            f"{path}: a robot file is written as TOML (.toml) or URDF (.urdf); a UR kinematics file (.yaml) "
+            "is written by jaxcal.save_ur_kinematics (--out-ur-kinematics)"
+        )
+    check_writable(path, "path")
     points = None if points is None or not len(np.asarray(points)) else np.asarray(points)
     if point_numbers is not None:  # as the readers check them: one distinct number >= 1 per point
         nums = list(point_numbers)

@@ -66,6 +66,9 @@ def test_ur_kinematics_reproduce_the_calibrated_model(tmp_path, monkeypatch, cap
     assert {r["convention"] for r in rows} == {"sdh"}
     html = (tmp_path / "report.html").read_text()
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 3
+    # evaluated alone, the UR file has neither frame: the command says so
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", tmp_path / "cal.yaml", tracker_csv, "--length-unit", "mm")
+    assert code in (0, None) and "is a UR kinematics file, which holds no base or tool frame" in " ".join(out.split())
 
 
 def test_nothing_written_unless_the_fit_converged(tmp_path, monkeypatch, capsys, tracker_csv):
@@ -124,3 +127,35 @@ def test_unwritable_output_refused_before_fitting(tmp_path, monkeypatch, capsys,
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", tracker_csv, flag, tmp_path / "afile" / "x")
     err = " ".join(err.split())
     assert code == 2 and flag in err and "is a file, not a folder" in err, err
+
+
+def test_an_output_that_fails_late_leaves_none_written(tmp_path, monkeypatch, capsys, tracker_csv):
+    """A folder where a plot goes: the command stops with an error naming it, and none of the
+    other outputs (robot, UR file, DH table, report) is written."""
+    (tmp_path / "plots" / "parameters.png").mkdir(parents=True)
+    code, out, err = _calibrate(monkeypatch, capsys, tmp_path, tracker_csv, "ur5", "--plots", tmp_path / "plots")
+    err = " ".join(err.split())
+    assert code == 2 and "parameters.png: is a directory" in err and "Traceback" not in err, err
+    for f in ("cal.toml", *OUTPUTS.values()):
+        assert not (tmp_path / f).exists(), f
+    assert not (tmp_path / "plots" / "pose_errors.png").exists()
+
+
+@pytest.mark.parametrize(
+    "flag, name, msg",
+    [
+        ("--out-robot", "cal.yaml", "a robot file is TOML (.toml) or URDF (.urdf)"),
+        ("--out-model", "cal.yml", "a robot file is TOML (.toml) or URDF (.urdf)"),
+        ("--out-ur-kinematics", "cal.toml", "a UR kinematics file is YAML"),
+    ],
+)
+def test_an_output_named_as_another_format_refused_before_fitting(
+    tmp_path, monkeypatch, capsys, tracker_csv, flag, name, msg
+):
+    """jaxcal reads a robot file by its name's ending: a TOML named .yaml would be read back as
+    UR's format, and a UR file named .toml as TOML."""
+    monkeypatch.setattr(jaxcal.calibration, "calibrate_data", _no_fit)
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", tracker_csv, flag, tmp_path / name)
+    err = " ".join(err.split())
+    assert code == 2 and err.startswith(f"error: {flag}") and msg in err, err
+    assert not (tmp_path / name).exists()

@@ -79,3 +79,14 @@ def test_estimated_compliances_are_rows_in_the_files_units():
     assert [r["parameter"] for r in rows] == ["compliance2"] and rows[0]["unit"] == "deg/m"
     got = [rows[0][c] for c in ("nominal", "calibrated", "delta", "std_error")]
     np.testing.assert_allclose(got, np.array([1e-5, 3e-5, 2e-5, 4e-7]) * k, rtol=1e-12)
+
+
+def test_a_result_without_the_tables_estimates_refused(tmp_path):
+    """``jaxcal.calibrate`` returns no nominal table beside its estimates: the DH table is
+    ``calibrate_data``'s, and saying so beats an attribute error."""
+    r = jaxcal.preset("ur5")
+    sim = jaxcal.simulate(r, n_poses=30, seed=1, sigma_pos=0.0)
+    res = jaxcal.calibrate(r, sim.q[0], sim.measured[0, :, :3, 3])
+    with pytest.raises(RobotFileError, match="save_dh_table takes the result of jaxcal.calibrate_data"):
+        save_dh_table(res, tmp_path / "dh.csv")
+    assert not (tmp_path / "dh.csv").exists()

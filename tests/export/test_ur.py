@@ -145,3 +145,31 @@ def test_missing_value_named(tmp_path):
     (tmp_path / "k.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(RobotFileError, match=r"kinematics.wrist_2.roll is missing"):
         jaxcal.load_robot(tmp_path / "k.yaml")
+
+
+def test_wrong_names_and_arguments_refused(tmp_path):
+    """A UR file not named .yaml would be read back as TOML; a calibration result is not a robot."""
+    r = preset("ur5")
+    with pytest.raises(RobotFileError, match="a UR kinematics file is YAML and its name ends in .yaml"):
+        save_ur_kinematics(r, tmp_path / "cal.toml")
+    sim = jaxcal.simulate(r, n_poses=30, seed=1, sigma_pos=0.0)
+    res = jaxcal.calibrate(r, sim.q[0], sim.measured[0, :, :3, 3])
+    with pytest.raises(RobotFileError, match="takes a jaxcal.Robot .a result's .robot., not a CalibrationResult"):
+        save_ur_kinematics(res, tmp_path / "cal.yaml")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_frames_it_does_not_hold_are_said_in_full_precision(tmp_path, rng):
+    """The header comments give the base and tool to the last digit (1e-9 mm on frames of
+    hundreds of mm), not to nine significant figures."""
+    r = preset("ur5").replace(base=random_transform(rng, 700.0), tool=random_transform(rng, 150.0))
+    base, tool = save_ur_kinematics(r, tmp_path / "cal.yaml")
+    from scipy.spatial.transform import Rotation
+
+    text = (tmp_path / "cal.yaml").read_text()
+    for what, T in (("base", base), ("tool", tool)):
+        line = next(x for x in text.splitlines() if x.startswith(f"#   {what} ("))
+        xyz = np.array(line.split("xyz [")[1].split("]")[0].split(", "), float) * 1000.0
+        rpy = np.array(line.split("rpy [")[1].split("]")[0].split(", "), float)
+        np.testing.assert_allclose(xyz, np.asarray(T)[:3, 3], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(Rotation.from_euler("xyz", rpy).as_matrix(), np.asarray(T)[:3, :3], atol=1e-14)

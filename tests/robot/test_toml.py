@@ -182,3 +182,20 @@ def test_point_numbers_are_checked_when_written(tmp_path):
     assert not (tmp_path / "p.toml").exists()
     save_robot(r, tmp_path / "p.toml", points=pts, point_numbers=[4, 2])
     assert read_point_numbers(tmp_path / "p.toml") == (4, 2)
+
+
+def test_save_robot_refuses_what_it_cannot_write_or_load_back(tmp_path):
+    """A .yaml name would be read back as UR's kinematics file; a calibration result is not a
+    robot; a folder is not a file: each refused, naming the path, nothing written."""
+    import jaxcal
+
+    r = preset("ur5")
+    with pytest.raises(RobotFileError, match=r"a UR kinematics file \(.yaml\) is written by jaxcal.save_ur_kinematics"):
+        save_robot(r, tmp_path / "cal.yaml")
+    sim = jaxcal.simulate(r, n_poses=30, seed=1, sigma_pos=0.0)
+    res = jaxcal.calibrate(r, sim.q[0], sim.measured[0, :, :3, 3])
+    with pytest.raises(RobotFileError, match="save_robot takes a jaxcal.Robot"):
+        save_robot(res, tmp_path / "cal.toml")
+    with pytest.raises(jaxcal.DataError, match="is a directory"):
+        save_robot(r, tmp_path)
+    assert list(tmp_path.iterdir()) == []
