@@ -10,7 +10,7 @@ from .._config import jit
 from ..errors import DataError
 from ..model import Model, predict
 from ..robot import Robot
-from ._checks import check_angles, check_units, zero_points
+from ._checks import as_target, check_units, zero_points
 from ._plausibility import RESIDUAL_SHARE, variants
 
 _predict = jit(predict)  # one program, not one per operation
@@ -197,8 +197,10 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             else ""
         )
         raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}{why}", option="data")
+    # the checks calibrate makes (finite values, a lost point NaN in all three coordinates, proper
+    # rotations): a NaN joint or coordinate would otherwise leave a pose out of the figures unsaid
+    as_target(model.robot, meas.q, meas.measured, batched=False)
     q = np.asarray(meas.q)
-    check_angles(model.robot, q)
     pred = np.asarray(_predict(model, q))
     check_units(model.robot, q, meas.measured, M, batched=False, model_positions=_positions(pred, M))
     pos, rot = _errors(pred, meas.measured, M)  # (K, M) mm, (K,) deg

@@ -68,7 +68,7 @@ def design(
     chosen from a pool; compared with random poses of the same count."""
     import numpy as np
 
-    from .._io import json_text, write_atomic
+    from .._io import all_or_nothing, json_text, write_atomic
     from ..design import DEFAULT_POINT_MM, design_problem, optimal_poses, select_poses, write_poses
     from ..errors import DataError
 
@@ -138,18 +138,19 @@ def design(
             f"looser {', '.join(given) or 'constraints'})",
             option=(given[0] if given else "--starts").lstrip("-").replace("-", "_"),
         )
-    write_poses(out, result.q, r)
-    console.print(f"wrote {out}")
-    if json_out is not None:
-        summary = result.to_dict()
-        summary["validation_poses"] = (
-            {"file": str(validation), "count": len(q_val)}
-            if q_val is not None
-            else {"random": val_poses, "seed": seed, "within": "joint limits"}
-        )
-        summary["params_from"] = None if params_from is None else str(params_from)
-        summary["points_mm"] = None if measured is None else measured.tolist()
-        # jaxcal's own units, whatever the robot file's (the pose file --out is in those)
-        summary["units"] = {"q": "rad, mm for prismatic joints", "min_distance": "rad, mm for prismatic joints"}
-        write_atomic(json_out, json_text(summary))
-        console.print(f"wrote {json_out}")
+    with all_or_nothing():  # the pose file and its summary together, or neither
+        write_poses(out, result.q, r)
+        console.print(f"wrote {out}")
+        if json_out is not None:
+            summary = result.to_dict()
+            summary["validation_poses"] = (
+                {"file": str(validation), "count": len(q_val)}
+                if q_val is not None
+                else {"random": val_poses, "seed": seed, "within": "joint limits"}
+            )
+            summary["params_from"] = None if params_from is None else str(params_from)
+            summary["points_mm"] = None if measured is None else measured.tolist()
+            # jaxcal's own units, whatever the robot file's (the pose file --out is in those)
+            summary["units"] = {"q": "rad, mm for prismatic joints", "min_distance": "rad, mm for prismatic joints"}
+            write_atomic(json_out, json_text(summary))
+            console.print(f"wrote {json_out}")

@@ -183,3 +183,37 @@ def test_a_few_rows_far_off_are_named_not_blamed_on_the_frame():
     assert w.startswith("2 row(s) err far beyond a calibration's") and "row 5 (100 mm)" in w and "row 18 (" in w
     rest = np.sqrt(np.mean(np.sum(np.delete(noise, [4, 17], 0) ** 2, -1)))  # the true arm: only the noise
     assert f"the other rows score {rest:.3g} mm RMS" in w and "moved" not in w
+
+
+@pytest.mark.parametrize(
+    "edit, msg",
+    [
+        (lambda q, P: q.__setitem__((3, 2), np.nan), r"q: non-finite value at index \(3, 2\)"),
+        (lambda q, P: P.__setitem__((4, 0, 1), np.nan), r"measured: non-finite value at index \(4, 0, 1\)"),
+        (lambda q, P: P.__setitem__((4, 0), np.inf), r"measured: non-finite value at index \(4, 0, 0\)"),
+    ],
+)
+def test_non_finite_data_refused_as_calibrate_refuses_it(edit, msg):
+    """A NaN joint value or one NaN coordinate is not a lost point: it was left out of every
+    figure unsaid (the pose still counted). Only a point NaN in all three coordinates is lost."""
+    rng = np.random.default_rng(3)
+    ur5, dh = _truth(rng)
+    q = rng.uniform(-np.pi, np.pi, (20, 6))
+    P = np.repeat(dh_fk(dh, q)[:, None, :3, 3], 2, axis=1)  # two points, both at the flange
+    edit(q, P)
+    with pytest.raises(DataError, match=msg):
+        evaluate(Model(ur5, np.zeros((2, 3))), Measurements(q, P))
+    P[4, 0] = np.nan  # lost: scored without it, and said
+    q = np.where(np.isfinite(q), q, 0.0)
+    rep = evaluate(Model(ur5, np.zeros((2, 3))), Measurements(q, P))
+    assert rep["poses"][4]["error_mm"][0] is None and np.isfinite(rep["position_rms_mm"])
+
+
+def test_a_non_finite_pose_refused_not_a_solver_traceback():
+    rng = np.random.default_rng(4)
+    ur5, dh = _truth(rng)
+    q = rng.uniform(-np.pi, np.pi, (20, 6))
+    T = dh_fk(dh, q)
+    T[2, 0, 1] = np.nan
+    with pytest.raises(DataError, match=r"measured: non-finite value at index \(2, 0, 1\)"):
+        evaluate(Model(ur5), Measurements(q, T))
