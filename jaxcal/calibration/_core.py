@@ -422,6 +422,31 @@ def column_norms(J0, weights, pose_w, prior) -> np.ndarray:
     return np.sqrt(np.einsum("bk,br,krj->bj", np.asarray(pose_w), w2, S) + np.asarray(prior) ** 2)
 
 
+@jit(keep=True)
+def _levers(models: Model, layout: Layout, q):
+    def one(m, q_):  # selection.lever's RMS point displacement per unit, of the position rows
+        J = jacobian(m, layout, q_)
+        P = J[:, : 3 * max(layout.n_points, 1)].reshape(J.shape[0], max(layout.n_points, 1), 3, -1)
+        P = jnp.where(jnp.isfinite(P), P, 0.0)
+        return jnp.sqrt(jnp.mean(jnp.sum(P**2, 2), axis=(0, 1)))
+
+    return jax.vmap(one)(models, q)
+
+
+def levers(models: Model, layout: Layout, q, memory_mb: float) -> np.ndarray:
+    """``(R, m)`` each member's lever (:func:`._selection.lever`) at its model ``models`` (leading
+    axis) and poses ``q (R, K, n)``: a physically scaled prior is each data set's own, as
+    :func:`jaxcal.calibrate` gives it alone. One compiled program over chunks within ``memory_mb``."""
+    R, K = np.shape(q)[:2]
+    per = 2 * K * layout.rows * layout.size * 8
+    c = int(max(1, min(R, MAX_CHUNK, memory_mb * 2**20 // per)))
+    out = []
+    for start in range(0, R, c):
+        idx = np.minimum(np.arange(start, start + c), R - 1)  # the last chunk padded: one compile
+        out.append(np.asarray(_levers(take(models, idx), layout, np.asarray(q)[idx]))[: R - start])
+    return np.concatenate(out)
+
+
 def sigmas_from(pos_err, rot_err, masks, n_points: int):
     """RMS per coordinate (mm) and per axis (rad) of each member's errors over its mask (lost
     points, NaN, left out), floored at :data:`SIGMA_FLOOR`;

@@ -245,6 +245,15 @@ def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, 
     return out
 
 
+def member_priors(layout: Layout, ident: Identifiability, cand: Candidate, lever) -> np.ndarray:
+    """:func:`prior_of` of every member, ``lever (R, m)`` each one's: ``(R, m)``."""
+    unit = prior_of(layout, ident, cand, lever=np.ones(layout.size))
+    if cand.ridge_mm is None:
+        return np.repeat(unit[None], len(lever), 0)
+    scaled = (unit > 0) & (unit < PIN)  # the parameters the candidate's prior holds
+    return np.where(scaled, np.asarray(lever) / cand.ridge_mm, unit)
+
+
 def estimated(prior) -> tuple[int, ...]:
     return tuple(int(i) for i in np.flatnonzero(np.asarray(prior) < PIN))
 
@@ -542,7 +551,10 @@ def calibrate_batch(
     given_ident = ident
     if ident is None:
         ident = core.identify(J0, layout, robot)
-    prior = np.repeat(prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))[None], R, 0)
+    # each data set's own lever, as calibrate gives it alone (the start models: the frames-only
+    # fits of calibrate come later and move no lever a prior needs)
+    lever = core.levers(ref, layout, q, opts.memory_mb) if cand.ridge_mm is not None else np.ones((R, layout.size))
+    prior = member_priors(layout, ident, cand, lever)
     # a given set is the caller's: only its count is judged, and a data set that cannot separate it
     # stays unconverged (Levenberg-Marquardt's damping would hold it and call it converged)
     mine = given_ident is None
@@ -580,11 +592,9 @@ def calibrate_batch(
                 cfg, core.take(ref_b, idx), *data, opts.loss_scale, x0=b["x"][idx], **run, label="set chosen again"
             )
 
-        lever = selection.lever(J0, n_points)
         sound = np.array([not p for p in problems])  # a data set that cannot identify the set is named
-        b, rechosen, prior = _rechosen(
-            robot, layout, ident, q, b, prior, lambda i: prior_of(layout, i, cand, lever=lever), again, opts, sound
-        )
+        prior_for = lambda r, i: prior_of(layout, i, cand, lever=lever[r])  # noqa: E731
+        b, rechosen, prior = _rechosen(robot, layout, ident, q, b, prior, prior_for, again, opts, sound)
     refit = lambda w, x0: core.run_members(  # noqa: E731
         cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
     )
@@ -625,7 +635,7 @@ def calibrate_batch(
 def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, prior, prior_for, again, opts, sound):
     """``(b, which, prior)``: the members whose fit ran where ``ident``'s set is not separable (an
     arm far from its file, :func:`._core.reidentified`) fitted again with the set identifiable at
-    their fit (``prior_for(set)`` their rows of ``prior``; ``again(members, priors)``), as
+    their fit (``prior_for(member, set)`` their rows of ``prior``; ``again(members, priors)``), as
     :func:`calibrate` does; among the ``sound`` members (a data set named in ``problems`` is not
     converged anyway)."""
     R = len(q)
@@ -637,7 +647,7 @@ def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, 
         found = core.reidentified(ident, core.member(b["model"], r), layout, q[r], robot, selection.MAX_CONDITION)
         if found is not None:
             idx.append(r)
-            priors.append(prior_for(found[0]))
+            priors.append(prior_for(r, found[0]))
     if not idx:
         return b, which, prior
     idx = np.array(idx)

@@ -204,3 +204,16 @@ def test_the_solve_compiled_in_the_background_is_the_one_calibrate_runs(monkeypa
     assert len(keys["prepared"]) == 1 and keys["called"][:2] == keys["prepared"] * 2
     # the analysis too (a single data set's start takes its chain poses from it)
     assert len(analysis["prepared"]) == 1 and analysis["prepared"][0] in analysis["called"]
+
+
+def test_a_scaled_prior_is_each_members_own():
+    """With ``ridge_mm`` each member's prior is scaled by the lever of its own poses, as
+    calibrate scales it for that data set alone: a member's answer does not depend on the
+    others in its batch."""
+    ur5 = jaxcal.preset("ur5")
+    sim = simulate(ur5, n_robots=3, n_poses=30, seed=7, sigma_pos=0.02, sigma_rot=2e-5, base=True, tool=True)
+    kw = dict(params="all", ridge_mm=1.0)
+    res = calibrate_batch(ur5, sim.q, sim.measured, **kw)
+    for r in range(3):
+        alone = calibrate(ur5, sim.q[r], sim.measured[r], **kw)
+        assert_allclose(res.x[r], alone.x, atol=1e-9)
