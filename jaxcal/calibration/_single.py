@@ -148,6 +148,17 @@ class BatchResult:
     """The parameters each data set estimated (:attr:`CalibrationResult.free` as a mask); the
     others are held at 0 in ``x``. A member in :attr:`rechosen` has its own; one named in
     :attr:`problems` or :attr:`nonfinite` none. None for the elimination methods."""
+    implausible: tuple[str, ...] = ()
+    """Per data set, why its fit is not a calibration (empty: plausible), judged as
+    :func:`calibrate` judges one (:mod:`._plausibility`: the residual, and each parameter's
+    change against the limits of :class:`jaxcal.Options`, the limits from every data set's
+    poses), without its standard errors or the search for an input mistake. Empty for the
+    elimination methods."""
+
+    @property
+    def plausible(self) -> np.ndarray:
+        """``(R,)``: :attr:`implausible` is empty."""
+        return np.array([not w for w in self.implausible]) if self.implausible else np.ones(len(self.x), bool)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -243,6 +254,32 @@ def prior_of(layout: Layout, ident: Identifiability, cand: Candidate | None, *, 
             k = i - cams[0]
             out[i] = PIN if frames_only or cand is None or k >= camera_size(cand.camera) else 0.0
     return out
+
+
+REWEIGHTS = 3
+"""Poses: how many times the position and rotation weights are taken again from the calibrated
+fit's residual. The frames-only residual is the arm's geometric errors, not the noise, and its
+ratio of millimetres to radians is not the noise's: weighted by it, the rotation rows count too
+little or too much, the estimates are noisier than they need be, and the standard errors, which
+pool one variance over both kinds of rows, miss the spread of the estimates. Not for the one-shot
+``linear`` method."""
+REWEIGHT_TOLERANCE = 1.1
+"""Weights taken again until neither sigma changes by more than this factor."""
+
+
+def _lead(mask, ndim: int):
+    """``mask (R,)`` shaped to broadcast against an ``ndim`` array with the members first."""
+    return np.reshape(mask, (-1,) + (1,) * (ndim - 1))
+
+
+def _given(sig, opts: Options):
+    """``(B, 2)`` sigmas with the caller's ``sigma_pos_mm`` / ``sigma_rot_rad`` in place."""
+    sig = np.array(sig, float)
+    if opts.sigma_pos_mm is not None:
+        sig[:, 0] = opts.sigma_pos_mm
+    if opts.sigma_rot_rad is not None:
+        sig[:, 1] = opts.sigma_rot_rad
+    return sig
 
 
 def member_priors(layout: Layout, ident: Identifiability, cand: Candidate, lever) -> np.ndarray:
@@ -372,20 +409,26 @@ def calibrate(
     ident = core.identify(J0, layout, robot)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
+    # not the one-shot linear solve: a second solve from the first is another method's step
+    reweigh = n_points == 0 and (opts.sigma_pos_mm is None or opts.sigma_rot_rad is None) and opts.method != "linear"
 
     def stages(ref, masks, x0=None):  # frames only (its residual gives the noise weights), then the set
         unit = core.weights_of(layout, np.array([core.UNIT_WEIGHTS]))
         frames_only = prior_of(layout, ident, None, frames_only=True)[None]
         a = core.run_members(cfg, ref, q, target, masks, unit, frames_only, **run, label="frames only")
-        sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)[0]
-        if opts.sigma_pos_mm is not None:
-            sig[0] = opts.sigma_pos_mm
-        if opts.sigma_rot_rad is not None:
-            sig[1] = opts.sigma_rot_rad
+        sig = _given(core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points), opts)[0]
         w = core.weights_of(layout, sig[None])
         b = core.run_members(
             cfg, a["model"], q, target, masks, w, prior[None], opts.loss_scale, x0=x0, **run, label="calibrating"
         )
+        for _ in range(REWEIGHTS) if reweigh else ():
+            new = _given(core.sigmas_from(b["pos_err"], b["rot_err"], masks, n_points), opts)[0]
+            if np.all(np.abs(np.log(new / sig)) < np.log(REWEIGHT_TOLERANCE)):
+                break
+            sig, w = new, core.weights_of(layout, new[None])
+            b = core.run_members(
+                cfg, a["model"], q, target, masks, w, prior[None], opts.loss_scale, x0=b["x"], **run, label="reweighted"
+            )
         return a, sig, w, b
 
     a, sig, weights, b = stages(ref, masks)
@@ -562,6 +605,7 @@ def calibrate_batch(
     problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), K)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
+    reweigh = n_points == 0 and not given and opts.method != "linear"  # as calibrate
 
     def stages(ref, masks, x0=None):  # frames only (unless nothing needs it), then the set
         sig = np.tile([1.0, 1.0], (R, 1))
@@ -571,16 +615,22 @@ def calibrate_batch(
             a = core.run_members(cfg, ref, q, target, masks, unit, frames_only, **run, label="frames only")
             ref = a["model"]
             sig = core.sigmas_from(a["pos_err"], a["rot_err"], masks, n_points)
-        if opts.sigma_pos_mm is not None:
-            sig[:, 0] = opts.sigma_pos_mm
-        if opts.sigma_rot_rad is not None:
-            sig[:, 1] = opts.sigma_rot_rad
+        sig = _given(sig, opts)
         w = core.weights_of(layout, sig)
-        return (
-            ref,
-            w,
-            core.run_members(cfg, ref, q, target, masks, w, prior, opts.loss_scale, x0=x0, **run, label="calibrating"),
-        )
+        b = core.run_members(cfg, ref, q, target, masks, w, prior, opts.loss_scale, x0=x0, **run, label="calibrating")
+        active = np.full(R, reweigh)
+        for _ in range(REWEIGHTS) if reweigh else ():  # as calibrate, each member until its weights settle
+            new = _given(core.sigmas_from(b["pos_err"], b["rot_err"], masks, n_points), opts)
+            active &= ~np.all(np.abs(np.log(new / sig)) < np.log(REWEIGHT_TOLERANCE), -1)
+            if not active.any():
+                break
+            sig = np.where(active[:, None], new, sig)
+            w = core.weights_of(layout, sig)
+            again = core.run_members(
+                cfg, ref, q, target, masks, w, prior, opts.loss_scale, x0=b["x"], **run, label="reweighted"
+            )
+            b = jax.tree.map(lambda old, n: np.where(_lead(active, np.ndim(n)), n, old), b, again)
+        return ref, w, b
 
     ref_b, weights, b = stages(ref, masks)
     rechosen = np.zeros(R, bool)
@@ -614,6 +664,9 @@ def calibrate_batch(
     failed = nonfinite | np.array([bool(p) for p in problems])
     ok = np.asarray(b["converged"]) & ~failed
     share = det.flags.mean(-1)
+    free = (np.asarray(prior) < PIN) & ~failed[:, None]
+    kept = masks * ~det.flags if not opts.keep_outliers else masks
+    why = _implausible(robot, opts, q, layout, x, b, kept.astype(bool), free, n_points, nonfinite)
     return BatchResult(
         x=x,
         converged=ok,
@@ -628,8 +681,33 @@ def calibrate_batch(
         devices=tuple(describe(devs)),
         problems=problems,
         rechosen=rechosen,
-        estimated=(np.asarray(prior) < PIN) & ~failed[:, None],
+        estimated=free,
+        implausible=why,
     )
+
+
+def _implausible(robot: Robot, opts: Options, q, layout: Layout, x, b, kept, free, n_points: int, nonfinite):
+    """:attr:`BatchResult.implausible`: :func:`._plausibility.findings` of each member whose
+    residual or parameters pass a limit (one vectorised screen over the members first)."""
+    limits = plausibility.Thresholds.of(robot, opts, q)
+    pos = np.where(kept[..., None], np.asarray(b["pos_err"]), np.nan)
+    suspect = nonfinite | (np.sqrt(np.nanmean(pos**2, (1, 2))) > limits.residual_mm)
+    if n_points == 0:
+        rot = np.where(kept, np.asarray(b["rot_err"]), np.nan)
+        suspect |= np.degrees(np.sqrt(np.nanmean(rot**2, 1))) > limits.rotation_deg
+    units = np.array(layout.units())
+    kin = np.zeros(layout.size, bool)
+    kin[: layout.n_kin] = True
+    big = np.abs(np.where(free, x, 0.0))
+    suspect |= np.any(kin & (units == "mm") & (big > limits.length_mm), -1)
+    suspect |= np.any(kin & (units == "rad") & (big > limits.angle_rad), -1)
+    suspect |= np.any(big[:, list(layout.cameras)] > limits.camera, -1) if layout.cameras else False
+    out = [""] * len(x)
+    for r in np.flatnonzero(suspect):  # few: the findings, in calibrate's words
+        st = core.residual_stats(b["pos_err"][r], b["rot_err"][r], kept[r], n_points=n_points)
+        found = plausibility.findings(st, x[r], layout, limits, free=tuple(np.flatnonzero(free[r])))
+        out[r] = "; ".join(found)
+    return tuple(out)
 
 
 def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, prior, prior_for, again, opts, sound):

@@ -217,3 +217,45 @@ def test_a_scaled_prior_is_each_members_own():
     for r in range(3):
         alone = calibrate(ur5, sim.q[r], sim.measured[r], **kw)
         assert_allclose(res.x[r], alone.x, atol=1e-9)
+
+
+def test_pose_weights_are_the_noises_not_the_nominal_models_errors():
+    """Full poses, noise 0.02 mm and 2e-5 rad, no noise given: the weights are taken from the
+    calibrated fit's residual (the frames-only one is the arm's errors, millimetres and
+    milliradians, in another ratio). The reported standard errors then match the Monte Carlo
+    spread of the estimates over noise draws (same truth, same poses), and the estimates are as
+    precise as with the true noise given."""
+    ur5 = jaxcal.preset("ur5")
+    one = simulate(ur5, n_robots=1, n_poses=40, seed=11, base=True, tool=True)
+    R = 48
+    sim = simulate(
+        ur5, n_robots=R, n_poses=40, seed=5, x_true=one.x_true[0], q=one.q[0], sigma_pos=0.02, sigma_rot=2e-5,
+        base=True, tool=True,
+    )  # fmt: skip
+    res = calibrate(ur5, sim.q[0], sim.measured[0])
+    assert res.sigma_rot_rad == pytest.approx(2e-5, rel=0.25) and res.sigma_pos_mm == pytest.approx(0.02, rel=0.25)
+    batch = calibrate_batch(ur5, sim.q, sim.measured)
+    assert_allclose(batch.x[0], res.x, atol=1e-9)  # the batch weighs each member as calibrate does
+    given = calibrate_batch(ur5, sim.q, sim.measured, sigma_pos_mm=0.02, sigma_rot_rad=2e-5)
+    free = np.flatnonzero(batch.estimated[0])
+    spread = batch.x.std(0, ddof=1)[free]
+    ratio = spread / res.std_errors[free]
+    # 48 draws: a spread's own noise is about 10 %
+    assert np.all((ratio > 0.6) & (ratio < 1.5)) and 0.85 < np.median(ratio) < 1.2, ratio
+    assert_allclose(spread, given.x.std(0, ddof=1)[free], rtol=0.05)
+
+
+def test_a_batch_says_which_fits_are_not_calibrations():
+    """A member whose arm is far beyond the plausibility limits (errors 150 times the usual
+    scale) is judged as calibrate judges it alone; the others stay plausible."""
+    from jaxcal.simulation import error_scales
+
+    ur5 = jaxcal.preset("ur5")
+    s = error_scales(ur5, base=True, tool=True)
+    xt = np.random.default_rng(0).normal(size=(3, len(s))) * s
+    xt[2] *= 150
+    sim = simulate(ur5, n_robots=3, n_poses=40, seed=7, x_true=xt, sigma_pos=0.02, sigma_rot=2e-5, base=True, tool=True)
+    res = calibrate_batch(ur5, sim.q, sim.measured)
+    assert list(res.plausible) == [True, True, False] and res.implausible[:2] == ("", "")
+    alone = calibrate(ur5, sim.q[2], sim.measured[2])
+    assert not alone.plausible and res.implausible[2] in alone.implausible, (res.implausible[2], alone.implausible)
