@@ -170,6 +170,7 @@ def check_units(
     robust: bool = False,
     what: str = "measured",
     model: str = "the nominal model",
+    also=None,
 ) -> None:
     """Refuse a length-unit mismatch: the spread of the measured points (RMS distance to their
     centroid, independent of the unknown measurement frame) must be within 3x of the nominal
@@ -177,7 +178,8 @@ def check_units(
     nominal model's tool positions at ``q``. ``robust``: the median distance to the median point
     instead, for rows that may hold a few wild values (a lost marker's sentinel, an unreachable
     target), which the detection or the solver then names; ``what`` and ``model`` name the rows
-    and the model in the message."""
+    and the model in the message. ``also``: a second model's positions (the nominal's, beside a
+    start fitted to the data, which a wild row can pull): refused only when neither spread agrees."""
     Q = q if batched else q[None]
     P_mea = positions_of(target if batched else target[None], n_points)
     P_mod = model_positions if batched else model_positions[None]
@@ -193,11 +195,16 @@ def check_units(
         return np.sqrt(np.nanmean(np.sum((P - np.nanmean(P, -2, keepdims=True)) ** 2, -1), -1))
 
     s_mod, s_mea = spread(np.asarray(P_mod)), spread(P_mea)
+    s_also = s_mod if also is None else spread(np.asarray(also if batched else np.asarray(also)[None]))
     around = "from their median point (median distance)" if robust else "around their centroid"
     lu = robot.units[0]
     revolute = np.array([t == "R" for t in robot.joint_types])
+
+    def off(a, b):
+        return a > 1.0 and not (a / 3.0 <= b <= 3.0 * a)
+
     for i, (a, b) in enumerate(zip(s_mod, s_mea)):
-        if a > 1.0 and not (a / 3.0 <= b <= 3.0 * a):
+        if off(a, b) and off(s_also[i], b):
             where = f" (data set {i})" if batched else ""
             ratio = b / a
             span = float(np.ptp(Q[i][:, revolute], axis=0).max()) if revolute.any() else np.inf

@@ -405,7 +405,8 @@ def calibrate(
     needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted)
     check_enough_poses(K, layout, needed)
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
-    check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True)
+    nominal_pos = core.nominal_positions(robot, q)
+    check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True, also=nominal_pos)
     ident = core.identify(J0, layout, robot)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
@@ -566,7 +567,9 @@ def calibrate_batch(
             f"has {layout.size}: pass the analysis of the same robot and options",
             option="ident",
         )
-    check_units(robot, q, target, n_points, batched=True, model_positions=core.nominal_positions(robot, q))
+    # robust, as calibrate: one wild row (a sentinel, an unreachable target) is the outliers' to name
+    nominal_pos = core.nominal_positions(robot, q)
+    check_units(robot, q, target, n_points, batched=True, model_positions=nominal_pos, robust=True)
     if opts.method in ELIMINATION_METHODS:
         return _elimination_batch(robot, q, target, n_points, layout, opts)
     cand = kinematic_set(opts, robot)

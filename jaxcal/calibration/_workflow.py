@@ -191,7 +191,8 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
         )
     ref = core.start_models(robot.stripped(), layout, q, target, everything[None], shared=True)
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
-    check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True)
+    nominal_pos = core.nominal_positions(robot, q)
+    check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True, also=nominal_pos)
     run = dict(J0=J0, chunk=chunk, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     nested = (len(candidates) > 1 or opts.params.strip() == "auto") and K <= opts.nested_max_poses
     return _Problem(

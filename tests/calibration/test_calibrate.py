@@ -259,3 +259,18 @@ def test_a_batch_says_which_fits_are_not_calibrations():
     assert list(res.plausible) == [True, True, False] and res.implausible[:2] == ("", "")
     alone = calibrate(ur5, sim.q[2], sim.measured[2])
     assert not alone.plausible and res.implausible[2] in alone.implausible, (res.implausible[2], alone.implausible)
+
+
+def test_one_wild_row_is_an_outlier_not_a_unit_mistake():
+    """A position of 99999 mm in one pose of one member (a tracker's sentinel): calibrate and
+    the batch name it as an outlier; the length-unit check, robust to a few wild rows, does not
+    refuse the data set, nor the batch the others."""
+    ur5 = jaxcal.preset("ur5")
+    sim = simulate(ur5, n_robots=3, n_poses=40, seed=3, sigma_pos=0.02, base=True, tool=True)
+    P = np.array(sim.measured[:, :, :3, 3])
+    P[2, 5] = 99999.0
+    alone = calibrate(ur5, sim.q[2], P[2])
+    assert alone.outliers == (5,) and alone.plausible
+    res = calibrate_batch(ur5, sim.q, P)
+    assert [res.outliers(r) for r in range(3)] == [(), (), (5,)] and res.converged.all()
+    assert_allclose(res.x[2], alone.x, atol=1e-9)
