@@ -278,13 +278,15 @@ def names_a_cause(why: str | None) -> bool:
 
 def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str = "") -> str:
     """One message: what is implausible, the likely cause it found (or the ones it ruled out).
-    A correction counts when it brings the frames-only residual within the limits and to less
-    than a fifth of the residual as given. ``cause``: one already found in the data."""
+    A correction counts when the residual as given is beyond the limits and the correction brings
+    it within them and to less than a fifth (data that fit as given hold no input mistake, however
+    much a correction shaves off a residual already at the noise). ``cause``: one already found in
+    the data."""
     head = "not a calibration: " + "; ".join(found)
     if cause:
         return f"{head}{LIKELY}{cause}"
     b0 = badness(*before, limits)
-    fixes = [(m, p, r) for m, p, r in ranked if badness(p, r, limits) < min(1.0, 0.2 * b0)]
+    fixes = [(m, p, r) for m, p, r in ranked if badness(p, r, limits) < min(1.0, 0.2 * b0)] if b0 >= 1.0 else []
     if fixes:
         m, p, r = fixes[0]
         mirrors = sorted(
@@ -302,6 +304,8 @@ def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str 
             f"{head}{LIKELY}{m} (with that corrected, the frames-only RMS residual drops from "
             f"{_fmt(*before)} to {_fmt(p, r)}). Check the data file's columns and units"
         )
+    if b0 < 1.0:
+        return f"{head} (the frames-only RMS residual of the data as given is {_fmt(*before)}: no input mistake)"
     tried = ", ".join(m for m, *_ in ranked)
     return (
         f"{head}. None of the likely input mistakes explains it (tried: {tried}; the frames-only RMS residual "

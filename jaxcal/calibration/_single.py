@@ -665,6 +665,7 @@ def calibrate_batch(
         x[idx] = core.relative_x(robot, layout, core.wrapped(core.take(b["model"], idx), robot))
     x[nonfinite] = 0.0
     failed = nonfinite | np.array([bool(p) for p in problems])
+    x[failed] = 0.0  # a data set that cannot identify its set estimated nothing, as estimated says
     ok = np.asarray(b["converged"]) & ~failed
     share = det.flags.mean(-1)
     free = (np.asarray(prior) < PIN) & ~failed[:, None]

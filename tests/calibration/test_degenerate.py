@@ -163,6 +163,8 @@ def test_batch_set_does_not_come_from_a_degenerate_data_set():
     assert res.identifiability.rank == 29  # every data set that moves all joints identifies 29
     assert not res.converged[0] and "joint 3 (q3) never moves" in res.problems[0]
     assert not res.converged[3] and res.problems[3].startswith("no joint moves")
+    for r in (0, 3):  # named in problems: nothing estimated, and x says so
+        assert not res.estimated[r].any() and np.all(res.x[r] == 0.0)
     qv = lim[:, 0] + rng.uniform(size=(100, 6)) * (lim[:, 1] - lim[:, 0])
     for r in (1, 2):
         assert res.converged[r] and res.problems[r] == ""

@@ -172,3 +172,15 @@ def test_mirror_images_that_fit_alike_are_named_together():
     assert "cannot be told" in msg
     alone = explain(["x"], before, [("swapped x, y", 0.05, None), ("mirrored z", 2.07, None)], LIMITS)
     assert "Likely cause: swapped x, y (" in alone
+
+
+def test_data_that_fit_as_given_are_not_blamed_on_an_input_mistake():
+    """Forty copies of one pose: implausible (one posture determines nothing), and the data fit
+    as given, so no input mistake is named, however much a 'correction' shaves off a residual
+    already at the rounding level."""
+    robot = jaxcal.preset("ur5")
+    sim = jaxcal.simulate(robot, n_robots=1, n_poses=40, seed=3, sigma_pos=0.01, sigma_rot=1e-5, base=True, tool=True)
+    q, m = np.repeat(sim.q[0, :1], 40, 0), np.repeat(sim.measured[0, :1], 40, 0)
+    res = jaxcal.calibrate(robot, q, m)
+    assert not res.plausible and "only 1 of the 40 data rows have distinct joint values" in res.implausible
+    assert "Likely cause" not in res.implausible and "no input mistake" in res.implausible, res.implausible
