@@ -94,7 +94,10 @@ def as_f64(x, name: str = "array") -> jax.Array:
     ensure_x64()
     if isinstance(x, jax.core.Tracer):
         return x.astype(jnp.float64)
-    arr = np.asarray(x)
+    try:
+        arr = np.asarray(x)
+    except ValueError as e:  # nested lists of unequal lengths: say which argument, not numpy's words
+        raise DataError(f"{name}: not a rectangular array of numbers (rows of unequal length?): {e}") from None
     if arr.dtype == object or not (
         np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer) or arr.dtype == np.bool_
     ):

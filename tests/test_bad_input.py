@@ -50,6 +50,23 @@ PY = {
         RobotFileError,
         "joint 3: d is not finite",
     ),
+    "calibrate q ragged": (
+        lambda: calibrate(jaxcal.preset("ur5"), [[0.0] * 6, [1.0, 2.0]], np.zeros((2, 3))),
+        DataError,
+        r"q: not a rectangular array of numbers",
+    ),
+    "calibrate q booleans": (
+        lambda: calibrate(jaxcal.preset("ur5"), np.zeros((30, 6), bool), np.zeros((30, 3))),
+        DataError,
+        "q: expected real numbers, got booleans",
+    ),
+    "calibrate_batch point never seen in one data set": (
+        lambda: calibrate_batch(
+            jaxcal.preset("ur5"), np.zeros((3, 30, 6)), _with(np.zeros((3, 30, 2, 3)), (1, slice(None), 1), np.nan)
+        ),
+        DataError,
+        r"point\(s\) 2 not seen at any pose of data set\(s\) 1 ",
+    ),
     "Robot dh strings": (lambda: jaxcal.Robot(np.array([["a"] * 4])), DataError, "dh: expected real numbers"),
     "Robot dh complex": (lambda: jaxcal.Robot(np.zeros((2, 4), complex)), DataError, "complex"),
     "Robot convention": (lambda: jaxcal.Robot(np.zeros((2, 4)), convention="dh"), RobotFileError, "convention"),

@@ -21,6 +21,9 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     """
     if not isinstance(robot, Robot):
         raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}", option="robot")
+    for name, a in (("q", q), ("measured", measured)):  # True/False are no joint values or lengths
+        if getattr(a, "dtype", None) == np.bool_:
+            raise DataError(f"{name}: expected real numbers, got booleans", option=name)
     q = np.array(as_f64(q, "q"))
     measured = np.array(as_f64(measured, "measured"))
     lead = 2 if batched else 1
@@ -49,10 +52,13 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             what = "; a point not measured is NaN in all three coordinates" if kind != "poses" and name != "q" else ""
             raise DataError(f"{name}: non-finite value at index {idx}{what}", option=name)
     if kind == "points" and lost.all(-2).any():  # a marker never measured: every fit would be singular
-        j = [int(i) + 1 for i in np.flatnonzero(lost.all(-2).reshape(-1, lost.shape[-1]).any(0))]
+        never = lost.all(-2).reshape(-1, lost.shape[-1])
+        j = [int(i) + 1 for i in np.flatnonzero(never.any(0))]
+        sets = [int(r) for r in np.flatnonzero(never.any(1))]
+        where = f" of data set(s) {', '.join(map(str, sets))}" if batched else ""
         raise DataError(
-            f"measured: point(s) {', '.join(map(str, j))} not seen at any pose (all NaN, empty in the file); "
-            f"leave them out (choose the measured points with --points / Measurements.select_points)",
+            f"measured: point(s) {', '.join(map(str, j))} not seen at any pose{where} (all NaN, empty in the "
+            f"file); leave them out (choose the measured points with --points / Measurements.select_points)",
             option="points",
         )
     if lost.all(-1).any():
