@@ -89,6 +89,21 @@ CSS = (
 )
 
 
+def _lost(rep: dict) -> str:
+    """The data file's rows read without a pose (every point lost) and the points not seen, as
+    the command's notes and the JSON name them; empty when every point was seen."""
+    lost, dropped = rep.get("lost_points") or [], rep.get("dropped_rows") or []
+    if not lost and not dropped:
+        return ""
+    said = []
+    if dropped:
+        said.append(f"rows {', '.join(map(str, dropped))} left out: none of their points was seen")
+    if lost:
+        cells = ", ".join(f"row {d['row']} point {d['point']}" for d in lost)
+        said.append(f"{len(lost)} point(s) not seen, each fitted without it: {html.escape(cells)}")
+    return "<p>Lost markers: " + "; ".join(said) + ".</p>"
+
+
 def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> str:
     """The report page of a :class:`jaxcal.DataCalibration` of the measurements ``data``
     (:class:`jaxcal.Measurements`; their joint values place the accuracy map), as HTML text."""
@@ -103,6 +118,7 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
         + f". Parameter set: {html.escape(rep['choice'])} ({html.escape(rep['choice_rule'])}). "
         f"Held-out errors from {kind} ({rep['folds']} folds): every pose scored by a model fitted "
         "without it.</p>",
+        _lost(rep),
         "<h2>Summary</h2>",
         _table(
             "summary",

@@ -156,3 +156,14 @@ def test_the_accuracy_maps_noise_is_the_fits_not_its_weights():
     clean = jaxcal.Measurements(q, sim.measured[0, :, None, :3, 3])
     huber = jaxcal.calibrate_data(ur5, clean, folds=UR5_TRACKER["folds"], params="all", loss="huber", loss_scale=1.0)
     assert huber.report["noise_pos_mm"] == pytest.approx(s, rel=0.25)  # a given loss scale does not set it
+
+
+def test_lost_markers_and_rows_without_any_are_named():
+    """The page says what the command's notes and the JSON say: rows read without a pose and the
+    points not seen, by the file's row and point numbers."""
+    _, _, data, res = ur5_tracker()
+    rep = dict(res.report, lost_points=[{"row": 4, "point": 1}, {"row": 9, "point": 1}], dropped_rows=[20])
+    text = report_html(dataclasses.replace(res, report=rep), data, workspace_poses=20)
+    assert "rows 20 left out: none of their points was seen" in text
+    assert "2 point(s) not seen, each fitted without it: row 4 point 1, row 9 point 1" in text
+    assert "Lost markers" not in report_html(res, data, workspace_poses=20)
