@@ -433,24 +433,39 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols, point_numbers=()) -
     2*pi and the joint limits (degrees among radians). Points are named by their numbers in the
     file (``point_numbers``, else 1..M)."""
     per_point = np.linalg.norm(pos, axis=-1)
-    r = np.nanmax(per_point, -1) if per_point.ndim > 1 else per_point  # lost points (NaN) left out
+    several = per_point.ndim > 1 and per_point.shape[-1] > 1
+    nums = list(point_numbers) or list(range(1, (per_point.shape[-1] if per_point.ndim > 1 else 1) + 1))
+    if several and len(per_point) >= 3:
+        zero = per_point == 0.0  # exactly 0, 0, 0: never measured, an export's stand-in for a lost marker
+        most = np.flatnonzero(zero.sum(0) > len(per_point) / 2)
+        if most.size:  # fewer are outliers, found and named; these would be the fit's majority
+            j = int(most[0])
+            raise DataError(
+                f"{src}: point {nums[j]} is at exactly 0, 0, 0 in {int(zero[:, j].sum())} of {len(per_point)} rows: "
+                f"lost markers written as zeros? Write them as empty cells (that point is then left out where "
+                f"lost), or leave the point out (--points)"
+            )
+    # a row's nearest point: another unit moves every point, a sentinel (-9999) only the lost one
+    with np.errstate(invalid="ignore"):
+        r = np.nanmin(np.where(per_point > 0, per_point, np.nan), -1) if several else per_point.reshape(len(pos))
+    r = np.where(np.isfinite(r), r, 0.0)
     med = float(np.median(r))
+    if several and len(r) >= 3 and med > 0:
+        far = (per_point > 100 * med) & (r[:, None] <= 100 * med)
+        if far.any():  # in any number of rows: the other points say what the row's unit is
+            k, j = (int(i) for i in np.argwhere(far)[0])
+            odd = np.flatnonzero(far.any(-1))
+            raise DataError(
+                f"{src}: row {rows[k]}, point {nums[j]}: position norm {per_point[k, j]:.4g} mm while the row's "
+                f"other points and the median row are near {med:.4g} mm: a lost marker written as a sentinel "
+                f"value (such as -9999)? Write lost markers as empty cells ({odd.size} such row(s): "
+                f"{', '.join(str(rows[i]) for i in odd[:5])})"
+            )
     if len(r) >= 3 and med > 0:
         # a row at exactly 0, 0, 0 is a lost marker exported as zeros, not another unit: an outlier
         odd = np.flatnonzero(((r * 100 < med) & (r > 0)) | (r > 100 * med))
         if 0 < odd.size < len(r) / 2:
             k = odd[0]
-            pts = np.atleast_1d(per_point[k])
-            far = np.flatnonzero(pts > 100 * med)
-            if len(pts) > 1 and 0 < far.size < np.isfinite(pts).sum():  # another unit moves every point
-                j = int(far[0])
-                nums = list(point_numbers) or list(range(1, len(pts) + 1))
-                raise DataError(
-                    f"{src}: row {rows[k]}, point {nums[j]}: position norm {pts[j]:.4g} mm while the row's other "
-                    f"points and the median row are near {med:.4g} mm: a lost marker written as a sentinel "
-                    f"value (such as -9999)? Write lost markers as empty cells ({odd.size} such row(s): "
-                    f"{', '.join(str(rows[i]) for i in odd[:5])})"
-                )
             # one point alone cannot tell a far row's unit from a lost marker's sentinel value
             sentinel = ", or a lost marker written as a sentinel value" if (r[odd] > 100 * med).any() else ""
             raise DataError(

@@ -364,14 +364,14 @@ def _mixed_m(lines):
     return out
 
 
-def _sentinel(lines):
-    """Three points per row (the second and third 50 mm off the first); data row 3's third point
-    written as the lost-marker sentinel 1e10."""
+def _sentinel(lines, rows=(3,), value="1e10"):
+    """Three points per row (the second and third 50 mm off the first); the third point of the
+    data ``rows`` written as a lost-marker stand-in, ``value`` in each coordinate."""
     out = [lines[0].replace("x,y,z", "x1,y1,z1,x2,y2,z2,x3,y3,z3")]
     for i, line in enumerate(lines[1:], start=1):
         v = line.split(",")
         second = [repr(float(c) + 50.0) for c in v[6:]]
-        third = ["1e10"] * 3 if i == 3 else [repr(float(c) - 50.0) for c in v[6:]]
+        third = [value] * 3 if i in rows else [repr(float(c) - 50.0) for c in v[6:]]
         out.append(",".join(v + second + third))
     return out
 
@@ -413,6 +413,15 @@ CSV = {
     "ragged row": (LINES[:3] + [LINES[3].rsplit(",", 1)[0]] + LINES[4:], "row 3 (line 4): 8 fields"),
     "mixed units m among mm": (_mixed_m(LINES), "mixed length units? row 3"),
     "a lost marker written as 1e10": (_sentinel(LINES), "row 3, point 3: position norm 1.732e+10 mm while"),
+    # in most rows: the rows' other points, not the median row, say what their unit is
+    "a marker lost in most rows written as 1e10": (
+        _sentinel(LINES, rows=range(2, len(LINES))),
+        "row 2, point 3: position norm 1.732e+10 mm while the row's other points",
+    ),
+    "a marker lost in most rows written as zeros": (
+        _sentinel(LINES, rows=range(2, len(LINES)), value="0"),
+        "point 3 is at exactly 0, 0, 0 in",
+    ),
     "mixed units deg among rad": (_mixed_deg(LINES), "mixed angle units? row 5, column 'q2'"),
 }
 
