@@ -125,4 +125,7 @@ def lost_notes(meas, most: int = 10) -> None:
         console.print(f"[yellow]note:[/yellow] {len(lost)} point(s) not seen, left out: {listed}", highlight=False)
     if meas.dropped_rows:
         rows = ", ".join(map(str, meas.dropped_rows))
-        console.print(f"[yellow]note:[/yellow] row(s) {rows} dropped: none of their points was seen", highlight=False)
+        which = f"point(s) {', '.join(map(str, meas.point_numbers))}" if meas.point_numbers else "points"
+        console.print(
+            f"[yellow]note:[/yellow] row(s) {rows} dropped: none of the {which} read was seen", highlight=False
+        )

@@ -97,7 +97,7 @@ def _lost(rep: dict) -> str:
         return ""
     said = []
     if dropped:
-        said.append(f"rows {', '.join(map(str, dropped))} left out: none of their points was seen")
+        said.append(f"rows {', '.join(map(str, dropped))} left out: none of the points read was seen")
     if lost:
         cells = ", ".join(f"row {d['row']} point {d['point']}" for d in lost)
         said.append(f"{len(lost)} point(s) not seen, each fitted without it: {html.escape(cells)}")

@@ -156,6 +156,8 @@ def test_four_points_with_occluded_markers(tmp_path, monkeypatch, capsys):
     ev = json.loads((tmp_path / "e.json").read_text())
     assert len(ev["points"]) == 1 and ev["poses_evaluated"] == 28  # rows 20 (point 1 lost) and 25 dropped
     assert ev["dropped_rows"] == [20, 25] and ev["position_rms_mm"] < 0.1
+    # row 20 has other points: the note says none of those read (point 1) was seen
+    assert "row(s) 20, 25 dropped: none of the point(s) 1 read was seen" in " ".join(out.split())
     # the one point is the tool origin, marked so: a pose file is not scored as poses, and pose
     # targets warn that the tool's orientation was not calibrated
     p1 = jaxcal.load_model(tmp_path / "p1.toml")

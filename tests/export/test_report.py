@@ -164,6 +164,6 @@ def test_lost_markers_and_rows_without_any_are_named():
     _, _, data, res = ur5_tracker()
     rep = dict(res.report, lost_points=[{"row": 4, "point": 1}, {"row": 9, "point": 1}], dropped_rows=[20])
     text = report_html(dataclasses.replace(res, report=rep), data, workspace_poses=20)
-    assert "rows 20 left out: none of their points was seen" in text
+    assert "rows 20 left out: none of the points read was seen" in text
     assert "2 point(s) not seen, each fitted without it: row 4 point 1, row 9 point 1" in text
     assert "Lost markers" not in report_html(res, data, workspace_poses=20)
