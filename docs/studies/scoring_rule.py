@@ -10,8 +10,9 @@ choice) the simplest candidate within one standard error of it. For each rule th
 over many cuts, the mean tomorrow error of the model it chooses, the regret (that error minus
 the best candidate's), and the rank correlation of its score with the tomorrow error; then each
 candidate's mean tomorrow error, and the tomorrow error of jaxcal's choice after its pruning
-(:data:`jaxcal.calibration._selection.PRUNE_SE`: 0 is no pruning beyond 1 %, 0.5 jaxcal's, 1 the
-full one-standard-error rule), and that of two fixed candidates pruned as jaxcal prunes
+(:data:`jaxcal.calibration._selection.PRUNE_SE`: 0, jaxcal's, the sparsest within 1 % of the best
+number dropped; 0.5 and 1 more; and jaxcal's pruning before, along the order of a fit on all of
+today's poses, :func:`prune_along_all`), and that of two fixed candidates pruned as jaxcal prunes
 its choice. All on the problem linearised at the frames-only fit, as the
 selection itself runs.
 
@@ -31,6 +32,8 @@ from jaxcal.measurements import franka_csv_path
 
 CUTS, SEED, FOLDS = 60, 11, 5
 PRUNE_SE = (0.0, 0.5, 1.0)
+BEFORE = "along all poses' order, 0.5 (before)"
+"""The pruning jaxcal used before (:func:`prune_along_all`), beside the PRUNE_SE values."""
 FIXED = ("all, prior 1 mm", "all, prior 3 mm")
 """Candidates also pruned on their own, whatever the rule chooses."""
 
@@ -56,6 +59,31 @@ def problem(robot, meas, **options):
     return p, lin, np.asarray(J)
 
 
+def prune_along_all(lin, rule, free, prior, prunable, start, prune_se=0.5):
+    """The pruning jaxcal used before (:func:`jaxcal.calibration._selection.prune`'s signature):
+    every number dropped scored by the rule's folds along the order of a fit on *all* the rule's
+    poses, held-out ones included, and the sparsest within ``prune_se`` standard errors kept."""
+    free, prior, prunable = np.array(free, bool), np.asarray(prior, float), np.asarray(prunable, bool)
+    path, ts = [(free, -1, np.nan, start)], []
+    while True:
+        x = selection.solve(rule.A_all[None], rule.b_all[None], free[None], prior[None])[0, 0]
+        se = selection.standard_errors(lin, rule, free, prior, x)
+        t = {int(j): (abs(x[j]) / se[j] if se[j] > 0 else np.inf) for j in np.flatnonzero(free & prunable)}
+        ts.append(t)
+        if not t:
+            break
+        j = min(t, key=t.get)
+        free = free.copy()
+        free[j] = False
+        path.append((free, j, t[j], float(selection.score(lin, rule, free[None], prior[None])[0])))
+    scores = np.array([p[3] for p in path])
+    best = int(np.nanargmin(scores))
+    _, err = selection.score_error(lin, rule, path[best][0], prior)
+    limit = scores[best] + max(prune_se * err, selection.PRUNE_TOLERANCE * scores[best])
+    k = max(i for i in range(len(path)) if scores[i] <= limit)
+    return path[k][0], tuple((j, t, s) for _, j, t, s in path[1 : k + 1]), ts[k]
+
+
 def tomorrow_error(lin, today, tomorrow, free, prior):
     x = selection.fit(lin, today[None].astype(float), free, prior)[:, 0]
     e = selection.errors_mm(lin, x, np.flatnonzero(tomorrow))
@@ -77,15 +105,19 @@ def study(name, robot, meas, rng):
     names = [c.name for c in p.candidates]
     q, K = np.asarray(p.q), len(p.q)
     rules = ("K-fold", "K-fold + range ends", "K-fold + range ends, one-SE (jaxcal)")
-    rows, truths, pruned = {r: [] for r in rules}, [], {v: [] for v in PRUNE_SE}
+    rows, truths, pruned = {r: [] for r in rules}, [], {v: [] for v in PRUNE_SE + (BEFORE,)}
     fixed = {names.index(n): [] for n in FIXED}
     for _ in range(CUTS):
         today, tomorrow = cut(q, p.valid, rng)
         seed = int(rng.integers(1 << 30))
-        for v in PRUNE_SE:  # the workflow's selection (stage 4) on today's poses
-            selection.PRUNE_SE, keep = v, selection.PRUNE_SE
+        for v in PRUNE_SE + (BEFORE,):  # the workflow's selection (stage 4) on today's poses
+            keep = selection.PRUNE_SE, selection.prune
+            if v == BEFORE:
+                selection.prune = prune_along_all
+            else:
+                selection.PRUNE_SE = v
             sel = workflow._select(p, lin, J, today, seed)
-            selection.PRUNE_SE = keep
+            selection.PRUNE_SE, selection.prune = keep
             free, prior, ch = sel.free, sel.priors, sel.choice
             pruned[v].append(tomorrow_error(lin, today, tomorrow, ch.free[None], prior[ch.index][None])[0])
         truth = tomorrow_error(lin, today, tomorrow, free, prior)
@@ -117,8 +149,8 @@ def study(name, robot, meas, rng):
         print(f"{n:>40s} {np.nanmean(t[:, i]):28.3f} {wins[i]:12d}")
     print(f"{'pruning of the choice (PRUNE_SE)':>40s} {'tomorrow RMS (mm)':>28s}")
     for v, e in pruned.items():
-        print(f"{v:>40g} {np.mean(e):28.3f}")
-    print(f"{'candidate, pruned (PRUNE_SE 0.5)':>40s} {'tomorrow RMS (mm)':>28s}")
+        print(f"{v if v == BEFORE else f'{v:g}':>40s} {np.mean(e):28.3f}")
+    print(f"{f'candidate, pruned (PRUNE_SE {selection.PRUNE_SE:g})':>40s} {'tomorrow RMS (mm)':>28s}")
     for c, e in fixed.items():
         print(f"{names[c]:>40s} {np.mean(e):28.3f}")
 

@@ -12,8 +12,9 @@ along the links, 0.5-3 mrad), a backlash of 0.5-1 mrad with the sign of the grav
 between sessions a motion-capture frame moved by 0.3-1 mm and 0.2-0.4 mrad.
 
 Models: ``jaxcal calibrate``'s default (``calibrate_data``), the same with the outliers' second
-look in the plain threshold (a left-out pose's prediction spread taken as 1), ``--params all``
-and ``--params offsets``. For each: the RMS of point 1's error (mm) over the later sessions,
+look in the plain threshold (a left-out pose's prediction spread taken as 1), the same with the
+pruning jaxcal used before (``scoring_rule.prune_along_all``), ``--params all`` and
+``--params offsets``. For each: the RMS of point 1's error (mm) over the later sessions,
 beyond the training ranges, and the poses each left out (file row, and in brackets its
 error in standard deviations of the noise).
 
@@ -29,6 +30,7 @@ import yourdfpy
 from scipy.spatial.transform import Rotation
 
 import jaxcal
+from jaxcal.calibration import _selection as selection
 from jaxcal.calibration import _workflow
 from jaxcal.model import predict
 
@@ -125,20 +127,25 @@ def later_postures(q, limits, rng):
 
 def fits(robot, meas):
     """The models compared: name -> (calibrated model, poses left out)."""
+    from scoring_rule import prune_along_all  # the study beside this one (this file run as a script)
+
     out = {}
     for name, kw in (
         ("default", {}),
         ("default, plain second look", {}),
+        ("default, pruned as before", {}),
         ("all", {"params": "all"}),
         ("offsets", {"params": "offsets"}),
     ):
-        spread = _workflow._prediction_spread
+        spread, prune = _workflow._prediction_spread, selection.prune
         if name.endswith("plain second look"):
             _workflow._prediction_spread = lambda *a: 1.0
+        if name.endswith("pruned as before"):
+            selection.prune = prune_along_all
         try:
             res = jaxcal.calibrate_data(robot, meas, **kw)
         finally:
-            _workflow._prediction_spread = spread
+            _workflow._prediction_spread, selection.prune = spread, prune
         out[name] = (res.model, [f"{o['row']} ({o['sigmas']:.0f})" for o in res.report["outliers"]])
     return out
 

@@ -40,9 +40,13 @@ error" rule of cross-validation, since a lower score by less than its own noise 
 
 ## Parameter-level selection
 The chosen candidate's parameters are then pruned one at a time, the least significant first
-(smallest ``|x_j| / se_j`` of the fit on all poses), down to none; of the models on that path
-the sparsest whose score is within :data:`PRUNE_SE` standard errors of the best is kept: what
-remains are the parameters the data support.
+(smallest ``|x_j| / se_j`` of the fit on all poses), down to none. How many to drop is itself
+chosen by the held-out folds, each of which drops *its own* least significant parameters, ordered
+by a fit on its training poses alone: the score of dropping ``n`` is that of the folds' models
+with ``n`` dropped. (Scored along the order of all the poses, a fold's held-out poses would have
+helped decide which parameters its model keeps, and the score would favour pruning more than the
+data support.) The sparsest whose score is within :data:`PRUNE_SE` standard errors of the best is
+kept: what remains are the parameters the data support.
 """
 
 from __future__ import annotations
@@ -60,10 +64,11 @@ best, and at least within this fraction of it."""
 SIMPLER_TOLERANCE = 0.01
 """A simpler candidate whose score is within one standard error of the best, and at least within
 this fraction of it, wins."""
-PRUNE_SE = 0.5
-"""Pruning keeps the sparsest model within this many standard errors of the best on its path:
-half of the one-standard-error rule, which pruned more than pseudo-sessions of real data
-support (docs/selection.md)."""
+PRUNE_SE = 0.0
+"""Pruning keeps the sparsest model within this many standard errors of the best number dropped
+(and :data:`PRUNE_TOLERANCE`): the folds' own orders already make a dropped parameter's cost
+honest, and pseudo-sessions of real data and later sessions of a simulated arm support no more
+(docs/selection.md)."""
 MAX_CONDITION = 1e6
 """A candidate whose column-scaled, weighted Jacobian (prior rows included) is worse conditioned
 than this fails: its parameters are not separable on these poses, and its full fit's normal
@@ -339,14 +344,14 @@ def choose(scores, complexity, error: float = 0.0) -> int:
 
 def prune(lin: Linear, rule: Rule, free, prior, prunable, start: float):
     """Drop the prunable parameters one at a time, the least significant first (smallest
-    ``|x| / se`` of the fit on all the rule's poses), down to none, scoring each model on the way;
-    keep the sparsest one whose score is within :data:`PRUNE_SE` standard errors (and at least
-    :data:`PRUNE_TOLERANCE`) of the best on the path. Returns ``(free, dropped, kept_t)``:
-    ``dropped`` as :attr:`Choice.pruned`, ``kept_t`` the kept parameters' ``|x| / se``."""
+    ``|x| / se`` of the fit on all the rule's poses), down to none; keep as many dropped as the
+    held-out folds support (:func:`pruned_scores`): the sparsest within :data:`PRUNE_SE` standard
+    errors (and at least :data:`PRUNE_TOLERANCE`) of the best. Returns ``(free, dropped,
+    kept_t)``: ``dropped`` as :attr:`Choice.pruned`, ``kept_t`` the kept parameters' ``|x| / se``."""
     free = np.array(free, bool)
     prior = np.asarray(prior, float)
     prunable = np.asarray(prunable, bool)
-    path, ts = [(free, -1, np.nan, start)], []
+    path, ts, order = [free], [], []
     while True:
         x = solve(rule.A_all[None], rule.b_all[None], free[None], prior[None])[0, 0]
         se = standard_errors(lin, rule, free, prior, x)
@@ -355,15 +360,72 @@ def prune(lin: Linear, rule: Rule, free, prior, prunable, start: float):
         if not t:
             break
         j = min(t, key=t.get)
+        order.append((j, t[j]))
         free = free.copy()
         free[j] = False
-        path.append((free, j, t[j], float(score(lin, rule, free[None], prior[None])[0])))
-    scores = np.array([p[3] for p in path])
+        path.append(free)
+    scores, errs = pruned_scores(lin, rule, path[0], prior, prunable, len(order))
     best = int(np.nanargmin(scores))
-    _, err = score_error(lin, rule, path[best][0], prior)
-    limit = scores[best] + max(PRUNE_SE * err, PRUNE_TOLERANCE * scores[best])
+    limit = scores[best] + max(PRUNE_SE * errs[best], PRUNE_TOLERANCE * scores[best])
     k = max(i for i in range(len(path)) if scores[i] <= limit)
-    return path[k][0], tuple((j, t, s) for _, j, t, s in path[1 : k + 1]), ts[k]
+    return path[k], tuple((j, t, float(scores[i + 1])) for i, (j, t) in enumerate(order[:k])), ts[k]
+
+
+def pruned_scores(lin: Linear, rule: Rule, free, prior, prunable, steps: int):
+    """``(scores, errors)`` ``(steps + 1,)``: the score (mm, module docstring) of dropping ``n``
+    parameters and its standard error, for ``n = 0..steps``. Every held-out fold drops the least
+    significant of ``free``'s prunable parameters one at a time, by ``|x| / se`` of the fit on its
+    own training poses (sandwich standard errors, as :func:`standard_errors`), and predicts its
+    held-out poses after each; all folds at once, on ``free``'s parameters."""
+    idx = np.flatnonzero(free)
+    F, m, K = rule.held.shape[0], idx.size, lin.K
+    A, b = rule.A[:, idx[:, None], idx[None, :]], rule.b[:, idx]
+    J, pr, can = lin.J[..., idx].reshape(-1, m), np.asarray(prior, float)[idx], np.asarray(prunable, bool)[idx]
+    train = (rule.valid[None] & ~rule.held).astype(float)  # (F, K)
+    M = max(lin.n_points, 1)
+    scored = (rule.held & rule.valid[None])[:, :, None] & lin.seen[:, : 3 * M].reshape(K, M, 3).all(-1)[None]
+    rows = train @ lin.seen.sum(1).astype(float)
+    keep = np.ones((F, m), bool)
+    sq = []  # per number dropped: (F, K, M) squared held-out errors, NaN where not scored
+    for n in range(steps + 1):
+        both = keep[:, :, None] & keep[:, None, :]
+        JJ = np.where(both, A, 0.0)
+        N = JJ + np.eye(m) * np.where(keep, pr**2, 1.0)[:, None, :]
+        # solve's jitter, of the whole layout's trace (a held parameter's diagonal is 1 there)
+        trace = np.trace(N, axis1=-2, axis2=-1) + (lin.m - m)
+        N = N + np.eye(m) * (1e-12 * np.maximum(trace, 1e-300) / lin.m)[:, None, None]
+        Ni = _inverse(N)
+        x = np.where(keep, (Ni @ np.where(keep, b, 0.0)[..., None])[..., 0], 0.0)
+        e = lin.r[None] - (J @ x.T).T.reshape(F, K, -1)  # (F, K, rows), weighted
+        pos = (e[..., : 3 * M] * lin.pos_scale[: 3 * M]).reshape(F, K, M, 3)
+        sq.append(np.where(scored, np.sum(pos**2, -1), np.nan))
+        if n == steps:
+            break
+        s2 = np.sum(train * np.sum(e**2, -1), 1) / np.maximum(rows - keep.sum(1), 1.0)
+        var = np.sum((Ni @ JJ) * np.swapaxes(Ni, -1, -2), -1)  # the diagonal of N^-1 J^T J N^-1
+        se = np.sqrt(np.clip(s2[:, None] * var, 0.0, None))
+        # a parameter without a standard error goes last, but before any that cannot go
+        t = np.where(se > 0, np.abs(x) / np.where(se > 0, se, 1.0), 1e300)
+        t = np.where(keep & can, t, np.inf)
+        some = (keep & can).any(1)
+        keep = keep.copy()
+        keep[np.flatnonzero(some), np.argmin(t, 1)[some]] = False
+    kfold = np.arange(F) < rule.n_kfold
+    scores, errs = np.zeros(steps + 1), np.zeros(steps + 1)
+    for n, s in enumerate(sq):
+        parts = [a[np.isfinite(a)] for a in (s[kfold], s[~kfold]) if np.isfinite(a).any()]
+        w = 1.0 / len(parts)
+        ms = w * sum(a.mean() for a in parts)
+        var = w**2 * sum(a.var(ddof=1) / a.size if a.size > 1 else 0.0 for a in parts)
+        scores[n], errs[n] = np.sqrt(ms), (np.sqrt(var) / (2 * np.sqrt(ms)) if ms > 0 else 0.0)
+    return scores, errs
+
+
+def _inverse(N):
+    try:
+        return np.linalg.inv(N)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(N)
 
 
 def condition(A, free) -> float:

@@ -156,3 +156,42 @@ def test_selection_chooses_compliance_for_a_compliant_arm(rng):
     assert rep["heldout_rms_mm"] < 2 * np.sqrt(3) * 0.02
     rigid = calibrate_data(r, meas, compliance="no").report
     assert rigid["heldout_rms_mm"] > 3 * rep["heldout_rms_mm"]
+
+
+def test_each_fold_prunes_in_its_own_order(rng):
+    """How many parameters to drop is scored by folds that each order the parameters by a fit on
+    their own training poses: against a loop over the folds written with plain least squares
+    (np.linalg.lstsq on the stacked rows, sandwich standard errors from the training residual),
+    and with nothing dropped the score is the candidate's own."""
+    K, rows, m = 30, 3, 8
+    J = rng.normal(size=(K, rows, m))
+    x_true = np.r_[rng.normal(0, 2.0, 4), np.zeros(m - 4)]  # four live, four null parameters
+    r = np.einsum("krm,m->kr", J, x_true) + rng.normal(0, 1.0, (K, rows))
+    lin = selection.linearise(J, r, np.ones(rows), n_points=1)
+    q = rng.uniform(-1, 1, (K, 2))
+    rule = selection.Rule.of(lin, q, np.ones(K, bool), 5, seed=3)
+    free, prior = np.ones(m, bool), np.zeros(m)
+    prunable = np.arange(m) >= 2  # the first two are frames: never dropped
+    scores, _ = selection.pruned_scores(lin, rule, free, prior, prunable, steps=6)
+    assert scores[0] == pytest.approx(selection.score(lin, rule, free[None], prior[None])[0], rel=1e-9)
+    sq = [[] for _ in range(7)]
+    for f, held in enumerate(rule.held):
+        train = ~held
+        A, b = J[train].reshape(-1, m), r[train].reshape(-1)
+        keep = free.copy()
+        for n in range(7):
+            x = np.zeros(m)
+            x[keep] = np.linalg.lstsq(A[:, keep], b, rcond=None)[0]
+            e = r[held] - np.einsum("krm,m->kr", J[held], x)
+            sq[n].append((f, np.sum(e**2, -1)))
+            res = b - A @ x
+            s2 = res @ res / (len(b) - keep.sum())
+            se = np.zeros(m)
+            se[keep] = np.sqrt(s2 * np.diag(np.linalg.inv(A[:, keep].T @ A[:, keep])))
+            t = np.where(keep & prunable, np.abs(x) / np.where(se > 0, se, 1), np.inf)
+            keep[np.argmin(t)] = False
+    for n in range(7):
+        kf = np.concatenate([e for f, e in sq[n] if f < rule.n_kfold])
+        ends = np.concatenate([e for f, e in sq[n] if f >= rule.n_kfold])
+        assert scores[n] == pytest.approx(np.sqrt(0.5 * kf.mean() + 0.5 * ends.mean()), rel=1e-6)
+    assert np.argmin(scores) >= 3  # the test can fail: dropping the null parameters helps

@@ -41,6 +41,8 @@ def test_cli_and_api_agree(tmp_path, monkeypatch, capsys, rng):
     written = jaxcal.load_robot(tmp_path / "cal.toml")
     q = sim.q_val[0]
     np.testing.assert_allclose(np.asarray(jaxcal.fk(written, q)), np.asarray(jaxcal.fk(api.robot, q)), atol=1e-9)
-    # the workflow's final fit is calibrate() with the same options on all poses
-    one = jaxcal.calibrate(r, sim.q[0], sim.measured[0], params="all", loss="huber")
+    # the workflow's final fit is calibrate() with the same options and noise weights on all poses
+    # (calibrate alone takes its pose weights again from its fit; the workflow's are its selection's)
+    sig = dict(sigma_pos_mm=api.report["sigma_pos_mm"], sigma_rot_rad=np.radians(api.report["sigma_rot_deg"]))
+    one = jaxcal.calibrate(r, sim.q[0], sim.measured[0], params="all", loss="huber", **sig)
     np.testing.assert_allclose(np.asarray(jaxcal.fk(one.robot, q)), np.asarray(jaxcal.fk(api.robot, q)), atol=1e-9)
