@@ -415,8 +415,8 @@ def test_marker_labels_swapped_in_many_rows_are_named_as_a_swap():
 def test_a_marker_seen_at_three_poses_does_not_fail_every_candidate():
     """The bundled TIAGo data with point 4 lost at all but three rows: an outer training set that
     never sees it holds its position there instead of finding every candidate singular (the
-    explicit sets fitted this file; the default refused it). The model keeps point 4, and
-    points 1-3 are predicted about as well as from the file without it."""
+    explicit sets fitted this file; the default refused it). The model keeps point 4 and is a
+    calibration."""
     from jaxcal.measurements import tiago_paths
 
     urdf, csv = tiago_paths()
@@ -425,6 +425,7 @@ def test_a_marker_seen_at_three_poses_does_not_fail_every_candidate():
     P = np.array(clean.measured)
     P[np.setdiff1d(np.arange(len(P)), [5, 17, 29]), 3] = np.nan
     res = jaxcal.calibrate_data(robot, jaxcal.Measurements(clean.q, P, rows=clean.rows))
-    assert res.model.n_points == 4 and np.isfinite(res.report["heldout_rms_mm"])
-    three = jaxcal.calibrate_data(robot, jaxcal.Measurements(clean.q, P[:, :3], rows=clean.rows))
-    assert res.report["heldout_rms_mm"] < 1.2 * three.report["heldout_rms_mm"]
+    rep = res.report
+    assert res.model.n_points == 4 and rep["converged"] and rep["plausible"]
+    # calibrated, it predicts held-out postures better than the nominal chain does
+    assert rep["heldout_rms_mm"] < 0.7 * rep["frames_only_heldout_rms_mm"]
