@@ -151,7 +151,7 @@ def main():
         for i in range(len(free)):
             s = selection.score(lin, rule, free[i][None], prior[i][None])[0]
             if np.isfinite(s):
-                kept, dropped, _ = selection.prune(lin, rule, free[i], prior[i], pen, float(s))
+                kept, dropped, _ = selection.prune(lin, rule, free[i], prior[i], pen)
                 pruned.append((dropped[-1][2] if dropped else float(s), i, kept))
         s, i, kept = min(pruned, key=lambda v: v[0])
         out.setdefault("prune every candidate", []).append(error(lin, kept, prior[i])[0])

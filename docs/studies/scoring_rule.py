@@ -59,11 +59,12 @@ def problem(robot, meas, **options):
     return p, lin, np.asarray(J)
 
 
-def prune_along_all(lin, rule, free, prior, prunable, start, prune_se=0.5):
+def prune_along_all(lin, rule, free, prior, prunable, prune_se=0.5):
     """The pruning jaxcal used before (:func:`jaxcal.calibration._selection.prune`'s signature):
     every number dropped scored by the rule's folds along the order of a fit on *all* the rule's
     poses, held-out ones included, and the sparsest within ``prune_se`` standard errors kept."""
     free, prior, prunable = np.array(free, bool), np.asarray(prior, float), np.asarray(prunable, bool)
+    start = float(selection.score(lin, rule, free[None], prior[None])[0])
     path, ts = [(free, -1, np.nan, start)], []
     while True:
         x = selection.solve(rule.A_all[None], rule.b_all[None], free[None], prior[None])[0, 0]
@@ -131,8 +132,7 @@ def study(name, robot, meas, rng):
         penalised[: p.layout.n_kin] = True
         penalised[list(p.layout.compliances)] = True
         for c in fixed:
-            start = float(selection.score(lin, rule, free[c][None], prior[c][None])[0])
-            kept = selection.prune(lin, rule, free[c], prior[c], penalised, start)[0]
+            kept = selection.prune(lin, rule, free[c], prior[c], penalised)[0]
             fixed[c].append(tomorrow_error(lin, today, tomorrow, kept[None], prior[c][None])[0])
     print(
         f"\n{name}: {K} poses ({int((~p.valid).sum())} outliers left out), {len(names)} candidates, {CUTS} cuts "

@@ -342,7 +342,7 @@ def choose(scores, complexity, error: float = 0.0) -> int:
     return min(ok, key=lambda i: complexity[i])
 
 
-def prune(lin: Linear, rule: Rule, free, prior, prunable, start: float):
+def prune(lin: Linear, rule: Rule, free, prior, prunable):
     """Drop the prunable parameters one at a time, the least significant first (smallest
     ``|x| / se`` of the fit on all the rule's poses), down to none; keep as many dropped as the
     held-out folds support (:func:`pruned_scores`): the sparsest within :data:`PRUNE_SE` standard
@@ -449,6 +449,6 @@ def select(lin: Linear, rule: Rule, free, prior, complexity, prunable) -> Choice
         c = choose(scores, complexity, score_error(lin, rule, free[c], prior[c])[1])
     if c < 0:
         return Choice(-1, free[0], scores, (a, b), conds, float("nan"))
-    kept, dropped, t = prune(lin, rule, free[c], prior[c], prunable, float(scores[c]))
+    kept, dropped, t = prune(lin, rule, free[c], prior[c], prunable)
     final = dropped[-1][2] if dropped else float(scores[c])
     return Choice(c, kept, scores, (a, b), conds, final, dropped, t)
