@@ -422,24 +422,25 @@ def calibrate(
         b = core.run_members(
             cfg, a["model"], q, target, masks, w, prior[None], opts.loss_scale, x0=x0, **run, label="calibrating"
         )
+        used = sig
         for _ in range(REWEIGHTS) if reweigh else ():
-            new = _given(core.sigmas_from(b["pos_err"], b["rot_err"], masks, n_points), opts)[0]
-            if np.all(np.abs(np.log(new / sig)) < np.log(REWEIGHT_TOLERANCE)):
+            new = _given(core.robust_sigmas(b["pos_err"], b["rot_err"], masks, n_points), opts)[0]
+            if np.all(np.abs(np.log(new / used)) < np.log(REWEIGHT_TOLERANCE)):
                 break
-            sig, w = new, core.weights_of(layout, new[None])
+            used, w = new, core.weights_of(layout, new[None])
             b = core.run_members(
                 cfg, a["model"], q, target, masks, w, prior[None], opts.loss_scale, x0=b["x"], **run, label="reweighted"
             )
-        return a, sig, w, b
+        return a, sig, w, b, used
 
-    a, sig, weights, b = stages(ref, masks)
+    a, sig, weights, b, used = stages(ref, masks)
     again = core.reidentified(ident, core.member(b["model"], 0), layout, q, robot, selection.MAX_CONDITION)
     # the fit ran where the nominal's base set is singular: the fit's set, from the fit (and every
     # refit without outliers from the last: that set may be singular at the nominal)
     if again is not None:
         ident, reidentified = again
         prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
-        a, sig, weights, b = stages(ref, masks, b["x"])
+        a, sig, weights, b, used = stages(ref, masks, b["x"])
 
     def refit(w, x0):  # from the current stage's frames-only model and weights
         return core.run_members(
@@ -449,11 +450,11 @@ def calibrate(
     det = outliers.found(b, refit, masks, target, opts)
     if det.flags.any() and not opts.keep_outliers:  # the whole fit again without them: start, frames, set
         first, kept = sig, masks * ~det.flags
-        a, sig, weights, b = stages(start(kept), kept, b["x"] if again is not None else None)
+        a, sig, weights, b, used = stages(start(kept), kept, b["x"] if again is not None else None)
         if sig[0] < outliers.REDETECT_SIGMA * first[0]:  # gross outliers set the weights: once more
             det = outliers.found(refit(masks, b["x"]), refit, masks, target, opts)
             kept = masks * ~det.flags
-            a, sig, weights, b = stages(start(kept), kept, b["x"] if again is not None else None)
+            a, sig, weights, b, used = stages(start(kept), kept, b["x"] if again is not None else None)
         found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
         det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
     if not np.all(np.isfinite(b["x"][0])):
@@ -483,7 +484,7 @@ def calibrate(
     few = few_distinct(q, core.same_pose(robot), layout.rows, needed)
     swap = ""
     if many and n_points > 1:
-        noise = float(det.scale[0, 0] * sig[0])
+        noise = float(det.scale[0, 0] * used[0])  # the detection scale is in the weights' units
         swap = outliers.swaps_note(predict(model, q), target, flags, noise, np.arange(K))
     why = judge(
         robot,
@@ -511,8 +512,8 @@ def calibrate(
         num_steps=int(b["steps"][0]),
         before=core.residual_stats(a["pos_err"][0], a["rot_err"][0], fitted, n_points=n_points),
         after=after,
-        sigma_pos_mm=float(sig[0]),
-        sigma_rot_rad=None if n_points else float(sig[1]),
+        sigma_pos_mm=float(used[0]),
+        sigma_rot_rad=None if n_points else float(used[1]),
         method=opts.method,
         loss=opts.loss,
         outliers=tuple(int(i) for i in np.flatnonzero(flags)),
@@ -623,7 +624,7 @@ def calibrate_batch(
         b = core.run_members(cfg, ref, q, target, masks, w, prior, opts.loss_scale, x0=x0, **run, label="calibrating")
         active = np.full(R, reweigh)
         for _ in range(REWEIGHTS) if reweigh else ():  # as calibrate, each member until its weights settle
-            new = _given(core.sigmas_from(b["pos_err"], b["rot_err"], masks, n_points), opts)
+            new = _given(core.robust_sigmas(b["pos_err"], b["rot_err"], masks, n_points), opts)
             active &= ~np.all(np.abs(np.log(new / sig)) < np.log(REWEIGHT_TOLERANCE), -1)
             if not active.any():
                 break

@@ -274,3 +274,22 @@ def test_one_wild_row_is_an_outlier_not_a_unit_mistake():
     res = calibrate_batch(ur5, sim.q, P)
     assert [res.outliers(r) for r in range(3)] == [(), (), (5,)] and res.converged.all()
     assert_allclose(res.x[2], alone.x, atol=1e-9)
+
+
+def test_pose_weights_taken_again_leave_outliers_to_the_detection():
+    """Full poses with one gross (3 mm) and five moderate position outliers: the weights taken
+    again from the fit are medians, which the outliers do not set, so calibrate and the batch
+    find the same outliers and the same model, and the gross one among them."""
+    ur5 = jaxcal.preset("ur5")
+    sim = simulate(ur5, n_robots=2, n_poses=40, seed=3, sigma_pos=0.02, sigma_rot=2e-5, base=True, tool=True)
+    rng = np.random.default_rng(0)
+    meas = np.array(sim.measured)
+    bad = rng.choice(40, 6, replace=False)
+    meas[0, bad[0], :3, 3] += rng.normal(size=3) * 3.0
+    for k in bad[1:]:
+        meas[0, k, :3, 3] += rng.normal(size=3) * rng.uniform(0.05, 0.12)
+    alone = calibrate(ur5, sim.q[0], meas[0])
+    res = calibrate_batch(ur5, sim.q, meas)
+    assert res.outliers(0) == alone.outliers and bad[0] in alone.outliers and set(alone.outliers) <= set(bad)
+    assert_allclose(res.x[0], alone.x, atol=1e-9)
+    assert alone.sigma_pos_mm == pytest.approx(0.02, rel=0.3)  # the noise, not the outliers'
