@@ -72,10 +72,19 @@ def all_or_nothing():
         yield
     finally:
         _STAGED.reset(token)
-    for path, _ in staged:
-        check_writable(path)
-    for path, data in staged:
-        _write_now(path, data)
+    targets = [Path(os.path.realpath(path)) for path, _ in staged]  # where each is written
+    for target in targets:
+        check_writable(target)
+    temps = []
+    try:  # every file whole beside its target first; then the renames, which do not fail halfway
+        for target, (_, data) in zip(targets, staged):
+            temps.append(_temporary(target, data))
+        for target, tmp in zip(targets, temps):
+            os.replace(tmp, target)
+    except BaseException:
+        for tmp in temps:
+            Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def write_atomic(path, data: str | bytes, *, now: bool = False) -> None:
@@ -101,6 +110,16 @@ def _write_now(path, data: str | bytes) -> None:
     # a link (a package's file linked into a workspace) keeps pointing where it did: its target is
     # the file replaced, not the link
     path = Path(os.path.realpath(path))
+    tmp = _temporary(path, data)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _temporary(path: Path, data: str | bytes) -> str:
+    """``data`` written and synced to a new file beside ``path``, with an ordinary file's mode."""
     path.parent.mkdir(parents=True, exist_ok=True)
     mode = "wb" if isinstance(data, bytes) else "w"
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -110,7 +129,7 @@ def _write_now(path, data: str | bytes) -> None:
             f.flush()
             os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes the file private; an output is an ordinary file
-        os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return tmp

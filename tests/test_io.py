@@ -77,3 +77,21 @@ def test_a_link_keeps_pointing_at_the_file_it_names(tmp_path):
     (tmp_path / "cal.yaml").symlink_to(target)
     write_atomic(tmp_path / "cal.yaml", "new")
     assert (tmp_path / "cal.yaml").is_symlink() and target.read_text() == "new"
+
+
+def test_all_or_nothing_checks_where_a_link_points(tmp_path):
+    """A link whose target cannot be written (its folder is a file) is refused before any output
+    is written, naming the target; the other output keeps its old content."""
+    import pytest
+
+    from jaxcal._io import all_or_nothing
+    from jaxcal.errors import DataError
+
+    (tmp_path / "a.txt").write_text("old")
+    (tmp_path / "afile").write_text("a file, not a folder")
+    (tmp_path / "b.txt").symlink_to(tmp_path / "afile" / "b.txt")
+    with pytest.raises(DataError, match="is a file, not a folder"), all_or_nothing():
+        write_atomic(tmp_path / "a.txt", "new")
+        write_atomic(tmp_path / "b.txt", "new")
+    assert (tmp_path / "a.txt").read_text() == "old"
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]

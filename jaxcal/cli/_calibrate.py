@@ -203,8 +203,9 @@ def calibrate(
         raise typer.Exit(1)
     if not rep["plausible"]:
         raise ImplausibleFitError(rep["implausible"] + "; nothing was written")
-    # every output or none: one that fails late (a plot, an export) leaves no others behind
-    with all_or_nothing():
+    # every output or none: one that fails late (a plot, an export) leaves no others behind; what
+    # the block says ("written to ...") is said once the files are
+    with console.capture() as said, all_or_nothing():
         comment = {
             "data": str(data),
             "heldout_rms_mm": rep["heldout_rms_mm"],
@@ -270,6 +271,7 @@ def calibrate(
             for p in calibration_figures(res, plots):
                 console.print(f"plot written to {p}")
         _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment)
+    console.file.write(said.get())
 
 
 def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:

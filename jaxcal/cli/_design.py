@@ -138,7 +138,8 @@ def design(
             f"looser {', '.join(given) or 'constraints'})",
             option=(given[0] if given else "--starts").lstrip("-").replace("-", "_"),
         )
-    with all_or_nothing():  # the pose file and its summary together, or neither
+    # the pose file and its summary together, or neither; said once written
+    with console.capture() as said, all_or_nothing():
         write_poses(out, result.q, r)
         console.print(f"wrote {out}")
         if json_out is not None:
@@ -154,3 +155,4 @@ def design(
             summary["units"] = {"q": "rad, mm for prismatic joints", "min_distance": "rad, mm for prismatic joints"}
             write_atomic(json_out, json_text(summary))
             console.print(f"wrote {json_out}")
+    console.file.write(said.get())

@@ -136,6 +136,7 @@ def test_an_output_that_fails_late_leaves_none_written(tmp_path, monkeypatch, ca
     code, out, err = _calibrate(monkeypatch, capsys, tmp_path, tracker_csv, "ur5", "--plots", tmp_path / "plots")
     err = " ".join(err.split())
     assert code == 2 and "parameters.png: is a directory" in err and "Traceback" not in err, err
+    assert "written to" not in out  # nothing said to be written that was not
     for f in ("cal.toml", *OUTPUTS.values()):
         assert not (tmp_path / f).exists(), f
     assert not (tmp_path / "plots" / "pose_errors.png").exists()
