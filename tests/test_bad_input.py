@@ -67,6 +67,11 @@ PY = {
         DataError,
         r"point\(s\) 2 not seen at any pose of data set\(s\) 1 ",
     ),
+    "calibrate q a list of booleans": (
+        lambda: calibrate(jaxcal.preset("ur5"), [[True] * 6] * 30, np.zeros((30, 3))),
+        DataError,
+        "q: expected real numbers, got booleans",
+    ),
     "Robot dh strings": (lambda: jaxcal.Robot(np.array([["a"] * 4])), DataError, "dh: expected real numbers"),
     "Robot dh complex": (lambda: jaxcal.Robot(np.zeros((2, 4), complex)), DataError, "complex"),
     "Robot convention": (lambda: jaxcal.Robot(np.zeros((2, 4)), convention="dh"), RobotFileError, "convention"),

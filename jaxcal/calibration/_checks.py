@@ -10,6 +10,13 @@ from ..errors import DataError
 from ..robot import LENGTH_UNITS, Robot
 
 
+def _dtype(a):
+    try:
+        return np.asarray(a).dtype
+    except ValueError:  # ragged: as_f64 names it
+        return None
+
+
 def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None):
     """Validate ``q`` and the measurements; return ``(q, target, n_points)`` as float64 NumPy
     arrays (copies: the caller's arrays are never touched).
@@ -22,7 +29,7 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     if not isinstance(robot, Robot):
         raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}", option="robot")
     for name, a in (("q", q), ("measured", measured)):  # True/False are no joint values or lengths
-        if getattr(a, "dtype", None) == np.bool_:
+        if _dtype(a) == np.bool_:
             raise DataError(f"{name}: expected real numbers, got booleans", option=name)
     q = np.array(as_f64(q, "q"))
     measured = np.array(as_f64(measured, "measured"))
@@ -211,6 +218,7 @@ def check_units(
 
     for i, (a, b) in enumerate(zip(s_mod, s_mea)):
         if off(a, b) and off(s_also[i], b):
+            a = a if also is None else s_also[i]  # the message's figure is the nominal's, as it says
             where = f" (data set {i})" if batched else ""
             ratio = b / a
             span = float(np.ptp(Q[i][:, revolute], axis=0).max()) if revolute.any() else np.inf

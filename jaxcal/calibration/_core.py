@@ -423,12 +423,12 @@ def column_norms(J0, weights, pose_w, prior) -> np.ndarray:
 
 
 @jit(keep=True)
-def _levers(models: Model, layout: Layout, q):
+def _levers(models: Model, layout: Layout, q, real):
     def one(m, q_):  # selection.lever's RMS point displacement per unit, of the position rows
         J = jacobian(m, layout, q_)
         P = J[:, : 3 * max(layout.n_points, 1)].reshape(J.shape[0], max(layout.n_points, 1), 3, -1)
-        P = jnp.where(jnp.isfinite(P), P, 0.0)
-        return jnp.sqrt(jnp.mean(jnp.sum(P**2, 2), axis=(0, 1)))
+        P = jnp.where(jnp.isfinite(P) & real[:, None, None, None], P, 0.0)  # the padding poses out
+        return jnp.sqrt(jnp.sum(jnp.sum(P**2, 2), axis=(0, 1)) / (jnp.sum(real) * P.shape[1]))
 
     return jax.vmap(one)(models, q)
 
@@ -436,14 +436,19 @@ def _levers(models: Model, layout: Layout, q):
 def levers(models: Model, layout: Layout, q, memory_mb: float) -> np.ndarray:
     """``(R, m)`` each member's lever (:func:`._selection.lever`) at its model ``models`` (leading
     axis) and poses ``q (R, K, n)``: a physically scaled prior is each data set's own, as
-    :func:`jaxcal.calibrate` gives it alone. One compiled program over chunks within ``memory_mb``."""
+    :func:`jaxcal.calibrate` gives it alone. One compiled program for every batch of a pose
+    bucket: chunks of a power of two members, poses padded as the solves pad them."""
     R, K = np.shape(q)[:2]
-    per = 2 * K * layout.rows * layout.size * 8
+    Kb = pose_bucket(K)
+    per = 2 * Kb * layout.rows * layout.size * 8
     c = int(max(1, min(R, MAX_CHUNK, memory_mb * 2**20 // per)))
+    c = 1 << (c.bit_length() - 1)  # a power of two: few distinct chunk shapes
+    qp = pad_poses(np.asarray(q), Kb, 1)
+    real = jnp.asarray(np.arange(Kb) < K)
     out = []
     for start in range(0, R, c):
         idx = np.minimum(np.arange(start, start + c), R - 1)  # the last chunk padded: one compile
-        out.append(np.asarray(_levers(take(models, idx), layout, np.asarray(q)[idx]))[: R - start])
+        out.append(np.asarray(_levers(take(models, idx), layout, qp[idx], real))[: R - start])
     return np.concatenate(out)
 
 

@@ -175,8 +175,9 @@ def _why_not(p, final, names) -> dict:
     for i in np.flatnonzero((final.free[ch.index]) & ~ch.free):
         t, s = pruned.get(int(i), (np.nan, np.nan))
         out[names[i]] = (
-            f"dropped by the selection: its estimate was {t:.2g} standard errors from 0, and without it the "
-            f"score was {s:.4g} mm (the set's {ch.scores[ch.index]:.4g} mm)"
+            f"dropped by the selection: its estimate was {t:.2g} standard errors from 0, and with as many "
+            f"dropped as up to it (each held-out fold its own) the score was {s:.4g} mm (the set's "
+            f"{ch.scores[ch.index]:.4g} mm)"
         )
     for i in np.flatnonzero(~final.free[ch.index] & (final.prior >= core.PIN)):
         if names[i] not in out and (i < p.layout.n_kin or i in p.layout.compliances):

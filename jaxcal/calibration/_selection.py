@@ -45,8 +45,8 @@ chosen by the held-out folds, each of which drops *its own* least significant pa
 by a fit on its training poses alone: the score of dropping ``n`` is that of the folds' models
 with ``n`` dropped. (Scored along the order of all the poses, a fold's held-out poses would have
 helped decide which parameters its model keeps, and the score would favour pruning more than the
-data support.) The sparsest whose score is within :data:`PRUNE_SE` standard errors of the best is
-kept: what remains are the parameters the data support.
+data support.) The sparsest whose score is within :data:`PRUNE_SE` standard errors, and
+:data:`PRUNE_TOLERANCE`, of the best is kept: what remains are the parameters the data support.
 """
 
 from __future__ import annotations
@@ -325,7 +325,8 @@ class Choice:
     score: float
     """The pruned model's score (mm)."""
     pruned: tuple[tuple[int, float, float], ...] = ()
-    """``(parameter, |x| / se, score after dropping it)`` in the order they were dropped."""
+    """``(parameter, |x| / se, score)`` in the order they were dropped; the score is that of as many
+    dropped, each held-out fold dropping its own (:func:`pruned_scores`)."""
     kept_t: dict = dataclasses.field(default_factory=dict)
     """``{parameter: |x| / se}`` of the kept prunable parameters in the final fit."""
 

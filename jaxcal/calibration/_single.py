@@ -149,11 +149,12 @@ class BatchResult:
     others are held at 0 in ``x``. A member in :attr:`rechosen` has its own; one named in
     :attr:`problems` or :attr:`nonfinite` none. None for the elimination methods."""
     implausible: tuple[str, ...] = ()
-    """Per data set, why its fit is not a calibration (empty: plausible), judged as
-    :func:`calibrate` judges one (:mod:`._plausibility`: the residual, and each parameter's
-    change against the limits of :class:`jaxcal.Options`, the limits from every data set's
-    poses), without its standard errors or the search for an input mistake. Empty for the
-    elimination methods."""
+    """Per data set, why its fit is not a calibration (empty: plausible), in :func:`calibrate`'s
+    words (:func:`._plausibility.findings`): its residual and each parameter's change (angles
+    within half a turn) against the limits of :class:`jaxcal.Options`, the limits from every data
+    set's poses. Not judged here, as calibrate judges them: the standard errors, too many
+    outliers, too few distinct poses (:attr:`problems` names those), and the search for an input
+    mistake. Empty for the elimination methods."""
 
     @property
     def plausible(self) -> np.ndarray:
@@ -370,7 +371,10 @@ def calibrate(
     (``position_only=True`` uses only their translations); mm and rad.
 
     **Options**: :class:`jaxcal.Options`, or its fields as keywords (``method="lm"``); the same
-    defaults as :func:`calibrate_data` and ``jaxcal calibrate``.
+    defaults as :func:`calibrate_data` and ``jaxcal calibrate``. One difference: on full poses
+    without the noise given, the position and rotation weights are taken again from this fit's
+    residual (:data:`REWEIGHTS`), where :func:`calibrate_data` keeps the frames-only residual's,
+    with which its model selection scored the candidates.
 
     **Returns** a :class:`CalibrationResult`; ``converged`` is False (never silently) when the
     solver did not meet its tolerances; ``not_identified()`` says which parameters were held at
@@ -703,6 +707,7 @@ def _implausible(robot: Robot, opts: Options, q, layout: Layout, x, b, kept, fre
     units = np.array(layout.units())
     kin = np.zeros(layout.size, bool)
     kin[: layout.n_kin] = True
+    x = np.where(kin & (units == "rad"), plausibility.wrap_angle(x), x)  # a whole turn is no change
     big = np.abs(np.where(free, x, 0.0))
     suspect |= np.any(kin & (units == "mm") & (big > limits.length_mm), -1)
     suspect |= np.any(kin & (units == "rad") & (big > limits.angle_rad), -1)
