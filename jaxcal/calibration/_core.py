@@ -464,23 +464,20 @@ def sigmas_from(pos_err, rot_err, masks, n_points: int):
     return np.stack([np.maximum(sp, SIGMA_FLOOR[0]), np.maximum(sr, SIGMA_FLOOR[1])], -1)
 
 
-CHI3_MEDIAN = 1.5381722544550522
-"""The median of a chi distribution with 3 degrees of freedom: a 3-vector of unit-variance normal
-errors has this median norm."""
-
-
 def robust_sigmas(pos_err, rot_err, masks, n_points: int):
-    """As :func:`sigmas_from`, from medians: each member's median position error norm (per point
-    seen) and median rotation error over its mask, over :data:`CHI3_MEDIAN`; the noise of a fit
-    that a few outliers would set by their squares."""
+    """As :func:`sigmas_from`, from medians (:func:`jaxcal.solvers.robust_scale` of the error norms
+    of the points seen and of the rotations, over each member's mask): the noise of a fit that a
+    few outliers would set by their squares."""
     masks = np.asarray(masks, bool)
-    pos = np.where(masks[:, :, None], np.asarray(pos_err, float), np.nan)
-    sp = np.nanmedian(pos.reshape(len(pos), -1), 1) / CHI3_MEDIAN
-    if n_points == 0:
-        sr = np.nanmedian(np.where(masks, np.asarray(rot_err, float), np.nan), 1) / CHI3_MEDIAN
-    else:
-        sr = np.ones_like(sp)
-    return np.stack([np.maximum(sp, SIGMA_FLOOR[0]), np.maximum(sr, SIGMA_FLOOR[1])], -1)
+    pos = np.asarray(pos_err, float)
+    seen = (masks[:, :, None] & np.isfinite(pos)).reshape(len(pos), -1)
+
+    def scale(norms, weights, floor):  # in units of the floor: robust_scale's own floor lies below it
+        return np.maximum(np.asarray(robust_scale(norms / floor, 3, weights.astype(float))) * floor, floor)
+
+    sp = scale(np.where(seen, pos.reshape(len(pos), -1), 0.0), seen, SIGMA_FLOOR[0])
+    sr = scale(np.asarray(rot_err, float), masks, SIGMA_FLOOR[1]) if n_points == 0 else np.ones_like(sp)
+    return np.stack([sp, sr], -1)
 
 
 def weights_of(layout: Layout, sigmas) -> np.ndarray:
