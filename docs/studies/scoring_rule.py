@@ -48,13 +48,14 @@ def data_sets():
 def problem(robot, meas, **options):
     """``calibrate_data``'s problem (its stages, :mod:`jaxcal.calibration._workflow`): the outliers
     its first detection finds left out (unless ``keep_outliers``), linearised at the frames-only fit
-    of the other poses; ``(p, lin, J)``. Not its detection again at a lower noise nor its second look
-    (neither changes the outliers of the bundled data sets)."""
+    of the other poses and weighted as the workflow weighs it (:func:`_weighed`); ``(p, lin, J)``.
+    Not its detection again at a lower noise nor its second look (neither changes the outliers of
+    the bundled data sets)."""
     p = workflow._prepare(robot, meas, make_options(None, options, camera_auto=True), None)
     if not p.opts.keep_outliers:
         det = workflow._outliers_found(p, workflow._frames(p))
         p = dataclasses.replace(p, valid=~det.flags[0])
-    fr = workflow._frames(p)
+    fr = workflow._weighed(p, workflow._frames(p))
     lin, J = workflow._linear(p, fr.member(-1), fr.sig[[-1]])
     return p, lin, np.asarray(J)
 

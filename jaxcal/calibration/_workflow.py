@@ -11,7 +11,8 @@ on the tool) with ``B0, X0`` from the closed-form guess of each training set
 ## Stages
 1. **Checks** (:func:`_prepare`): data, units, enough poses, the candidates and the folds.
 2. **Frames** (:func:`_frames`): a frames-only fit (nominal kinematics, unit weights 1 mm : 1
-   deg) on every training set and on all poses; its residual gives the noise weights.
+   deg) on every training set and on all poses; its residual gives the weights (full poses: the
+   rotation rows' at the noise's ratio of radians to millimetres, :func:`_weighed`).
 3. **Outliers** (:func:`_outliers_found`): poses far beyond the noise of a flexible model fitted
    on all poses (:mod:`._outliers`) are left out of everything that follows; found again from
    the fit without them when they had inflated the noise weights
@@ -403,15 +404,61 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
             det = _outliers_found(dataclasses.replace(p, valid=np.ones(len(p.q), bool)), fr)
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)
-    p, lin, final, per_fold, fits = _fitted(p, fr)
+    fr, p, lin, final, per_fold, fits = _weighed_fits(p, fr)
     # poses the detector's model could not fit but the calibrated one predicts; each refit predicts
     # the poses still left out anew, so it looks again (the poses kept only grow: it ends)
     while (back := _readmitted(p, fr, final, fits)).any():
         p = dataclasses.replace(p, valid=p.valid | back)
-        fr = _frames(p)
         # a set chosen at the fit may be singular at the nominal: from the last fit
-        p, lin, final, per_fold, fits = _fitted(p, fr, fits["x"] if p.ident is not nominal_set else None)
+        fr, p, lin, final, per_fold, fits = _weighed_fits(
+            p, _frames(p), fits["x"] if p.ident is not nominal_set else None
+        )
     return report_of(p, fr, det, lin, final, per_fold, fits)
+
+
+def _weighed(p: _Problem, fr: _Frames, fits=None) -> _Frames:
+    """``fr`` with, on full poses, the rotation rows weighted at the noise's ratio of radians to
+    millimetres and the position rows' weight kept. The frames-only residual's ratio is the arm's
+    errors', not the noise's: by it the rotation rows would count too little or too much, and the
+    standard errors, one variance pooled over both, would miss. Its scale is what the priors are
+    measured against (docs/conventions.md). The noise: the residual of ``fits`` (each training set
+    its own, :func:`._core.robust_sigmas`), or of one linear step with every identifiable
+    parameter from the frames-only fit of all poses."""
+    if p.n_points or p.opts.sigma_rot_rad is not None or p.opts.method == "linear":
+        return fr
+    if fits is not None:
+        noise = core.robust_sigmas(fits["pos_err"], fits["rot_err"], p.masks, p.n_points)
+    else:
+        lin, _ = _linear(p, fr.member(-1), fr.sig[[-1]])
+        ok = lin.seen & p.valid[:, None]
+        A = np.where(ok[..., None], lin.J, 0.0)[..., list(p.ident.base)].reshape(-1, len(p.ident.base))
+        b = np.where(ok, lin.r, 0.0).ravel()
+        res = (b - A @ np.linalg.lstsq(A, b, rcond=None)[0]).reshape(ok.shape)
+        noise = np.array([[np.sqrt(np.mean(res[:, k : k + 3][ok[:, k : k + 3]] ** 2)) for k in (0, 3)]]) * fr.sig[-1]
+    sig = fr.sig.copy()
+    sig[:, 1] = np.maximum(sig[:, 0] * noise[:, 1] / np.maximum(noise[:, 0], 1e-300), core.SIGMA_FLOOR[1])
+    return dataclasses.replace(fr, sig=sig)
+
+
+REWEIGHTS = 2
+"""Full poses: how many times the rotation rows' weight is taken again from the calibrated fits
+(:func:`_weighed`) while it moves by more than :data:`REWEIGHT_TOLERANCE`: a linear step from the
+frames-only fit misses the noise where the nominal's errors are large for it."""
+REWEIGHT_TOLERANCE = 1.1
+
+
+def _weighed_fits(p: _Problem, fr: _Frames, x0=None):
+    """:func:`_fitted` with the rotation rows weighted at the noise's ratio (:func:`_weighed`):
+    ``(fr, p, lin, final, per_fold, fits)``, ``fr`` with the weights the fits used."""
+    fr = _weighed(p, fr)
+    p, *out = _fitted(p, fr, x0)
+    for _ in range(REWEIGHTS):
+        new = _weighed(p, fr, out[-1])
+        if np.all(np.abs(np.log(new.sig / fr.sig)) < np.log(REWEIGHT_TOLERANCE)):
+            break
+        fr = new
+        p, *out = _fitted(p, fr, out[-1]["x"])
+    return fr, p, *out
 
 
 def _fitted(p: _Problem, fr: _Frames, x0=None):

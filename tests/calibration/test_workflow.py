@@ -210,3 +210,27 @@ def test_auto_chooses_on_the_problem_linearised_where_the_fit_is(rng):
     err = np.linalg.norm(np.asarray(fk(res.robot, sim.q_val[0]))[:, :3, 3] - sim.true_val[0][:, :3, 3], axis=1)
     assert np.sqrt(np.mean(err**2)) < 0.03  # noise 0.02 mm per axis; 0.23 mm when chosen at the frames-only fit
     assert res.report["heldout_rms_mm"] < 0.06
+
+
+def test_rotation_rows_weighted_at_the_noises_ratio():
+    """Full poses, noise 0.02 mm and 2e-5 rad, the arm's errors millimetres and milliradians: the
+    frames-only residual's ratio of radians to millimetres is the errors', about 50 times the
+    noise's. The workflow weighs the rotation rows at the noise's ratio, so its standard errors
+    are those of calibrate, whose weights come from its own fit (checked against the Monte Carlo
+    spread in test_calibrate.py)."""
+    from jaxcal import calibrate
+
+    ur5 = preset("ur5")
+    one = simulate(ur5, n_robots=1, n_poses=40, seed=11, base=True, tool=True)
+    sim = simulate(
+        ur5, n_robots=1, n_poses=40, seed=5, x_true=one.x_true[0], q=one.q[0], sigma_pos=0.02, sigma_rot=2e-5,
+        base=True, tool=True,
+    )  # fmt: skip
+    rep = calibrate_measurements(ur5, sim.q[0], sim.measured[0], params="all", folds=3).report
+    ratio = np.radians(rep["sigma_rot_deg"]) / rep["sigma_pos_mm"]
+    assert ratio == pytest.approx(2e-5 / 0.02, rel=0.3)
+    alone = calibrate(ur5, sim.q[0], sim.measured[0], params="all")
+    se = {alone.names[i]: alone.std_errors[i] for i in alone.free}
+    both = [(rep["parameters"][n]["std_error"], se[n]) for n in se if n in rep["parameters"]]
+    assert len(both) > 15
+    assert_allclose(*np.array(both).T, rtol=0.2)
