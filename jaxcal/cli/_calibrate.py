@@ -75,7 +75,9 @@ def calibrate(
     sigma_pos_mm: float = typer.Option(
         None, help="position noise per coordinate, the fits' weight (default: the frames-only fit's residual)"
     ),
-    sigma_rot_rad: float = typer.Option(None, help="rotation noise per axis (default: estimated)"),
+    sigma_rot_rad: float = typer.Option(
+        None, help="rotation noise per axis, the fits' weight (default: the position weight at the noise's ratio)"
+    ),
     max_steps: int = typer.Option(_D.max_steps, help="solver step limit"),
     rtol: float = typer.Option(_D.rtol, help="solver relative tolerance"),
     atol: float = typer.Option(_D.atol, help="solver absolute tolerance"),
