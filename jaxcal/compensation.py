@@ -227,7 +227,7 @@ def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Ta
     au, _ = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", robot.units[1])
     n = robot.n_joints
     expected = f"expected x, y, z [qw, qx, qy, qz] and/or q1..q{n}"
-    src, header, records = read_table(path, expected)
+    src, header, records = read_table(path, expected, "target")
     jcols = joint_columns(header, robot, src, required=False)
     points, quat = measurement_columns(header, src, required=False)
     if len(points) > 1:

@@ -241,17 +241,17 @@ def _records(lines: list[str]) -> list[tuple[int, list[str]]]:
     return [(start + reader.line_num, [v.strip() for v in rec]) for rec in reader if rec]
 
 
-def read_table(path, expected: str):
+def read_table(path, expected: str, what: str = "measurement"):
     """``(source name, header, records)`` of a CSV, records as ``(line, fields)`` with blank lines
-    skipped; :class:`DataError` if the file is missing, unreadable or empty (``expected`` says
-    what the header should hold) or repeats a column name."""
+    skipped; :class:`DataError` if the file (``what``: the kind it names) is missing, unreadable or
+    empty (``expected`` says what the header should hold) or repeats a column name."""
     path = Path(path)
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:
             lines = f.read().splitlines()
         records = _records(lines)
     except FileNotFoundError:
-        raise DataError(f"measurement file not found: {path}") from None
+        raise DataError(f"{what} file not found: {path}") from None
     except (OSError, UnicodeDecodeError, csv.Error) as e:
         raise DataError(f"{path}: cannot read as a CSV text file: {e}") from None
     if not records:

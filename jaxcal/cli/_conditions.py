@@ -4,6 +4,8 @@ parsed once so both commands read them alike."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 REGION_HELP = (
@@ -27,9 +29,9 @@ def numbers(text: str, count: int | tuple[int, ...], option: str) -> list[float]
         out = [float(t) for t in text.split(",")]
     except ValueError:
         out = []
-    if len(out) not in counts:
+    if len(out) not in counts or not all(math.isfinite(v) for v in out):
         said = " or ".join(map(str, counts))
-        raise DataError(f"{option} must be {said} comma-separated numbers, got {text!r}", option=option)
+        raise DataError(f"{option} must be {said} comma-separated numbers, all finite, got {text!r}", option=option)
     return out
 
 

@@ -29,7 +29,7 @@ def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.n
     """``(K, n)`` joint values (rad, mm) of a pose file; other columns are ignored. Units default
     to the robot file's. Raises :class:`jaxcal.DataError` naming the file, row and column."""
     n = robot.n_joints
-    src, header, records = read_table(path, f"expected a header row q1..q{n} (or the joint names)")
+    src, header, records = read_table(path, f"expected a header row q1..q{n} (or the joint names)", "pose")
     cols = joint_columns(header, robot, src)
     require_rows(records, src)
     values = parse_rows(records, header, cols, src)[0]

@@ -55,6 +55,11 @@ VIEW_ANGLE = 0.01
 """A point this many rad outside the view cone costs ``PENALTY``."""
 VIEW_LENGTH = 10.0
 """A point this many mm before or beyond the view's range costs ``PENALTY``."""
+BFGS_MEMORY_MB = 4096.0
+"""The largest inverse Hessian the gradient design keeps (``(K n)^2`` float64 entries, a few
+copies): more poses are refused up front, not met by an out-of-memory error in the compiled
+program."""
+BFGS_COPIES = 3
 
 
 def penalty(problem: DesignProblem, cons: Constraints, q: Float[Array, "K n"]) -> Float[Array, ""]:
@@ -180,6 +185,14 @@ def optimal_poses(
         raise DataError(
             f"n_poses: {n_poses} poses x {problem.layout.rows} rows cannot identify {problem.n_base} base "
             f"parameters; need at least {need}",
+            option="n_poses",
+        )
+    size = n_poses * problem.lower.shape[0]
+    if BFGS_COPIES * size**2 * 8 / 2**20 > BFGS_MEMORY_MB:
+        most = int(np.sqrt(BFGS_MEMORY_MB * 2**20 / (BFGS_COPIES * 8))) // problem.lower.shape[0]
+        raise DataError(
+            f"n_poses: the gradient design of {n_poses} poses keeps a {size} x {size} matrix "
+            f"({BFGS_COPIES * size**2 * 8 / 2**30:.3g} GB); at most {most} poses: choose more from a pool (--pool)",
             option="n_poses",
         )
     rng = np.random.default_rng([seed, 2])

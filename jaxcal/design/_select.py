@@ -98,10 +98,16 @@ def _direct_losses(problem: DesignProblem, Mi_base, A: Float[Array, "P b b"]):
     return jnp.where(jnp.isfinite(out), out, jnp.inf)
 
 
+def _close(pool: Float[Array, "P n"], chosen: Float[Array, "N n"], spread) -> Bool[Array, "P N"]:
+    """Which pool poses lie closer than ``spread`` (joint space) to each of ``chosen``: formed per
+    step, never as a ``(P, P)`` matrix, which a pool of tens of thousands would not fit."""
+    return jnp.sum((pool[:, None] - chosen[None]) ** 2, -1) < spread**2
+
+
 @eqx.filter_jit
-def _greedy(problem: DesignProblem, L, allowed: Bool[Array, " P"], close: Bool[Array, "P P"], n: int):
+def _greedy(problem: DesignProblem, L, allowed: Bool[Array, " P"], pool: Float[Array, "P n"], spread, n: int):
     """``n`` pool indices by greedy ``log det`` (with a ridge): each step the allowed pose, not
-    too close to a chosen one, that raises it most. -1 where none was left."""
+    closer than ``spread`` to a chosen one, that raises it most. -1 where none was left."""
     A = jnp.einsum("prb,prc->pbc", L, L)
     ridge = RIDGE * jnp.trace(jnp.mean(A, 0)) / A.shape[-1]
     d_problem = eqx.tree_at(lambda p: p.weights, problem, jnp.array([1.0, 0.0, 0.0]))
@@ -114,7 +120,7 @@ def _greedy(problem: DesignProblem, L, allowed: Bool[Array, " P"], close: Bool[A
         found = jnp.isfinite(s[j])
         chosen = chosen.at[k].set(jnp.where(found, j, -1))
         M = M + jnp.where(found, A[j], 0.0)
-        ok = ok & ~close[j] & (jnp.arange(len(ok)) != j)
+        ok = ok & ~_close(pool, pool[j][None], spread)[:, 0] & (jnp.arange(len(ok)) != j)
         return chosen, M, ok
 
     init = (jnp.full(n, -1), jnp.diag(problem.prior), allowed)
@@ -122,7 +128,7 @@ def _greedy(problem: DesignProblem, L, allowed: Bool[Array, " P"], close: Bool[A
 
 
 @eqx.filter_jit
-def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, close, max_swaps: int):
+def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, pool, spread, max_swaps: int):
     """Fedorov exchange from ``chosen`` until no swap improves the loss (or ``max_swaps``)."""
     A = jnp.einsum("prb,prc->pbc", L, L)
     P = L.shape[0]
@@ -133,7 +139,8 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
     def best_swap(ch):
         M = info(ch)
         in_set = jnp.zeros(P, bool).at[ch].set(True)
-        n_close = jnp.sum(close[:, ch], 1)  # chosen poses too close to each pool pose
+        close = _close(pool, pool[ch], spread)  # (P, N): each pool pose too close to a chosen one
+        n_close = jnp.sum(close, 1)
 
         def slot(i):
             Mi = M - A[ch[i]]
@@ -142,7 +149,7 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, clos
             d = jnp.diagonal(C)
             regular = jnp.all(jnp.isfinite(d)) & (jnp.min(d) ** 2 > SINGULAR * jnp.max(d) ** 2)
             s = jax.lax.cond(regular & jnp.any(jnp.isfinite(s)), lambda: s, lambda: _direct_losses(problem, Mi, A))
-            ok = allowed & ~in_set & (n_close - close[:, ch[i]] == 0)
+            ok = allowed & ~in_set & (n_close - close[:, i] == 0)
             return jnp.where(ok, s, jnp.inf)
 
         S = jax.lax.map(slot, jnp.arange(ch.shape[0]))  # (N, P)
@@ -176,18 +183,18 @@ def exchange(problem: DesignProblem, cons, pool: np.ndarray, n_poses: int, max_s
     allowed = np.ones(len(pool), bool)
     if cons.has_region:
         allowed = in_region(cons, positions(problem, pool))
-    sq = np.sum(pool**2, 1)
-    close = sq[:, None] + sq[None] - 2 * pool @ pool.T < float(cons.spread) ** 2  # no (P, P, n) intermediate
     L = jnp.asarray(pose_blocks(problem, pool))
-    start = np.asarray(_greedy(problem, L, jnp.asarray(allowed), jnp.asarray(close), n_poses))
+    pool_, spread = jnp.asarray(pool), jnp.asarray(float(cons.spread))
+    start = np.asarray(_greedy(problem, L, jnp.asarray(allowed), pool_, spread, n_poses))
     if np.any(start < 0):
-        what = "pool" if option == "pool" else f"{len(pool)} random configurations in the region and view"
+        what = f"{len(pool)} random configurations in the region and view"
+        what = f"the pool's {len(pool)} poses" if option == "pool" else what
         raise DataError(
             f"{option}: only {int(np.sum(start >= 0))} of {what} satisfy the region, the view and the minimum "
             f"spread together, fewer than the {n_poses} asked for",
             option=option,
         )
-    chosen, swaps = _exchange(problem, L, jnp.asarray(start), jnp.asarray(allowed), jnp.asarray(close), max_swaps)
+    chosen, swaps = _exchange(problem, L, jnp.asarray(start), jnp.asarray(allowed), pool_, spread, max_swaps)
     return np.asarray(chosen), int(swaps), int(allowed.sum())
 
 
@@ -242,6 +249,8 @@ def select_poses(
     seconds = time.perf_counter() - t0
     q = pool[chosen]
     values = values_of(measures_batch(problem, q[None])[0])
+    if not np.isfinite(values["log_det"]):
+        raise DataError(_unidentified(problem, pool, n_poses), option="pool")
     rng = np.random.default_rng([seed, 3])
     try:
         rand, drawn_from = random_values(problem, cons, n_poses, n_random, rng), "joint limits"
@@ -267,6 +276,26 @@ def select_poses(
             "select_seconds": seconds,
             "random_from": drawn_from,
         },
+    )
+
+
+def _unidentified(problem: DesignProblem, pool, n_poses: int) -> str:
+    """Why no ``n_poses`` of the pool identify the base parameters: the joints that never move in
+    it, how many distinct poses it has, and the parameters its information leaves free."""
+    L = np.asarray(pose_blocks(problem, pool))
+    lam, U = np.linalg.eigh(np.einsum("krb,krc->bc", L, L) + np.diag(np.asarray(problem.prior)))
+    null = U[:, lam <= 1e-9 * max(lam.max(), 1e-300)]
+    names = problem.base_names()
+    free = [names[i] for i in np.flatnonzero(np.abs(null).max(1, initial=0.0) > 0.3)]
+    still = [j + 1 for j in np.flatnonzero(np.ptp(pool, 0) <= 1e-9)]
+    joints = f"joint{'s' if len(still) > 1 else ''} {', '.join(map(str, still))}"
+    why = [f"{joints} never move{'s' if len(still) == 1 else ''}"]
+    why = (why if still else []) + [f"{len(np.unique(pool, axis=0))} distinct poses of {len(pool)} rows"]
+    if free:
+        why.append(f"its poses leave {', '.join(free)} free")
+    return (
+        f"pool: no {n_poses} of its poses identify the {len(names)} base parameters ({'; '.join(why)}); "
+        "nothing was designed: a pool that moves every joint over its range, or --params for what it moves"
     )
 
 

@@ -216,3 +216,27 @@ def test_a_position_only_design_says_which_point_it_is_for(monkeypatch, capsys, 
     )  # fmt: skip
     assert code in (0, None), err
     assert "not given" not in stdout and json.loads(js.read_text())["points_mm"] == [[0.0, 40.0, 30.0]]
+
+
+def test_a_pool_that_cannot_identify_the_parameters_is_refused(monkeypatch, capsys, tmp_path):
+    """Two joints held still over the whole pool: no set of its poses identifies the base
+    parameters, so the design is refused, naming those joints, and nothing is written (it used to
+    be written, its criteria infinite, called feasible)."""
+    import jaxcal
+
+    lim = np.asarray(jaxcal.preset("ur5").q_limits)
+    pool = np.random.default_rng(0).uniform(lim[:, 0], lim[:, 1], size=(200, 6))
+    pool[:, 1], pool[:, 2] = -1.0, 0.5
+    src, out = tmp_path / "pool.csv", tmp_path / "poses.csv"
+    np.savetxt(src, pool, delimiter=",", header="q1,q2,q3,q4,q5,q6", comments="")
+    code, _, err = run_cli(monkeypatch, capsys, "design", "ur5", "--poses", "20", "--pool", src, "--out", out)
+    assert code == 2 and "--pool" in err and "joints 2, 3 never move" in err and "identify" in err, err
+    assert not out.exists()
+    code, _, err = run_cli(
+        monkeypatch, capsys, "design", "ur5", "--poses", "20", "--point", "nan,0,0", "--out", out
+    )  # fmt: skip
+    assert code == 2 and "--point " in err and "finite" in err, err
+    code, _, err = run_cli(
+        monkeypatch, capsys, "design", "ur5", "--poses", "20", "--pool", tmp_path / "no.csv", "--out", out
+    )
+    assert code == 2 and "pose file not found" in err, err

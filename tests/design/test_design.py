@@ -490,3 +490,10 @@ def test_a_position_only_design_without_a_point_is_for_a_marker_off_the_last_axi
     rms = [design.evaluate(p, q)["validation_rms_mm"] for p in (default, off_axis)]
     assert rms[0] == pytest.approx(rms[1], rel=0.05)
     assert design.evaluate(on_axis, q)["validation_rms_mm"] < 0.85 * rms[1]
+
+
+def test_more_poses_than_the_gradient_design_can_hold_are_refused_up_front(problem):
+    """The BFGS inverse Hessian of K poses x n joints has (K n)^2 entries: 100000 poses would ask
+    for terabytes, refused before anything is drawn or compiled, with the most it allows."""
+    with pytest.raises(DataError, match=r"n_poses: the gradient design of 100000 poses .* at most \d+ poses"):
+        design.optimal_poses(problem, 100000)
