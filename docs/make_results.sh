@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Regenerates every result the docs quote, then their tables (repository root, venv active).
+# Regenerates the results the docs' tables quote, then the tables (repository root, venv active).
+# The studies in docs/studies/ each write their own .txt (the command is in each one's docstring).
 set -euo pipefail
 jaxcal reproduce --out docs/reproduce/noise-free
 jaxcal reproduce --noise-mm 0.02 --noise-rad 2e-5 --out docs/reproduce/noisy

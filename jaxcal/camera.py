@@ -5,9 +5,9 @@ Camera-on-flange data (``jaxcal calibrate --camera-model``) measure the camera's
 camera's intrinsic-calibration errors as *systematic*, view-dependent position errors: a
 focal length off by ``e`` scales the depth (distance along the optical axis) by ``1 + e``, a
 principal point off by ``d`` pixels shears the lateral position by ``d/f`` per unit depth, and
-so on. On the Franka data, repeated joint positions reproduce to ~0.1 mm while the calibrated
-model misses by ~1.2 mm RMS, so the leftover error is systematic, and part of it is of this
-kind (``docs/franka/``).
+so on. On the Franka data, repeated joint positions reproduce far better than the calibrated
+model predicts them, so the leftover error is systematic, and part of it is of this kind
+(``docs/franka.md``).
 
 A model maps the pose the robot model predicts to what the camera is predicted to report. In
 the camera's own axes the target origin is at ``t = -R^T p``; the camera reports ``t' = t +

@@ -112,7 +112,7 @@ def _optimise(
         return to_q(problem, u), conv, n
 
     # one start after another: batched LAPACK calls (Cholesky) inside a vmapped while_loop ran
-    # 10-40x slower than the same starts in turn on the CPU backend
+    # many times slower than the same starts in turn on the CPU backend
     return jax.lax.map(one, q0)
 
 

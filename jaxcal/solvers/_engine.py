@@ -3,7 +3,7 @@ analytically.
 
 :func:`least_squares` wraps ``optx.least_squares`` for any residual that comes with its exact
 Jacobian (``jax.custom_jvp``, so optimistix never differentiates through forward kinematics;
-that made Gauss–Newton several times faster, ``benchmarks/bench_gn_batch.py``).
+which is faster: ``benchmarks/bench_gn_batch.py`` compares).
 :func:`gauss_newton` is Gauss–Newton on the normal equations through ``optx.root_find`` (Newton's
 method on the stationarity condition), for small full-rank problems whose ``J^T J`` can be
 formed where the Jacobian is made. :func:`fit` is the calibration solve used by every workflow:
