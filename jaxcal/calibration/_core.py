@@ -704,13 +704,23 @@ def covariance(normal, rss, n_rows, prior) -> tuple[np.ndarray, float]:
     return cov, float("nan")
 
 
+def nan_rms(a, axis) -> np.ndarray:
+    """RMS of the finite values of ``a`` over ``axis`` (a lost point is NaN); NaN where there is
+    none (a member with no pose kept), without numpy's empty-slice warning."""
+    a = np.asarray(a, float)
+    ok = np.isfinite(a)
+    n = ok.sum(axis)
+    s = np.where(ok, a, 0.0) ** 2
+    return np.sqrt(np.divide(s.sum(axis), n, out=np.full(np.shape(n), np.nan), where=n > 0))
+
+
 def residual_stats(pos_err, rot_err, mask=None, *, n_points: int) -> dict:
     """Position RMS / max / median (mm, per pose: the norm over its points' errors) and rotation
     RMS (deg) over the poses of ``mask``."""
     pos_err = np.asarray(pos_err)
     sel = np.ones(pos_err.shape[0], bool) if mask is None else np.asarray(mask, bool)
     d = pos_err[sel]
-    per_point = np.sqrt(np.nanmean(d**2, 0)) if d.size else np.full(max(n_points, 1), np.nan)
+    per_point = nan_rms(d, 0) if d.size else np.full(max(n_points, 1), np.nan)
     f = d[np.isfinite(d)]  # lost points (NaN) left out
     out = {
         "pos_rms_mm": float(np.sqrt(np.mean(f**2))) if f.size else float("nan"),

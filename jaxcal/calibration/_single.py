@@ -700,10 +700,10 @@ def _implausible(robot: Robot, opts: Options, q, layout: Layout, x, b, kept, fre
     residual or parameters pass a limit (one vectorised screen over the members first)."""
     limits = plausibility.Thresholds.of(robot, opts, q)
     pos = np.where(kept[..., None], np.asarray(b["pos_err"]), np.nan)
-    suspect = nonfinite | (np.sqrt(np.nanmean(pos**2, (1, 2))) > limits.residual_mm)
+    suspect = nonfinite | (core.nan_rms(pos, (1, 2)) > limits.residual_mm)
     if n_points == 0:
         rot = np.where(kept, np.asarray(b["rot_err"]), np.nan)
-        suspect |= np.degrees(np.sqrt(np.nanmean(rot**2, 1))) > limits.rotation_deg
+        suspect |= np.degrees(core.nan_rms(rot, 1)) > limits.rotation_deg
     units = np.array(layout.units())
     kin = np.zeros(layout.size, bool)
     kin[: layout.n_kin] = True

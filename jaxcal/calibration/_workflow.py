@@ -19,10 +19,10 @@ on the tool) with ``B0, X0`` from the closed-form guess of each training set
    (:data:`._outliers.REDETECT_SIGMA`).
 4. **Selection** (:mod:`._selection`): on the problem linearised at the frames-only fit, every
    candidate is scored by held-out error on K-fold and range-end folds, the best (a simpler one
-   within one standard error, and at least 1 %, winning) is chosen, and its parameters pruned while the score holds. Where that
-   linearisation misses the final fit's residual (:data:`RELINEARISE`), or the final fit ran to
-   where the parameters identifiable at the nominal are not separable
-   (:func:`._core.reidentified`), or more are identifiable there and fit materially better
+   within one standard error, and at least 1 %, winning) is chosen, and its parameters pruned
+   while the score holds. Where that linearisation misses the final fit's residual
+   (:data:`RELINEARISE`), or the final fit ran to where the parameters identifiable at the
+   nominal are not separable (:func:`._core.reidentified`), or more are identifiable there and fit materially better
    (:func:`_wider`: then those identifiable there), stages 4-6 run again on the problem
    linearised at the final fit, each fit from its last.
 5. **Held-out figures**: the selection is made again inside every outer training set (K-fold

@@ -103,6 +103,7 @@ def test_joint_that_never_moves_names_its_offset():
     assert all("rank" in v or "no effect" in v for v in why.values())
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # nor numpy's empty-slice warnings in the user's console
 def test_batch_data_set_with_its_own_degeneracy_never_nan():
     """The base set comes from data set 0 (data set 1, identical poses, moves no joint), so data set
     1's normal equations are singular on that base set. No NaN: reported and zeroed."""
