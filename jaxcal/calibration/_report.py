@@ -9,6 +9,7 @@ import numpy as np
 
 from .._io import json_text
 from ..camera import n_params as camera_size
+from ..kinematics import fk
 from ..model import Layout, Model, measured_robot, observed, predict
 from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 from ..solvers import robust_scale
@@ -16,6 +17,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
+from ._markers import moved_point
 from ._param_sets import Candidate
 from ._single import estimated, judge, still_joint_notes
 
@@ -163,6 +165,27 @@ def _odd_point(p, pe) -> str:
         f"point {nums[j]} errs {v[j]:.3g} mm RMS on held-out poses, {v[j] / m:.1f} times the other points' "
         f"median ({m:.3g} mm): a marker that moved on the tool during the session, or a noisy or mislabelled "
         f"one? Calibrate without it (--points {keep}) and compare the held-out figures"
+    )
+
+
+def _moved_note(p, model: Model, noise_mm: float) -> str:
+    """A note naming the point that moved on the tool partway through the data (:mod:`._markers`),
+    or ``""``."""
+    if p.n_points < 2:
+        return ""
+    R = np.asarray(fk(model.robot, p.q))[:, :3, :3]
+    found = moved_point(R, np.asarray(p.target) - np.asarray(predict(model, p.q)), np.asarray(p.valid), noise_mm)
+    if found is None:
+        return ""
+    j, k, step, sigmas = found
+    nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
+    keep = ",".join(str(n) for i, n in enumerate(nums) if i != j)
+    before = p.rows[:k][p.valid[:k]]
+    return (
+        f"point {nums[j]} seems to have moved on the tool between rows {before[-1]} and {p.rows[k]}: its error "
+        f"steps there by {np.linalg.norm(step):.3g} mm in the tool's frame ({sigmas:.0f} standard deviations of the "
+        f"noise), the other points' not; one position for it fits neither part. Calibrate the rows before and "
+        f"after apart, or without it (--points {keep})"
     )
 
 
@@ -343,6 +366,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
     h = _heldout(fits, fr, p)
+    noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]))
     rep = {
         "robot": robot.name,
         "data": getattr(p.data, "source", "arrays"),
@@ -365,7 +389,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         "camera_model_option": opts.camera,
         "camera_parameters": {k: {"value": f.deltas[k][0], "std_error": f.deltas[k][1]} for k in f.cam_names} or None,
         "sigma_pos_mm": float(fr.sig[-1, 0]),
-        "noise_pos_mm": _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0])),
+        "noise_pos_mm": noise,
         "sigma_rot_deg": float(np.degrees(fr.sig[-1, 1])) if p.n_points == 0 else None,
         "parameters": {
             k: {"value": v, "std_error": s, "unit": u} for k, (v, s, u) in f.deltas.items() if k not in f.cam_names
@@ -388,7 +412,9 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         )
         or None,
         "likely_input_mistake": plausibility.names_a_cause(why),
-        "notes": list(still_joint_notes(robot, q)) + list(p.notes) + [n for n in [_odd_point(p, h["pe"])] if n],
+        "notes": list(still_joint_notes(robot, q))
+        + list(p.notes)
+        + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h)
     if back := rep["outlier_detection"]["taken_back_rows"]:

@@ -8,9 +8,9 @@ from jaxcal import Measurements, calibrate_data, preset
 MARKERS_MM = np.array([[60.0, 0.0, 40.0], [-50.0, 40.0, 60.0], [0.0, -70.0, 90.0], [30.0, 50.0, 120.0]])
 
 
-def _four_markers(slip_mm: float):
-    """A UR5 with small DH errors measured at four markers (an independent NumPy FK, 0.1 mm noise);
-    marker 3 moved ``slip_mm`` on the tool from pose 26 on."""
+def _four_markers(slip_mm: float, noise3_mm: float = 0.1):
+    """A UR5 with small DH errors measured at four markers (an independent NumPy FK, 0.1 mm noise,
+    marker 3's ``noise3_mm``); marker 3 moved ``slip_mm`` on the tool from pose 26 on."""
     rng = np.random.default_rng(5)
     ur5 = preset("ur5")
     dh = np.asarray(ur5.dh) + rng.normal(0.0, [1e-3, 0.3, 0.3, 1e-3], (6, 4))
@@ -19,14 +19,23 @@ def _four_markers(slip_mm: float):
     markers = np.broadcast_to(MARKERS_MM, (50, 4, 3)).copy()
     markers[25:, 2] += slip_mm * np.array([0.6, 0.0, 0.8])
     p = np.einsum("kij,kmj->kmi", T[:, :3, :3], markers) + T[:, None, :3, 3]
-    return ur5, q, p + rng.normal(scale=0.1, size=p.shape)
+    return ur5, q, p + rng.normal(scale=[[0.1], [0.1], [noise3_mm], [0.1]], size=p.shape)
 
 
-def test_a_marker_that_slipped_on_the_tool_is_named():
-    """One noise weight for all markers hides the slip (nothing is an outlier); the held-out error
-    per marker shows it."""
+def test_a_marker_that_slipped_on_the_tool_is_named_with_the_row():
+    """One noise weight for all markers hides the slip (nothing is an outlier); the step in the
+    marker's error relative to the others' names it and where it moved."""
     for slip, named in ((3.0, True), (0.0, False)):
         robot, q, p = _four_markers(slip)
         notes = calibrate_data(robot, Measurements(q=q, measured=p), params="all", folds=2).report["notes"]
-        assert any(n.startswith("point 3 errs") and "--points 1,2,4" in n for n in notes) == named, notes
+        said = [n for n in notes if n.startswith("point 3 seems to have moved on the tool between rows 25 and 26")]
+        assert bool(said) == named and all("--points 1,2,4" in n for n in said), notes
         assert not any(n.startswith(("point 1 ", "point 2 ", "point 4 ")) for n in notes)
+
+
+def test_a_marker_much_noisier_than_the_others_is_named():
+    """No step, but marker 3 five times noisier: its held-out error stands out."""
+    robot, q, p = _four_markers(0.0, noise3_mm=0.5)
+    notes = calibrate_data(robot, Measurements(q=q, measured=p), params="all", folds=2).report["notes"]
+    assert any(n.startswith("point 3 errs") and "--points 1,2,4" in n for n in notes), notes
+    assert not any("seems to have moved" in n for n in notes)
