@@ -14,7 +14,9 @@ A command is then put on the branch of its starting command (revolute joints wit
 no whole-turn jumps), a joint beyond limits of its own there turned by whole turns into them
 where it fits, and checked against the robot's joint limits. A target is reached
 (``converged``) when the solver met its tolerances and the residual is below ``tol_mm``; a
-command outside the limits is flagged (``within_limits``), never silently written.
+command outside the limits (``within_limits``) or one that left its starting command's branch,
+a joint turned by more than :data:`MAX_MOVE_DEG` (``on_branch``), is flagged, never silently
+written.
 """
 
 from __future__ import annotations
@@ -51,6 +53,11 @@ FAR_REACHES = 1.5
 times its reach (:meth:`jaxcal.Robot.reach`, an upper bound) are refused: none can be reached."""
 LIMIT_TOL = 1e-9
 """Slack (rad or mm) of the joint-limit check, for commands that land on a limit."""
+MAX_MOVE_DEG = 20.0
+"""A revolute joint turned further than this from its starting command has left that command's
+branch: the solve went round to another solution of the arm's inverse kinematics (an elbow or a
+wrist flipped), or through a singularity, where a calibration's corrections are a fraction of a
+degree. Such a command reaches its target but is not the one meant (``on_branch``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,11 +75,14 @@ class Compensation:
     within_limits: np.ndarray
     """``(K,)`` every joint of the command is within the robot's joint limits."""
     steps: np.ndarray
+    on_branch: np.ndarray
+    """``(K,)`` no revolute joint turned more than :data:`MAX_MOVE_DEG` from its starting command."""
 
     @property
     def ok(self) -> np.ndarray:
-        """Reached and within the limits: the commands that may be sent to the robot."""
-        return self.converged & self.within_limits
+        """Reached, within the limits and on the starting command's branch: the commands that may
+        be sent to the robot."""
+        return self.converged & self.within_limits & self.on_branch
 
 
 def _wrap(d):
@@ -197,6 +207,8 @@ def compensate(
     q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]) & calibrated.limits_given())
     reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
     inside = np.all((q >= lim[:, 0] - LIMIT_TOL) & (q <= lim[:, 1] + LIMIT_TOL), axis=-1)
+    rev = np.array([t == "R" for t in calibrated.joint_types])
+    turned = np.abs(np.asarray(_wrap(q - q_start)))[:, rev]  # a whole turn into the limits is no move
     return Compensation(
         q=q,
         pos_residual_mm=ep,
@@ -204,6 +216,7 @@ def compensate(
         converged=reached,
         within_limits=inside,
         steps=np.asarray(steps),
+        on_branch=np.all(turned <= np.radians(MAX_MOVE_DEG), -1),
     )
 
 
@@ -286,6 +299,12 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
         poses = frame @ np.asarray(fk(nominal, jnp.asarray(targets.q)))
         position_only = False
     else:
+        if nominal is not None:
+            raise DataError(
+                "nominal: the targets file gives the target positions (x, y, z) itself; the nominal robot is for a "
+                "file of joint commands only (its targets: where the nominal robot puts its tool there)",
+                option="nominal",
+            )
         poses, position_only = targets.poses, targets.position_only
     if targets.q is not None:  # the units checks calibrate and evaluate make, on the commands
         q = np.asarray(targets.q)

@@ -209,3 +209,27 @@ def test_targets_in_another_unit_are_refused_naming_the_option(tmp_path):
     with pytest.raises(DataError, match="times its reach") as e:
         compensate_targets(far, read_targets(p, far))
     assert e.value.option == "length_unit"
+
+
+def test_a_command_that_left_its_starting_branch_is_not_sent():
+    """A target that the start command is far from (its elbow 80 degrees off): the solve reaches
+    it only by turning a joint well past MAX_MOVE_DEG, which is another command than the one meant;
+    it is flagged (on_branch False) and not among the rows to send. A small correction is."""
+    r = preset("ur5")
+    q0 = np.array([[0.3, -1.2, 1.4, -1.5, -1.4, 0.2]] * 2)
+    q_true = q0.copy()
+    q_true[0, 2] += np.radians(80.0)
+    q_true[1, 2] += np.radians(2.0)
+    res = compensate(r, np.asarray(fk(r, q_true)), q0)
+    assert res.converged.all() and res.within_limits.all()
+    assert list(res.on_branch) == [False, True] and list(res.ok) == [False, True]
+
+
+def test_a_nominal_robot_with_target_positions_given_is_refused(tmp_path):
+    """The file gives x, y, z: a nominal robot would not be used to make targets, so it is refused,
+    not silently ignored."""
+    r = preset("paper-6r")
+    p = tmp_path / "t.csv"
+    p.write_text("q1,q2,q3,q4,q5,q6,x,y,z\n0,0.1,0.2,0.3,0.4,0.5,500,100,300\n")
+    with pytest.raises(DataError, match="nominal: the targets file gives the target positions"):
+        compensate_targets(r, read_targets(p, r), nominal=r)

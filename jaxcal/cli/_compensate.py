@@ -31,7 +31,7 @@ def compensate(
     import numpy as np
 
     from .._io import write_atomic
-    from ..compensation import compensate_targets, orientation_note, read_targets
+    from ..compensation import LIMIT_TOL, MAX_MOVE_DEG, compensate_targets, orientation_note, read_targets
     from ..measurements import unit_scale
     from ..robot import ANGLE_UNITS, LENGTH_UNITS, calibrated_chain
 
@@ -67,29 +67,41 @@ def compensate(
         parts += [f"{moved[:, ~rev].max():.4g} mm"] if (~rev).any() else []
         console.print(f"largest joint correction: {', '.join(parts)}")
     bad = np.flatnonzero(~res.ok)
+    lim = np.asarray(cal.q_limits)
+    names = list(cal.joint_names)
     for k in bad[:10]:
-        why = "not reached" if not res.converged[k] else "outside the joint limits"
-        console.print(f"  row {int(tg.rows[k])}: {why}", highlight=False)
+        why = []
+        if not res.converged[k]:
+            why.append("not reached")
+        out_of = np.flatnonzero((res.q[k] < lim[:, 0] - LIMIT_TOL) | (res.q[k] > lim[:, 1] + LIMIT_TOL))
+        if out_of.size:
+            why.append(f"outside the joint limits ({', '.join(names[j] for j in out_of)})")
+        if not res.on_branch[k]:
+            why.append(
+                f"a joint turned more than {MAX_MOVE_DEG:g} deg from its start: another branch of the inverse "
+                "kinematics, or a singularity"
+            )
+        console.print(f"  row {int(tg.rows[k])}: {'; '.join(why)}", highlight=False)
     if bad.size > 10:
         console.print(f"  ... and {bad.size - 10} more (--out flags every row)", highlight=False)
     if out is not None:
         lu = unit_scale(length_unit, LENGTH_UNITS, "length_unit", cal.units[0])[0]
         au = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", cal.units[1])[0]
         scale = np.array([au if t == "R" else lu for t in cal.joint_types])
-        header = list(cal.joint_names) + ["pos_residual_mm", "rot_residual_deg", "reached", "within_limits"]
+        flag_names = ["reached", "within_limits", "on_branch"]
+        header = list(cal.joint_names) + ["pos_residual_mm", "rot_residual_deg"] + flag_names
         lines = [",".join(header)]
-        for qk, ep, er, ok, inside in zip(
-            res.q / scale, res.pos_residual_mm, res.rot_residual_deg, res.converged, res.within_limits
-        ):
-            lines.append(
-                ",".join(
-                    [repr(float(v)) for v in qk] + [repr(float(ep)), repr(float(er)), str(int(ok)), str(int(inside))]
-                )
-            )
+        flags = np.stack([res.converged, res.within_limits, res.on_branch], -1).astype(int)
+        for qk, ep, er, f in zip(res.q / scale, res.pos_residual_mm, res.rot_residual_deg, flags):
+            values = [repr(float(v)) for v in qk] + [repr(float(ep)), repr(float(er))] + [str(v) for v in f]
+            lines.append(",".join(values))
         write_atomic(out, "\n".join(lines) + "\n")
-        console.print(f"compensated commands written to {out} (rows to send: reached and within_limits = 1)")
+        console.print(f"compensated commands written to {out} (rows to send: reached, within_limits and on_branch = 1)")
     if bad.size:
-        console.print(f"[yellow]warning:[/yellow] {bad.size} target(s) not reached or outside the joint limits")
+        console.print(
+            f"[yellow]warning:[/yellow] {bad.size} target(s) not reached, outside the joint limits or off the "
+            "starting commands' branch"
+        )
         raise typer.Exit(1)
 
 

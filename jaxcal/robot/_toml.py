@@ -161,6 +161,11 @@ def read_toml(path) -> tuple[Robot, np.ndarray | None]:
     except FileNotFoundError:
         raise RobotFileError(f"robot file not found: {path}") from None
     except tomllib.TOMLDecodeError as e:
+        if path.read_text(errors="replace").lstrip().startswith("{"):  # a JSON file, as calibrate --json writes
+            raise RobotFileError(
+                f"{path}: a JSON file, not a robot file (TOML, URDF or UR yaml): a calibrate --json report holds the "
+                "figures, not a model to load; give the file written by --out-robot or --out-model"
+            ) from None
         raise RobotFileError(f"{path}: not valid TOML: {e}") from None
     robot = robot_from_dict(doc, source=str(path))
     pts = doc.get("points", [])

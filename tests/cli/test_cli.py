@@ -174,9 +174,9 @@ def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys)
     code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "cal.toml", t, "--out", tmp_path / "o.csv")
     assert code == 1, err
     assert "row 3: not reached" in out
-    rows = (tmp_path / "o.csv").read_text().splitlines()
-    reached = [ln.split(",")[-2] for ln in rows[1:]]
-    assert reached == ["1", "1", "0", "1"]
+    rows = [ln.split(",") for ln in (tmp_path / "o.csv").read_text().splitlines()]
+    assert rows[0][-3:] == ["reached", "within_limits", "on_branch"]
+    assert [ln[-3] for ln in rows[1:]] == ["1", "1", "0", "1"]
 
 
 def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):

@@ -84,6 +84,7 @@ def test_units_m_deg_convert_to_mm_rad(tmp_path, rng):
         (lambda s: s.replace("a = 0.580", "a = nan"), "not finite"),
         (lambda s: s.split("[[joints]]")[0] + "joints = 3\n", "at least one [[joints]]"),
         (lambda s: s.replace("[[joints]]", "[[joints]\n", 1), "not valid TOML"),
+        (lambda s: '{"robot": "paper-6r", "heldout_rms_mm": 0.1}\n', "a calibrate --json report"),
     ],
 )
 def test_bad_files_name_the_problem(tmp_path, edit, msg):
