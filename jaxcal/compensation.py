@@ -77,6 +77,8 @@ class Compensation:
     steps: np.ndarray
     on_branch: np.ndarray
     """``(K,)`` no revolute joint turned more than :data:`MAX_MOVE_DEG` from its starting command."""
+    outside: np.ndarray
+    """``(K, n)`` the joints beyond the robot's limits (``within_limits``: none)."""
 
     @property
     def ok(self) -> np.ndarray:
@@ -153,6 +155,7 @@ def compensate(
     damping: float = 1e-6,
     max_steps: int = 100,
     tol_mm: float = 1e-6,
+    branch: bool = True,
 ) -> Compensation:
     """Joint commands ``q`` with ``fk(calibrated, q) ~ targets``, starting from ``q_start``.
 
@@ -160,7 +163,8 @@ def compensate(
     position is used with ``position_only``); ``q_start`` ``(K, n)``, e.g. the nominal
     commands; ``rot_weight_mm`` mm per rad of rotation error; ``damping`` the pull toward
     ``q_start`` (mm^2 per rad^2); a target counts as reached when its position residual is below
-    ``tol_mm`` and its rotation residual below ``tol_mm / rot_weight_mm``.
+    ``tol_mm`` and its rotation residual below ``tol_mm / rot_weight_mm``; ``branch``: ``q_start``
+    are the commands meant, whose branch a command must keep (``on_branch``; False: a start only).
 
     **Returns** a :class:`Compensation` (residuals, ``converged`` and ``within_limits`` per
     target; never raises for a target that was not reached).
@@ -206,7 +210,7 @@ def compensate(
     # not for default limits: a continuous joint (no limits) would be sent a turn round instead
     q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]) & calibrated.limits_given())
     reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
-    inside = np.all((q >= lim[:, 0] - LIMIT_TOL) & (q <= lim[:, 1] + LIMIT_TOL), axis=-1)
+    outside = (q < lim[:, 0] - LIMIT_TOL) | (q > lim[:, 1] + LIMIT_TOL)
     rev = np.array([t == "R" for t in calibrated.joint_types])
     turned = np.abs(np.asarray(_wrap(q - q_start)))[:, rev]  # a whole turn into the limits is no move
     return Compensation(
@@ -214,9 +218,10 @@ def compensate(
         pos_residual_mm=ep,
         rot_residual_deg=np.degrees(er),
         converged=reached,
-        within_limits=inside,
+        within_limits=~outside.any(-1),
         steps=np.asarray(steps),
-        on_branch=np.all(turned <= np.radians(MAX_MOVE_DEG), -1),
+        on_branch=np.all(turned <= np.radians(MAX_MOVE_DEG), -1) | (not branch),
+        outside=outside,
     )
 
 
@@ -324,4 +329,6 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
                 option="length_unit",
             )
     q0 = targets.q if targets.q is not None else np.tile(np.asarray(calibrated.q_limits).mean(axis=1), (len(poses), 1))
-    return poses, compensate(calibrated, poses, q0, position_only=position_only, **kw)
+    # without commands the start is no command of the user's: there is no branch to keep
+    branch = targets.q is not None
+    return poses, compensate(calibrated, poses, q0, position_only=position_only, branch=branch, **kw)

@@ -233,3 +233,15 @@ def test_a_nominal_robot_with_target_positions_given_is_refused(tmp_path):
     p.write_text("q1,q2,q3,q4,q5,q6,x,y,z\n0,0.1,0.2,0.3,0.4,0.5,500,100,300\n")
     with pytest.raises(DataError, match="nominal: the targets file gives the target positions"):
         compensate_targets(r, read_targets(p, r), nominal=r)
+
+
+def test_targets_without_commands_have_no_branch_to_leave(tmp_path):
+    """Positions only: the solve starts from the middle of the limits, which is no command of the
+    user's, so a reached target is sent however far its joints are from that start."""
+    r = preset("ur5")
+    q = np.array([[0.3, -1.2, 1.4, -1.5, -1.4, 0.2], [-1.0, -2.0, 2.0, -0.5, 1.0, 2.5]])
+    p = np.asarray(fk(r, q))[:, :3, 3]
+    f = tmp_path / "t.csv"
+    f.write_text("x,y,z\n" + "".join(",".join(repr(float(v)) for v in pk) + "\n" for pk in p))
+    _, res = compensate_targets(r, read_targets(f, r))
+    assert res.converged.all() and res.on_branch.all() and res.ok.all()

@@ -30,12 +30,13 @@ def moved_point(
     residual: Float[np.ndarray, "K M 3"],
     valid: Bool[np.ndarray, " K"],
     sigma_mm: float,
-) -> tuple[int, int, np.ndarray, float] | None:
-    """The point that moved on the tool, ``(point index, first pose after the move, the step in
-    the tool frame (mm), its size in noise units)``, or None. ``R`` the tool's rotation at each
-    pose, ``residual`` measured minus predicted in the measurement frame (NaN where a point was
-    not seen), ``valid`` the poses fitted, ``sigma_mm`` the noise per coordinate. Two points
-    or more."""
+) -> tuple[int, int, int, np.ndarray, float] | None:
+    """The point that moved on the tool, ``(point index, the last pose it was seen at before the
+    move, the first after, the step in the tool frame (mm), its size in noise units)``, or None.
+    ``R`` the tool's rotation at each pose, ``residual`` measured minus predicted in the
+    measurement frame (NaN where a point was not seen), ``valid`` the poses fitted, ``sigma_mm``
+    the noise per coordinate. Two points or more; with two, each one's error relative to the
+    other's is the other's turned round, so which of them moved is not told: the index is -1."""
     K, M, _ = residual.shape
     if M < 2 or not sigma_mm > 0:
         return None
@@ -62,6 +63,6 @@ def moved_point(
         spread = np.sum((x - x.mean(0)) ** 2)
         share = (s * (n - s) / n) * np.sum(step**2, 1) / max(spread, 1e-300)
         k = int(np.argmax(np.where(share > MOVED_SHARE, stat, -np.inf)))
-        if share[k] > MOVED_SHARE and stat[k] > MOVED_CHI2 and (best is None or np.sqrt(stat[k]) > best[3]):
-            best = (j, int(ok[s[k]]), step[k], float(np.sqrt(stat[k])))
+        if share[k] > MOVED_SHARE and stat[k] > MOVED_CHI2 and (best is None or np.sqrt(stat[k]) > best[4]):
+            best = (j if M > 2 else -1, int(ok[s[k] - 1]), int(ok[s[k]]), step[k], float(np.sqrt(stat[k])))
     return best

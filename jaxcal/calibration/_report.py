@@ -154,7 +154,9 @@ def _odd_point(p, pe) -> str:
     points' (:data:`ODD_POINT`; three points or more), or ``""``."""
     if p.n_points < 3:
         return ""
-    v = np.sqrt(np.nanmean(pe[p.valid] ** 2, 0))
+    v = core.nan_rms(pe[p.valid], 0)
+    if not np.isfinite(v).sum() > 1:
+        return ""
     j = int(np.nanargmax(v))
     m = float(np.nanmedian(np.delete(v, j)))
     if not (v[j] > ODD_POINT * m and v[j] > 1e-3):  # 1 um: below any tracker's noise (noise-free data)
@@ -177,15 +179,21 @@ def _moved_note(p, model: Model, noise_mm: float) -> str:
     found = moved_point(R, np.asarray(p.target) - np.asarray(predict(model, p.q)), np.asarray(p.valid), noise_mm)
     if found is None:
         return ""
-    j, k, step, sigmas = found
+    j, last, first, step, sigmas = found
     nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
+    where = (
+        f"between rows {p.rows[last]} and {p.rows[first]}: its error steps there by {np.linalg.norm(step):.3g} mm in "
+        f"the tool's frame ({sigmas:.0f} standard deviations of the noise)"
+    )
+    if j < 0:  # two points: each one's error against the other's, which moved is not told
+        return (
+            f"point {nums[0]} or point {nums[1]} seems to have moved on the tool {where}, one against the other; one "
+            "position for each fits neither part. Calibrate the rows before and after apart"
+        )
     keep = ",".join(str(n) for i, n in enumerate(nums) if i != j)
-    before = p.rows[:k][p.valid[:k]]
     return (
-        f"point {nums[j]} seems to have moved on the tool between rows {before[-1]} and {p.rows[k]}: its error "
-        f"steps there by {np.linalg.norm(step):.3g} mm in the tool's frame ({sigmas:.0f} standard deviations of the "
-        f"noise), the other points' not; one position for it fits neither part. Calibrate the rows before and "
-        f"after apart, or without it (--points {keep})"
+        f"point {nums[j]} seems to have moved on the tool {where}, the other points' not; one position for it "
+        f"fits neither part. Calibrate the rows before and after apart, or without it (--points {keep})"
     )
 
 
@@ -424,7 +432,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
         )
     if p.n_points:
         rep["points_mm"] = np.asarray(f.model.points).tolist()
-        rep["heldout_points_rms_mm"] = [float(v) for v in np.sqrt(np.nanmean(h["pe"][p.valid] ** 2, 0))]
+        rep["heldout_points_rms_mm"] = [float(v) for v in core.nan_rms(h["pe"][p.valid], 0)]
     per_pose = {
         "rows": p.rows,
         "frames_only_heldout": _squeeze(h["fo"]),

@@ -428,13 +428,10 @@ def _weighed(p: _Problem, fr: _Frames, fits=None) -> _Frames:
         return fr
     if fits is not None:
         noise = core.robust_sigmas(fits["pos_err"], fits["rot_err"], p.masks, p.n_points)
-    else:
-        lin, _ = _linear(p, fr.member(-1), fr.sig[[-1]])
-        ok = lin.seen & p.valid[:, None]
-        A = np.where(ok[..., None], lin.J, 0.0)[..., list(p.ident.base)].reshape(-1, len(p.ident.base))
-        b = np.where(ok, lin.r, 0.0).ravel()
-        res = (b - A @ np.linalg.lstsq(A, b, rcond=None)[0]).reshape(ok.shape)
-        noise = np.array([[np.sqrt(np.mean(res[:, k : k + 3][ok[:, k : k + 3]] ** 2)) for k in (0, 3)]]) * fr.sig[-1]
+    else:  # the step's weighted residual back in mm and rad, each pose's norms as the fits give them
+        res = _stepped(p, _linear(p, fr.member(-1), fr.sig[[-1]])[0], p.ident.base)
+        pos, rot = (np.linalg.norm(res[:, k : k + 3], axis=1) * fr.sig[-1, i] for i, k in enumerate((0, 3)))
+        noise = core.robust_sigmas(pos[None, :, None], rot[None], p.valid[None], p.n_points)
     sig = fr.sig.copy()
     sig[:, 1] = np.maximum(sig[:, 0] * noise[:, 1] / np.maximum(noise[:, 0], 1e-300), core.SIGMA_FLOOR[1])
     return dataclasses.replace(fr, sig=sig)
@@ -443,7 +440,8 @@ def _weighed(p: _Problem, fr: _Frames, fits=None) -> _Frames:
 REWEIGHTS = 2
 """Full poses: how many times the rotation rows' weight is taken again from the calibrated fits
 (:func:`_weighed`) while it moves by more than :data:`REWEIGHT_TOLERANCE`: a linear step from the
-frames-only fit misses the noise where the nominal's errors are large for it."""
+frames-only fit misses the noise where the nominal's errors are large for it. Each time runs the
+selection and every fit again."""
 REWEIGHT_TOLERANCE = 1.1
 
 
@@ -497,6 +495,15 @@ leaves less than this share of the weighted residual that the nominal's set leav
 no tilt of the axes within the noise gives."""
 
 
+def _stepped(p: _Problem, lin: selection.Linear, base) -> np.ndarray:
+    """``(K, rows)`` the weighted residual of the poses kept after one linear step in the
+    parameters ``base`` (0 where a row is not observed or its pose left out)."""
+    ok = lin.seen & p.valid[:, None]
+    A = np.where(ok[..., None], lin.J, 0.0)[..., list(base)].reshape(-1, len(base))
+    b = np.where(ok, lin.r, 0.0).ravel()
+    return (b - A @ np.linalg.lstsq(A, b, rcond=None)[0]).reshape(ok.shape)
+
+
 def _wider(p: _Problem, fit: Model, sig):
     """The base set identified at the final fit and a note, when it is larger than the nominal's and
     fits materially better (:data:`WIDER_SHARE`): a length held because two axes are parallel in
@@ -506,14 +513,7 @@ def _wider(p: _Problem, fit: Model, sig):
     again = core.identify(J, p.layout, p.robot)
     if again.rank <= p.ident.rank:
         return None
-    ok = (lin.seen & p.valid[:, None])[..., None]
-    A, b = np.where(ok, lin.J, 0.0).reshape(-1, p.layout.size), np.where(ok[..., 0], lin.r, 0.0).ravel()
-
-    def left(base) -> float:  # the weighted residual after one linear step in the parameters ``base``
-        sub = A[:, list(base)]
-        return float(np.sum((b - sub @ np.linalg.lstsq(sub, b, rcond=None)[0]) ** 2))
-
-    share = left(again.base) / max(left(p.ident.base), 1e-300)
+    share = np.sum(_stepped(p, lin, again.base) ** 2) / max(np.sum(_stepped(p, lin, p.ident.base) ** 2), 1e-300)
     if not share < WIDER_SHARE:
         return None
     names = p.layout.names()

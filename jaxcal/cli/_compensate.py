@@ -31,7 +31,7 @@ def compensate(
     import numpy as np
 
     from .._io import write_atomic
-    from ..compensation import LIMIT_TOL, MAX_MOVE_DEG, compensate_targets, orientation_note, read_targets
+    from ..compensation import MAX_MOVE_DEG, compensate_targets, orientation_note, read_targets
     from ..measurements import unit_scale
     from ..robot import ANGLE_UNITS, LENGTH_UNITS, calibrated_chain
 
@@ -56,9 +56,10 @@ def compensate(
         "RMS", f"{np.sqrt(np.mean(res.pos_residual_mm**2)):.3g}", f"{np.sqrt(np.mean(res.rot_residual_deg**2)):.3g}"
     )
     console.print(table)
-    n_ok, n_in = int(res.converged.sum()), int(res.within_limits.sum())
+    n_ok, n_in, n_br, K = int(res.converged.sum()), int(res.within_limits.sum()), int(res.on_branch.sum()), len(res.q)
     console.print(
-        f"reached: {n_ok}/{len(res.q)} (max {int(res.steps.max())} steps); within the joint limits: {n_in}/{len(res.q)}"
+        f"reached: {n_ok}/{K} (max {int(res.steps.max())} steps); within the joint limits: {n_in}/{K}"
+        + (f"; on the commands' branch: {n_br}/{K}" if tg.q is not None else "")
     )
     if tg.q is not None:
         moved = np.abs(res.q - tg.q)
@@ -67,13 +68,12 @@ def compensate(
         parts += [f"{moved[:, ~rev].max():.4g} mm"] if (~rev).any() else []
         console.print(f"largest joint correction: {', '.join(parts)}")
     bad = np.flatnonzero(~res.ok)
-    lim = np.asarray(cal.q_limits)
     names = list(cal.joint_names)
     for k in bad[:10]:
         why = []
         if not res.converged[k]:
             why.append("not reached")
-        out_of = np.flatnonzero((res.q[k] < lim[:, 0] - LIMIT_TOL) | (res.q[k] > lim[:, 1] + LIMIT_TOL))
+        out_of = np.flatnonzero(res.outside[k])
         if out_of.size:
             why.append(f"outside the joint limits ({', '.join(names[j] for j in out_of)})")
         if not res.on_branch[k]:

@@ -28,9 +28,18 @@ def _residuals(seed, step=None, at=None, j=None, common=None):
 
 def test_the_point_that_moved_and_where_are_found():
     R, r = _residuals(0, step=[2.0, -1.0, 1.0], at=23, j=2)
-    j, k, step, sigmas = moved_point(R, r, np.ones(K, bool), SIGMA)
-    assert (j, k) == (2, 23) and sigmas > 5
+    j, last, first, step, sigmas = moved_point(R, r, np.ones(K, bool), SIGMA)
+    assert (j, last, first) == (2, 22, 23) and sigmas > 5
     np.testing.assert_allclose(step, [2.0, -1.0, 1.0], atol=0.5)
+
+
+def test_with_two_points_which_one_moved_is_not_told():
+    """Each of two points' error relative to the other's is the other's turned round: the move and
+    where are found, not which point made it."""
+    for j in (0, 1):
+        R, r = _residuals(4, step=[0.0, 0.0, 3.0], at=15, j=j)
+        found = moved_point(R, r[:, :2], np.ones(K, bool), SIGMA)
+        assert found[:3] == (-1, 14, 15)
 
 
 def test_noise_a_drift_of_the_arms_error_and_one_point_are_not_a_move():
@@ -51,8 +60,8 @@ def test_lost_points_and_left_out_poses_are_skipped(lost):
     R, r = _residuals(3, step=[0.0, 3.0, 0.0], at=18, j=1)
     valid = np.ones(K, bool)
     valid[[5, 18, 30]] = False
-    if lost:
-        r[[2, 19, 33], 1] = np.nan
+    if lost:  # not seen just before and just after the move: it lies between the poses it was seen at
+        r[[17, 19, 33], 1] = np.nan
         r[[7, 25], 3] = np.nan
-    j, k, _, _ = moved_point(R, r, valid, SIGMA)
-    assert (j, k) == (1, 20 if lost else 19)
+    j, last, first, _, _ = moved_point(R, r, valid, SIGMA)
+    assert (j, last, first) == ((1, 16, 20) if lost else (1, 17, 19))
