@@ -177,8 +177,8 @@ def _exchange(problem: DesignProblem, L, chosen: Int[Array, " N"], allowed, pool
 
 def exchange(problem: DesignProblem, cons, pool: np.ndarray, n_poses: int, max_swaps: int, *, option: str = "pool"):
     """Pool rows of the best ``n_poses`` by greedy start and Fedorov exchange, among the pool
-    poses in the region and view and never two closer than the spread: ``(indices, swaps,
-    usable candidates)``. Raises :class:`jaxcal.DataError` when too few are usable (said of
+    poses in the region and view and never two closer than the spread: ``(indices, swaps, the
+    pool poses in the region and view (P,))``. Raises :class:`jaxcal.DataError` when too few are usable (said of
     ``option``: the pool given, or the constraints a pool drawn for them could not meet)."""
     allowed = np.ones(len(pool), bool)
     if cons.has_region:
@@ -195,7 +195,7 @@ def exchange(problem: DesignProblem, cons, pool: np.ndarray, n_poses: int, max_s
             option=option,
         )
     chosen, swaps = _exchange(problem, L, jnp.asarray(start), jnp.asarray(allowed), pool_, spread, max_swaps)
-    return np.asarray(chosen), int(swaps), int(allowed.sum())
+    return np.asarray(chosen), int(swaps), allowed
 
 
 def select_poses(
@@ -245,12 +245,12 @@ def select_poses(
         raise DataError(f"n_poses: {n_poses} poses cannot identify {problem.n_base} base parameters", option="n_poses")
     cons = constraints(min_spread, region, view)
     t0 = time.perf_counter()
-    chosen, swaps, usable = exchange(problem, cons, pool, n_poses, max_swaps)
+    chosen, swaps, allowed = exchange(problem, cons, pool, n_poses, max_swaps)
     seconds = time.perf_counter() - t0
     q = pool[chosen]
     values = values_of(measures_batch(problem, q[None])[0])
     if not np.isfinite(values["log_det"]):
-        raise DataError(_unidentified(problem, pool, n_poses), option="pool")
+        raise DataError(_unidentified(problem, pool[allowed], n_poses, len(pool)), option="pool")
     rng = np.random.default_rng([seed, 3])
     try:
         rand, drawn_from = random_values(problem, cons, n_poses, n_random, rng), "joint limits"
@@ -271,7 +271,7 @@ def select_poses(
         details={
             "indices": [int(i) for i in chosen],
             "pool_size": int(len(pool)),
-            "usable": usable,
+            "usable": int(allowed.sum()),
             "swaps": int(swaps),
             "select_seconds": seconds,
             "random_from": drawn_from,
@@ -279,9 +279,10 @@ def select_poses(
     )
 
 
-def _unidentified(problem: DesignProblem, pool, n_poses: int) -> str:
-    """Why no ``n_poses`` of the pool identify the base parameters: the joints that never move in
-    it, how many distinct poses it has, and the parameters its information leaves free."""
+def _unidentified(problem: DesignProblem, pool, n_poses: int, n_pool: int) -> str:
+    """Why no ``n_poses`` of the pool's poses in the region and view (``pool``, of ``n_pool``)
+    identify the base parameters: the joints that never move among them, how many distinct poses
+    they are, and the parameters their information leaves free."""
     L = np.asarray(pose_blocks(problem, pool))
     lam, U = np.linalg.eigh(np.einsum("krb,krc->bc", L, L) + np.diag(np.asarray(problem.prior)))
     null = U[:, lam <= 1e-9 * max(lam.max(), 1e-300)]
@@ -291,6 +292,8 @@ def _unidentified(problem: DesignProblem, pool, n_poses: int) -> str:
     joints = f"joint{'s' if len(still) > 1 else ''} {', '.join(map(str, still))}"
     why = [f"{joints} never move{'s' if len(still) == 1 else ''}"]
     why = (why if still else []) + [f"{len(np.unique(pool, axis=0))} distinct poses of {len(pool)} rows"]
+    if len(pool) < n_pool:
+        why.insert(0, f"{len(pool)} of its {n_pool} rows in the region and view")
     if free:
         why.append(f"its poses leave {', '.join(free)} free")
     return (
