@@ -133,14 +133,14 @@ def fits(robot, meas):
     for name, kw in (
         ("default", {}),
         ("default, plain second look", {}),
-        ("default, pruned as before", {}),
+        ("default, pruned along all poses' order", {}),
         ("all", {"params": "all"}),
         ("offsets", {"params": "offsets"}),
     ):
         spread, prune = _workflow._prediction_spread, selection.prune
         if name.endswith("plain second look"):
             _workflow._prediction_spread = lambda *a: 1.0
-        if name.endswith("pruned as before"):
+        if name.endswith("pruned along all poses' order"):
             selection.prune = prune_along_all
         try:
             res = jaxcal.calibrate_data(robot, meas, **kw)
