@@ -72,13 +72,16 @@ class Compensation:
     """``(K,)`` rotation angle of the remaining error (0 for position targets)."""
     converged: np.ndarray
     """``(K,)`` the target is reached (solver tolerances met and residual below ``tol_mm``)."""
-    within_limits: np.ndarray
-    """``(K,)`` every joint of the command is within the robot's joint limits."""
+    outside: np.ndarray
+    """``(K, n)`` the joints of each command beyond the robot's limits."""
     steps: np.ndarray
     on_branch: np.ndarray
     """``(K,)`` no revolute joint turned more than :data:`MAX_MOVE_DEG` from its starting command."""
-    outside: np.ndarray
-    """``(K, n)`` the joints beyond the robot's limits (``within_limits``: none)."""
+
+    @property
+    def within_limits(self) -> np.ndarray:
+        """``(K,)`` every joint of the command is within the robot's joint limits."""
+        return ~self.outside.any(-1)
 
     @property
     def ok(self) -> np.ndarray:
@@ -218,10 +221,9 @@ def compensate(
         pos_residual_mm=ep,
         rot_residual_deg=np.degrees(er),
         converged=reached,
-        within_limits=~outside.any(-1),
+        outside=outside,
         steps=np.asarray(steps),
         on_branch=np.all(turned <= np.radians(MAX_MOVE_DEG), -1) | (not branch),
-        outside=outside,
     )
 
 

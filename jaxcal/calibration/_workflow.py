@@ -22,9 +22,9 @@ on the tool) with ``B0, X0`` from the closed-form guess of each training set
    within one standard error, and at least 1 %, winning) is chosen, and its parameters pruned
    while the score holds. Where that linearisation misses the final fit's residual
    (:data:`RELINEARISE`), or the final fit ran to where the parameters identifiable at the
-   nominal are not separable (:func:`._core.reidentified`), or more are identifiable there and fit materially better
-   (:func:`_wider`: then those identifiable there), stages 4-6 run again on the problem
-   linearised at the final fit, each fit from its last.
+   nominal are not separable (:func:`._core.reidentified`), or more are identifiable there and
+   fit materially better (:func:`_wider`: then those identifiable there), stages 4-6 run again
+   on the problem linearised at the final fit, each fit from its last.
 5. **Held-out figures**: the selection is made again inside every outer training set (K-fold
    folds: new postures; range-end folds: postures beyond the training ranges), each choice
    fitted in full on its training set and scored on the poses held out (nested
@@ -54,7 +54,14 @@ from ._checks import as_target, check_units
 from ._options import Options, make_options
 from ._param_sets import Candidate, parse_params
 from ._report import DataCalibration, report_of
-from ._single import check_enough_poses, make_layout, nominal_model, prior_of, still_joint_notes
+from ._single import (
+    REWEIGHT_TOLERANCE,
+    check_enough_poses,
+    make_layout,
+    nominal_model,
+    prior_of,
+    still_joint_notes,
+)
 
 DETECTION_PRIOR_MM = 1.0
 """The prior of the flexible model that outliers are found with (all parameters)."""
@@ -437,12 +444,11 @@ def _weighed(p: _Problem, fr: _Frames, fits=None) -> _Frames:
     return dataclasses.replace(fr, sig=sig)
 
 
-REWEIGHTS = 2
+REWEIGH_PASSES = 2
 """Full poses: how many times the rotation rows' weight is taken again from the calibrated fits
-(:func:`_weighed`) while it moves by more than :data:`REWEIGHT_TOLERANCE`: a linear step from the
-frames-only fit misses the noise where the nominal's errors are large for it. Each time runs the
-selection and every fit again."""
-REWEIGHT_TOLERANCE = 1.1
+(:func:`_weighed`) while it moves by more than :data:`._single.REWEIGHT_TOLERANCE`: a linear step
+from the frames-only fit misses the noise where the nominal's errors are large for it. Each pass
+runs the selection and every fit again."""
 
 
 def _weighed_fits(p: _Problem, fr: _Frames, x0=None):
@@ -450,7 +456,7 @@ def _weighed_fits(p: _Problem, fr: _Frames, x0=None):
     ``(fr, p, lin, final, per_fold, fits)``, ``fr`` with the weights the fits used."""
     fr = _weighed(p, fr)
     p, *out = _fitted(p, fr, x0)
-    for _ in range(REWEIGHTS):
+    for _ in range(REWEIGH_PASSES):
         new = _weighed(p, fr, out[-1])
         if np.all(np.abs(np.log(new.sig / fr.sig)) < np.log(REWEIGHT_TOLERANCE)):
             break
