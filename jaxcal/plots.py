@@ -136,7 +136,7 @@ def pose_errors_figure(result):
     ax.set_xlabel("pose (CSV data row)")
     ax.set_ylabel("held-out position error (mm)")
     ax.set_title(f"{rep['folds']}-fold cross-validation: error on poses not used for fitting")
-    ax.legend()
+    ax.legend(loc="upper right")  # "best" searches every bar: slow, and warns, for a file of thousands of poses
     fig.tight_layout()
     return fig
 
