@@ -78,10 +78,8 @@ def _noise(pos_err, flags, sigma_mm: float) -> float:
 
 
 def _rms(v) -> float:
-    """RMS of the finite values (a lost point is NaN)."""
-    v = np.asarray(v)
-    v = v[np.isfinite(v)]
-    return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else float("nan")
+    """RMS of all the finite values (a lost point is NaN)."""
+    return float(core.nan_rms(v, None))
 
 
 def _max(v) -> float:

@@ -40,7 +40,7 @@ from ._constraints import (
     random_by_count,
     random_values,
 )
-from ._problem import DesignProblem, count, measures_batch, pose_blocks, values_of
+from ._problem import DesignProblem, count, information, measures_batch, pose_blocks, values_of
 from ._result import PoseDesign, frozen
 
 RIDGE = 1e-6
@@ -283,8 +283,7 @@ def _unidentified(problem: DesignProblem, pool, n_poses: int, n_pool: int) -> st
     """Why no ``n_poses`` of the pool's poses in the region and view (``pool``, of ``n_pool``)
     identify the base parameters: the joints that never move among them, how many distinct poses
     they are, and the parameters their information leaves free."""
-    L = np.asarray(pose_blocks(problem, pool))
-    lam, U = np.linalg.eigh(np.einsum("krb,krc->bc", L, L) + np.diag(np.asarray(problem.prior)))
+    lam, U = np.linalg.eigh(np.asarray(information(problem, jnp.asarray(pool))))
     null = U[:, lam <= 1e-9 * max(lam.max(), 1e-300)]
     names = problem.base_names()
     free = [names[i] for i in np.flatnonzero(np.abs(null).max(1, initial=0.0) > 0.3)]
