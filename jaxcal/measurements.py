@@ -51,6 +51,10 @@ from .robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 POSITION_COLUMNS = ("x", "y", "z")
 QUAT_COLUMNS = ("qw", "qx", "qy", "qz")
 QUAT_NORM_TOL = 1e-3
+MIXED_ANGLE_FACTOR = 3.0
+"""A reading of a joint without limits of its own, beyond a full turn, is taken for another unit
+(degrees among radians) when it is beyond this many times the column's largest reading within a
+turn; readings running on over several turns stay closer."""
 _JOINT_RE = re.compile(r"q([1-9][0-9]*)")
 _MEASUREMENT_RE = re.compile(r"[xyz]([1-9][0-9]*)?|q[wxyz]")
 _ORIENTATION_RE = re.compile(r"(?i)r[1-3][1-3]|roll|pitch|yaw|r[xyz]|rot.*|euler.*|quat.*|[abcwpr]")
@@ -479,6 +483,10 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols, point_numbers=()) -
         lim = np.abs(np.asarray(robot.q_limits)).max(axis=1)
         bound = np.maximum(2 * math.pi, lim) * 1.05
         over = (np.abs(q) > bound) & revolute
+        # a joint without limits of its own may turn several times (a URDF continuous joint): its
+        # reading beyond a turn is another unit only far beyond the column's other readings
+        within = np.where(np.abs(q) <= bound, np.abs(q), 0.0).max(axis=0)
+        over &= robot.limits_given() | (np.abs(q) > MIXED_ANGLE_FACTOR * within)
         odd = np.flatnonzero(over.any(axis=1))
         if 0 < odd.size < len(q) / 2:
             k = odd[0]

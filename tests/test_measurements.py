@@ -449,3 +449,39 @@ def test_a_number_with_underscores_is_not_a_number(tmp_path):
     robot = Robot(np.zeros((2, 4)))
     with pytest.raises(DataError, match=r"row 2 \(line 3\), column 'y': not a number: '1_000'"):
         read_measurements(_csv(tmp_path, "q1,q2,x,y,z\n0.1,0.2,1,2,3\n0.2,0.3,1,1_000,3\n"), robot)
+
+
+def test_a_joint_turning_several_times_is_read_and_a_degree_row_still_named(tmp_path):
+    """A URDF continuous joint (no limits of its own) may read 3..8 rad: those rows beyond a
+    turn are not another unit. A row in degrees among radians is still refused by row."""
+    from jaxcal import load_robot
+    from jaxcal.measurements import read_measurements
+
+    urdf = tmp_path / "r.urdf"
+    urdf.write_text(
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="spin" type="continuous"><parent link="a"/><child link="b"/>'
+        '<origin xyz="0 0 0.1"/><axis xyz="0 0 1"/></joint>'
+        '<joint name="tilt" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.2 0 0"/>'
+        '<axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>'
+    )
+    robot = load_robot(urdf)
+    spin = np.linspace(3.0, 8.0, 12)
+    tilt = np.linspace(-0.5, 0.5, 12)
+    # the tip c: 0.2 m along x turned by spin about z, 0.1 m up (tilt about x moves nothing on x)
+    xyz = np.c_[0.2 * np.cos(spin), 0.2 * np.sin(spin), np.full(12, 0.1)]
+
+    def csv(q1):
+        path = tmp_path / "d.csv"
+        path.write_text(
+            "spin,tilt,x,y,z\n"
+            + "".join(f"{a:.17g},{b:.17g},{x:.17g},{y:.17g},{z:.17g}\n" for a, b, (x, y, z) in zip(q1, tilt, xyz))
+        )
+        return path
+
+    m = read_measurements(csv(spin), robot)
+    assert_allclose(np.asarray(m.q)[:, 0], spin)
+    degrees = spin.copy()
+    degrees[4] = np.degrees(spin[4])  # row 5 written in degrees
+    with pytest.raises(DataError, match=r"mixed angle units\? row 5, column 'spin'"):
+        read_measurements(csv(degrees), robot)

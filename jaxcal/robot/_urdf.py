@@ -67,6 +67,14 @@ def _parse(path: Path):
     yourdfpy = _yourdfpy()
     if not path.exists():
         raise RobotFileError(f"robot file not found: {path}")
+    from lxml import etree  # yourdfpy's XML library
+
+    try:  # strictly first: yourdfpy recovers from broken XML, dropping what follows the break
+        etree.parse(str(path))
+    except etree.XMLSyntaxError as e:
+        raise RobotFileError(f"{path}: not a readable URDF: the XML is broken: {e}") from None
+    except OSError as e:
+        raise RobotFileError(f"{path}: cannot be read: {e}") from None
     try:
         urdf = yourdfpy.URDF.load(
             str(path),
@@ -231,11 +239,17 @@ def _movable(j, source: str) -> np.ndarray:
 
 
 def _limits(j, kind: str, source: str) -> list[float]:
-    """A movable joint's ``[lower, upper]`` (rad, mm): :data:`DEFAULT_LIMITS` for a continuous
-    joint or one without bounds, URDF's default 0 for a bound not given; finite and increasing."""
+    """A movable joint's ``[lower, upper]`` (rad, mm): :data:`DEFAULT_LIMITS` for a joint without
+    bounds, URDF's default 0 for a bound not given; finite and increasing. A continuous joint's
+    bounds are read only when the file gives both, increasing: they say how far its readings run
+    (several turns), which the unit checks and pose design then take."""
     lim = j.limit
-    if j.type == "continuous" or lim is None or (lim.lower is None and lim.upper is None):
+    if lim is None or (lim.lower is None and lim.upper is None):
         return list(DEFAULT_LIMITS[kind])
+    if j.type == "continuous":
+        lower, upper = (float("nan") if v is None else float(v) for v in (lim.lower, lim.upper))
+        if not (np.isfinite(lower) and np.isfinite(upper) and lower < upper):
+            return list(DEFAULT_LIMITS[kind])
     lower, upper = (0.0 if v is None else float(v) for v in (lim.lower, lim.upper))
     if not (np.isfinite(lower) and np.isfinite(upper)):
         raise RobotFileError(

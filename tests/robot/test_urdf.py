@@ -307,6 +307,18 @@ BAD = {
         "prismatic joint 'lift' has axis [0.0, 0.0, 2.0] of length 2; URDF axes are unit vectors",
     ),
     "robot without a name": ("<robot></robot>", "not a readable URDF: a required attribute 'name' is missing"),
+    "XML cut off in an attribute": (
+        '<robot name="r"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a',
+        "not a readable URDF: the XML is broken",
+    ),
+    # yourdfpy recovers from this one by dropping the rest of the file: the tip would be "missing"
+    "a link left open before the rest of the chain": (
+        '<robot name="r"><link name="a"><link name="b"/><link name="c"/>'
+        '<joint name="j" type="continuous"><parent link="a"/><child link="b"/></joint>'
+        '<joint name="k" type="continuous"><parent link="b"/><child link="c"/></joint></robot>',
+        "not a readable URDF: the XML is broken",
+    ),
+    "a bare ampersand": ('<robot name="r & co"><link name="a"/></robot>', "not a readable URDF: the XML is broken"),
     "axis of two numbers": (
         '<robot name="r"><link name="a"/><link name="b"/>'
         '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 1"/>'
@@ -385,3 +397,26 @@ def test_continuous_joint_and_default_axis(tmp_path):
     with pytest.raises(DataError, match="beyond a full turn and its limits") as e:
         check_angles(r, np.c_[q[:, 0] / 10, np.degrees(q[:, 1]) * 2])
     assert "continuous" not in str(e.value)  # tilt has limits of its own
+
+
+def test_a_continuous_joints_limits_given_in_the_file_are_its_readings_range(tmp_path):
+    """A continuous joint with ``lower`` and ``upper`` (the refusal of readings over several turns
+    asks for them) takes them; with one bound, or none, it has none of its own (±pi)."""
+    from jaxcal.calibration import check_angles
+
+    def robot(limit):
+        p = tmp_path / "r.urdf"
+        p.write_text(
+            '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+            f'<joint name="spin" type="continuous"><parent link="a"/><child link="b"/>{limit}</joint>'
+            '<joint name="tilt" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.2 0 0"/>'
+            '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>'
+        )
+        return load_robot(p)
+
+    wide = robot('<limit lower="-20" upper="20" effort="1" velocity="1"/>')
+    np.testing.assert_allclose(np.asarray(wide.q_limits)[0], [-20.0, 20.0])
+    q = np.c_[np.linspace(-12.0, 12.0, 10), np.linspace(-0.9, 0.9, 10)]
+    check_angles(wide, q)  # radians over several turns, within the file's range
+    for limit in ('<limit effort="1" velocity="1"/>', '<limit upper="5" effort="1" velocity="1"/>', ""):
+        np.testing.assert_allclose(np.asarray(robot(limit).q_limits)[0], [-np.pi, np.pi])
