@@ -491,8 +491,16 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols, point_numbers=()) -
         if 0 < odd.size < len(q) / 2:
             k = odd[0]
             j = int(np.flatnonzero(over[k])[0])
+            turns = round(q[k, j] / (2 * math.pi))
+            lo, hi = np.asarray(robot.q_limits)[j]
+            wrap = (
+                f", or a reading off by a whole turn (an encoder's wrap: {q[k, j] - 2 * math.pi * turns:.6g} rad is "
+                f"within the limits)"
+                if abs(turns) == 1 and lo <= q[k, j] - 2 * math.pi * turns <= hi
+                else ""
+            )
             raise DataError(
-                f"{src}: mixed angle units? row {rows[k]}, column {joint_cols[j]!r}: {q[k, j]:.6g} rad is "
+                f"{src}: mixed angle units{wrap}? row {rows[k]}, column {joint_cols[j]!r}: {q[k, j]:.6g} rad is "
                 f"beyond 2*pi and the joint limits while most rows are not ({odd.size} such row(s): "
                 f"{', '.join(str(rows[i]) for i in odd[:5])}); write every row in the same unit"
             )

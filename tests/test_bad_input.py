@@ -381,6 +381,14 @@ def _sentinel(lines, rows=(3,), value="1e10"):
     return out
 
 
+def _wrapped(lines):
+    out = list(lines)
+    vals = out[5].split(",")
+    vals[1] = repr(0.5 + 2 * np.pi)  # row 5: q2 a turn beyond 0.5 rad
+    out[5] = ",".join(vals)
+    return out
+
+
 def _mixed_deg(lines):
     out = list(lines)
     vals = out[5].split(",")
@@ -428,6 +436,11 @@ CSV = {
         "point 3 is at exactly 0, 0, 0 in",
     ),
     "mixed units deg among rad": (_mixed_deg(LINES), "mixed angle units? row 5, column 'q2'"),
+    "a joint reading off by a turn": (
+        _wrapped(LINES),
+        "mixed angle units, or a reading off by a whole turn (an encoder's wrap: 0.5 rad is within the limits)? "
+        "row 5, column 'q2'",
+    ),
 }
 
 

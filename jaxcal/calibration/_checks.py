@@ -98,6 +98,10 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     return q, measured, measured.shape[-2]
 
 
+START_SPREAD_LIMIT = 30.0
+"""A start fitted to the data whose points spread more than this many times the nominal model's
+does not vouch for the data's unit (:func:`check_units`): no tool makes an arm's points spread
+that much wider, while another length unit (1000x) does."""
 PRISMATIC_UNIT_FACTOR = 100.0
 """A prismatic joint's values beyond this many times its limits' magnitude, in most poses, are in
 another length unit (a factor of 1000 between mm and m)."""
@@ -217,7 +221,10 @@ def check_units(
         return a > 1.0 and not (a / 3.0 <= b <= 3.0 * a)
 
     for i, (a, b) in enumerate(zip(s_mod, s_mea)):
-        if off(a, b) and off(s_also[i], b):
+        # a start fitted to the data agrees with them by any tool: one that stretches the arm's
+        # spread far beyond the nominal's (a tool 1000x the arm) is no evidence
+        stretched = also is not None and a > START_SPREAD_LIMIT * s_also[i]
+        if (off(a, b) or stretched) and off(s_also[i], b):
             a = a if also is None else s_also[i]  # the message's figure is the nominal's, as it says
             where = f" (data set {i})" if batched else ""
             ratio = b / a

@@ -264,7 +264,11 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
     again with the noise it found as the weights while the prior held the fit
     (:data:`._outliers.REWEIGHT_SHARE`)."""
     lev = selection.lever(core.analyse(fr.member(-1), p.layout, p.q)[0], p.n_points)
-    prior = prior_of(p.layout, p.ident, p.detector, lever=lev)[None]
+
+    def prior_mm(s):
+        return prior_of(p.layout, p.ident, dataclasses.replace(p.detector, ridge_mm=s), lever=lev)[None]
+
+    prior = prior_mm(p.detector.ridge_mm)
     ref = core.take(fr.fit["model"], [len(fr.sig) - 1])
     mask = p.valid[None].astype(float)
 
@@ -283,6 +287,16 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
     det = detected(sig, unmask=True)  # the detections at the noise found start from its fit: looked at once
     # noise given, or a loss scale that sets the noise found: nothing to learn by detecting again
     given = p.opts.sigma_pos_mm is not None or p.opts.sigma_rot_rad is not None or p.opts.loss_scale is not None
+    loose = max(p.detector.ridge_mm or 0.0, float(sig[0, 0]))
+    if not given and p.detector.ridge_mm is not None and not det.noise[0, 0] < outliers.REWEIGHT_SHARE * sig[0, 0]:
+        # an arm far from its nominal (its frames-only residual, the weights, far above the prior):
+        # the prior holds the detector where the data would not; loosened to the weights' scale
+        tight, prior = prior, prior_mm(loose)
+        again = detected(sig, unmask=True)
+        if again.noise[0, 0] < outliers.REWEIGHT_SHARE * det.noise[0, 0]:
+            det = again
+        else:  # the residual is not the prior's doing: the first detection stands
+            prior = tight
     for k in range(0 if given else outliers.REWEIGHTS):
         share = outliers.REWEIGHT_SHARE if k == 0 else outliers.REFINE_SHARE
         if not det.noise[0, 0] < share * sig[0, 0]:

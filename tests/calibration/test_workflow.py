@@ -234,3 +234,19 @@ def test_rotation_rows_weighted_at_the_noises_ratio():
     both = [(rep["parameters"][n]["std_error"], se[n]) for n in se if n in rep["parameters"]]
     assert len(both) > 15
     assert_allclose(*np.array(both).T, rtol=0.2)
+
+
+def test_millimetres_read_as_metres_are_refused_before_the_fit():
+    """TIAGo points in mm read for its URDF (metres): a start fitted to the data agrees with any
+    spread by a tool 1000x the arm, so it does not vouch for the unit; the refusal comes before
+    any fit, naming the option."""
+    from jaxcal import load_robot, read_measurements
+    from jaxcal.measurements import tiago_paths
+
+    urdf, csv = tiago_paths()
+    robot = load_robot(urdf)
+    m = read_measurements(csv, robot)
+    mm = Measurements(m.q, np.asarray(m.measured) * 1000.0)
+    with pytest.raises(DataError, match="millimetres read as metres") as e:
+        calibrate_data(robot, mm, progress=lambda *a: pytest.fail("fitted before refusing"))
+    assert e.value.option == "length_unit"
