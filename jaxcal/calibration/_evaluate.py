@@ -113,6 +113,11 @@ def _far(model: Model, meas, pos, rot) -> list[str]:
     ]
 
 
+FAR_FROM_MEDIAN = 10.0
+"""Once some rows err beyond a calibration's, rows beyond this many times the median row's error
+are named with them: below the calibration line, they would still dominate the other rows' RMS."""
+
+
 def _few(model: Model, meas, pos) -> list[str]:
     """A warning naming the few rows whose errors (``pos (K, M)`` mm) are far beyond a
     calibration's while the median row's are within one: outliers of the file (a lost marker
@@ -122,7 +127,8 @@ def _few(model: Model, meas, pos) -> list[str]:
     worst = np.nanmax(pos, -1)
     if not (np.sqrt(np.nanmean(pos**2)) > limit >= np.median(worst)):
         return []
-    bad = np.flatnonzero(worst > limit)
+    # beyond a calibration's, or far beyond the file's median row (hidden in "the other rows")
+    bad = np.flatnonzero(worst > min(limit, FAR_FROM_MEDIAN * np.median(worst)))
     bad = bad[np.argsort(-worst[bad])]
     numbers = list(getattr(meas, "point_numbers", ()) or range(1, pos.shape[1] + 1))
     rows = meas.rows if getattr(meas, "rows", None) is not None else np.arange(1, len(worst) + 1)
@@ -133,7 +139,9 @@ def _few(model: Model, meas, pos) -> list[str]:
     ]  # fmt: skip
     rest = np.sqrt(np.nanmean(np.delete(pos, bad, 0) ** 2))
     return [
-        f"{len(bad)} row(s) err far beyond a calibration's ({limit:.3g} mm): {', '.join(where)}"
+        f"{len(bad)} row(s) err far beyond a calibration's ({limit:.3g} mm)"
+        + ("" if worst[bad].min() > limit else f" or the median row's ({np.median(worst):.3g} mm)")
+        + f": {', '.join(where)}"
         + (", ..." if len(bad) > 5 else "")
         + f"; the other rows score {rest:.3g} mm RMS. Outliers in this file (a lost marker written as a "
         f"number, swapped marker labels, a knock)?"
