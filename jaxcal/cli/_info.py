@@ -23,7 +23,7 @@ def info(
     r = load_robot_arg(robot, base_link, tip_link)
     table = Table(title=f"{r.name} ({r.convention}, file units {r.units[0]}, {r.units[1]})")
     if r.convention == "joint":
-        for col in ("joint", "name", "type", "axis", "origin xyz (mm)", "origin rpy (rad)", "limits"):
+        for col in ("joint", "name", "type", "axis", "origin xyz (mm)", "origin rpy (rad)", "limits (rad; P: mm)"):
             table.add_column(col)
         for i, (O, a, t, n, lim) in enumerate(
             zip(np.asarray(r.origins), np.asarray(r.axes), r.joint_types, r.joint_names, np.asarray(r.q_limits)), 1
@@ -34,7 +34,7 @@ def info(
                 " ".join(f"{v:.6g}" for v in rpy), f"{lim[0]:.4g} .. {lim[1]:.4g}",
             )  # fmt: skip
     else:
-        for col in ("joint", "name", "type", "theta (rad)", "d (mm)", "a (mm)", "alpha (rad)", "limits"):
+        for col in ("joint", "name", "type", "theta (rad)", "d (mm)", "a (mm)", "alpha (rad)", "limits (rad; P: mm)"):
             table.add_column(col)
         rows = zip(np.asarray(r.dh), r.joint_types, r.joint_names, np.asarray(r.q_limits))
         for i, (row, t, n, lim) in enumerate(rows, start=1):
