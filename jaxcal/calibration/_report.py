@@ -147,6 +147,11 @@ alone, by well under this; a marker that slipped on the tool or one much noisier
 errs several times more, and one noise weight for all points hides it."""
 
 
+FEW_SIGHTINGS = 10
+"""A point seen in fewer rows than this is not blamed for its held-out error: its place on the
+tool rests on those few rows, and each fold that holds some out leaves it barely determined."""
+
+
 def _odd_point(p, pe) -> str:
     """A note naming the point whose held-out error ``pe (K, M)`` stands far above the other
     points' (:data:`ODD_POINT`; three points or more), or ``""``."""
@@ -161,6 +166,13 @@ def _odd_point(p, pe) -> str:
         return ""
     nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
     keep = ",".join(str(n) for k, n in enumerate(nums) if k != j)
+    seen = int(np.isfinite(pe[p.valid][:, j]).sum())
+    if seen < FEW_SIGHTINGS:  # its place on the tool rests on these rows, each held out leaves fewer
+        return (
+            f"point {nums[j]} is seen in only {seen} rows: its place on the tool rests on them, and held out it "
+            f"errs {v[j]:.3g} mm RMS, {v[j] / m:.1f} times the other points' median ({m:.3g} mm). Measure it in "
+            f"more poses, or calibrate without it (--points {keep})"
+        )
     return (
         f"point {nums[j]} errs {v[j]:.3g} mm RMS on held-out poses, {v[j] / m:.1f} times the other points' "
         f"median ({m:.3g} mm): a marker that moved on the tool during the session, or a noisy or mislabelled "
