@@ -364,13 +364,17 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
     }
 
 
-def report_of(p, fr, det, lin, final, per_fold, fits) -> DataCalibration:
-    """The :class:`DataCalibration` of a run of :func:`jaxcal.calibrate_data` from its stages."""
+def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibration:
+    """The :class:`DataCalibration` of a run of :func:`jaxcal.calibrate_data` from its stages.
+    ``named``: the poses to name as outliers (``keep_outliers``: those a run without the option
+    leaves out), judged in the final fit; else those the final fit's rule flags."""
     opts, layout, robot, q = p.opts, p.layout, p.robot, p.q
     f = _final(p, fr, final, fits)
     fin, names = f.fit, layout.names()
     train = core.residual_stats(fin["pos_err"][0], fin["rot_err"][0], p.valid, n_points=p.n_points)
     last = outliers.judged(fin, p.target, p.n_points, opts, None if opts.keep_outliers else ~p.valid[None])
+    if named is not None:
+        last = dataclasses.replace(last, flags=np.asarray(named, bool)[None])
     pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
     many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
     swap = ""

@@ -415,10 +415,22 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     """
     opts = make_options(options, kw, camera_auto=True)
     p = _prepare(robot, data, opts, progress)
-    nominal_set = p.ident
     fr = _frames(p)
+    if not opts.keep_outliers:
+        return report_of(*_left_out(p, fr))
+    # named as without the option (its detection and second look), then every pose fitted
+    plain = _left_out(dataclasses.replace(p, opts=dataclasses.replace(opts, keep_outliers=False)), fr)
+    fr, p, lin, final, per_fold, fits = _weighed_fits(p, fr)
+    return report_of(p, fr, plain[2], lin, final, per_fold, fits, named=~plain[0].valid)
+
+
+def _left_out(p: _Problem, fr: _Frames):
+    """Stages 3-5: the outliers found (:func:`_outliers_found`) and left out, the fits without
+    them (:func:`_weighed_fits`), and the poses the calibrated model predicts taken back (the
+    second look). Returns :func:`._report.report_of`'s arguments."""
+    nominal_set = p.ident
     det = _outliers_found(p, fr)
-    if det.flags.any() and not opts.keep_outliers:  # everything again without them
+    if det.flags.any():  # everything again without them
         first, p = fr, dataclasses.replace(p, valid=~det.flags[0])
         fr = _frames(p)
         if fr.sig[-1, 0] < outliers.REDETECT_SIGMA * first.sig[-1, 0]:  # gross outliers set the weights: once more
@@ -434,7 +446,7 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
         fr, p, lin, final, per_fold, fits = _weighed_fits(
             p, _frames(p), fits["x"] if p.ident is not nominal_set else None
         )
-    return report_of(p, fr, det, lin, final, per_fold, fits)
+    return p, fr, det, lin, final, per_fold, fits
 
 
 def _weighed(p: _Problem, fr: _Frames, fits=None) -> _Frames:

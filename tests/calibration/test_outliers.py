@@ -447,3 +447,30 @@ def test_a_marker_seen_at_three_poses_does_not_fail_every_candidate():
     assert res.model.n_points == 4 and rep["converged"] and rep["plausible"]
     # calibrated, it predicts held-out postures better than the nominal chain does
     assert rep["heldout_rms_mm"] < 0.7 * rep["frames_only_heldout_rms_mm"]
+
+
+def test_kept_outliers_are_named_as_without_the_option():
+    """A UR5 (NumPy FK) with one marker of row 8 moved 5 mm: the fit that keeps it is pulled by it,
+    and in that fit's noise clean row 33 stands just beyond the threshold. With
+    ``keep_outliers`` the rows named are those a run without the option leaves out (its detection
+    and second look): row 8 alone, kept in the fit."""
+    from scipy.spatial.transform import Rotation
+
+    ur5 = jaxcal.preset("ur5")
+    rng = np.random.default_rng(1000)
+    dh = np.asarray(ur5.dh, float) + np.stack([rng.normal(0, s, 6) for s in (0.003, 0.5, 0.5, 0.003)], 1)
+    base = np.eye(4)
+    base[:3, :3] = Rotation.from_euler("ZYX", [2.5, -0.01, 0.02]).as_matrix()
+    base[:3, 3] = [1800.0, -400.0, -300.0]
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-2.5, 2.5, (60, 6))
+    T = dh_fk(dh, q, base=base)
+    markers = np.array([[60.0, 0.0, 110.0], [-50.0, 40.0, 100.0], [0.0, -70.0, 130.0]])
+    p = np.einsum("kij,mj->kmi", T[:, :3, :3], markers) + T[:, None, :3, 3] + rng.normal(0, 0.02, (60, 3, 3))
+    v = np.random.default_rng(77).normal(size=3)
+    p[7, 2] += 5.0 * v / np.linalg.norm(v)
+    rep = jaxcal.calibrate_data(
+        ur5, jaxcal.Measurements(q=q, measured=p), keep_outliers=True, nested_max_poses=0
+    ).report
+    assert [(o["row"], o["excluded"]) for o in rep["outliers"]] == [(8, False)]
+    assert rep["poses"] == 60 and not rep["outlier_detection"]["excluded"]
