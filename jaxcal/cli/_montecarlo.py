@@ -162,12 +162,20 @@ def montecarlo(
             )
         )
     if "crlb_efficiency_mean" in out:
-        rows.append(("CRLB efficiency (CRLB var / empirical var), mean", f"{out['crlb_efficiency_mean']:.3f}"))
+        se = out["crlb_efficiency_rel_se"] * out["crlb_efficiency_mean"]
+        rows.append(
+            ("CRLB efficiency (CRLB var / empirical var), mean", f"{out['crlb_efficiency_mean']:.3f} ± {se:.2g}")
+        )
+        worst = out["crlb_efficiency_worst"]
+        rows.append(("CRLB efficiency, worst parameter", f"{worst['parameter']} {worst['efficiency']:.3f}"))
+    if "crlb_validation_pos_rms_mm" in out:
         rows.append(("validation position RMS by the CRLB (mm)", f"{out['crlb_validation_pos_rms_mm']:.4g}"))
     rows.append(("conditions", _conditions_line(out["conditions"], out["n_val"])))
     for k, v in rows:
         t.add_row(k, v)
     console.print(t)
+    if out.get("crlb_efficiency_note"):
+        console.print(f"[yellow]warning:[/yellow] {out['crlb_efficiency_note']}", highlight=False)
     if out["conditions"].get("given_poses_meet_conditions") is False:
         console.print(
             "[yellow]warning:[/yellow] some of the given calibration poses are outside the --region/--view or "

@@ -606,6 +606,13 @@ def _record(
     return rec
 
 
+MIN_EFFICIENCY_ROBOTS = 3
+"""Fewest robots whose squared errors give a CRLB efficiency: the ratio of the bound to a mean of
+``n`` squared errors is biased up by about ``n / (n - 2)``, without bound below three."""
+FEW_EFFICIENCY_ROBOTS = 30
+"""Below this many robots the CLI warns that the efficiency is biased up and uncertain."""
+
+
 class _Sums:
     """Running sums over chunks, from which the summary follows (memory independent of the
     robot count)."""
@@ -645,11 +652,27 @@ class _Sums:
             "validation_pos_rms_mm": float(np.sqrt(self.val2 / n)),
             **dict(zip(("outliers_found", "outliers_missed", "false_alarms"), map(int, self.flags))),
         }
-        if noisy:
+        if noisy and self.n >= MIN_EFFICIENCY_ROBOTS:
             eff = (self.crlb / n) / (self.err2 / n)
             out["crlb_efficiency"] = dict(zip(names, eff.tolist()))
             out["crlb_efficiency_mean"] = float(eff.mean())
+            worst = int(np.argmin(eff))
+            out["crlb_efficiency_worst"] = {"parameter": names[worst], "efficiency": float(eff[worst])}
+            # each figure is a bound over a mean of n squared errors: relative spread about sqrt(2 / n),
+            # and biased up by about n / (n - 2) (the mean of an inverse chi-square)
+            out["crlb_efficiency_rel_se"] = float(np.sqrt(2.0 / n))
+        if noisy:
             out["crlb_validation_pos_rms_mm"] = float(np.sqrt(self.crlb_val2 / n))
+        if noisy and self.n < FEW_EFFICIENCY_ROBOTS:
+            out["crlb_efficiency_note"] = (
+                f"{self.n} robot(s): the CRLB efficiency "
+                + (
+                    "needs at least 3"
+                    if self.n < MIN_EFFICIENCY_ROBOTS
+                    else "is biased up (about n / (n - 2)) and uncertain"
+                )
+                + f"; use {FEW_EFFICIENCY_ROBOTS} robots or more (--robots)"
+            )
         return out
 
 

@@ -256,3 +256,15 @@ def test_a_robot_whose_fit_left_out_nearly_every_pose_keeps_a_finite_bound(monke
     monkeypatch.setattr(mc, "calibrate_batch", flags_most)
     out = run_montecarlo(jaxcal.preset("paper-6r"), n_robots=4, n_poses=20, n_val=5, repeats=0, seed=2)
     assert np.isfinite(out["crlb_validation_pos_rms_mm"]) and np.isfinite(out["crlb_efficiency_mean"])
+
+
+def test_an_efficiency_from_too_few_robots_is_not_given_and_few_are_warned_about():
+    """The bound over a mean of n squared errors is biased up by about n / (n - 2): no figure
+    from one or two robots, and a note below thirty; the worst parameter is named."""
+    one = run_montecarlo(jaxcal.preset("paper-6r"), n_robots=1, n_poses=20, n_val=5, repeats=0, seed=2)
+    assert "crlb_efficiency_mean" not in one and "needs at least 3" in one["crlb_efficiency_note"]
+    few = run_montecarlo(jaxcal.preset("paper-6r"), n_robots=4, n_poses=20, n_val=5, repeats=0, seed=2)
+    assert "biased up" in few["crlb_efficiency_note"] and few["crlb_efficiency_rel_se"] == pytest.approx(np.sqrt(0.5))
+    worst = few["crlb_efficiency_worst"]
+    assert worst["efficiency"] == pytest.approx(min(few["crlb_efficiency"].values()))
+    assert few["crlb_efficiency"][worst["parameter"]] == worst["efficiency"]
