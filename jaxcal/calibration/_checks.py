@@ -100,8 +100,10 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
 
 START_SPREAD_LIMIT = 30.0
 """A start fitted to the data whose points spread more than this many times the nominal model's
-does not vouch for the data's unit (:func:`check_units`): no tool makes an arm's points spread
-that much wider, while another length unit (1000x) does."""
+does not vouch for the data's unit when the data spread :data:`UNIT_RATIO` times the nominal's
+(:func:`check_units`): a tool 1000x the arm, as another length unit needs, is no evidence (a
+marker far out on a flange that barely moves, a pan-tilt head, spreads tens of times wider)."""
+UNIT_RATIO = 100.0
 PRISMATIC_UNIT_FACTOR = 100.0
 """A prismatic joint's values beyond this many times its limits' magnitude, in most poses, are in
 another length unit (a factor of 1000 between mm and m)."""
@@ -196,7 +198,9 @@ def check_units(
     instead, for rows that may hold a few wild values (a lost marker's sentinel, an unreachable
     target), which the detection or the solver then names; ``what`` and ``model`` name the rows
     and the model in the message. ``also``: a second model's positions (the nominal's, beside a
-    start fitted to the data, which a wild row can pull): refused only when neither spread agrees."""
+    start fitted to the data, which a wild row can pull): refused only when neither spread agrees,
+    or when the data spread another unit's factor beyond the nominal's and the start agrees only
+    by a tool far beyond the arm (:data:`START_SPREAD_LIMIT`)."""
     Q = q if batched else q[None]
     P_mea = positions_of(target if batched else target[None], n_points)
     P_mod = model_positions if batched else model_positions[None]
@@ -223,7 +227,7 @@ def check_units(
     for i, (a, b) in enumerate(zip(s_mod, s_mea)):
         # a start fitted to the data agrees with them by any tool: one that stretches the arm's
         # spread far beyond the nominal's (a tool 1000x the arm) is no evidence
-        stretched = also is not None and a > START_SPREAD_LIMIT * s_also[i]
+        stretched = also is not None and a > START_SPREAD_LIMIT * s_also[i] and b > UNIT_RATIO * s_also[i]
         if (off(a, b) or stretched) and off(s_also[i], b):
             a = a if also is None else s_also[i]  # the message's figure is the nominal's, as it says
             where = f" (data set {i})" if batched else ""

@@ -120,9 +120,10 @@ are named with them: below the calibration line, they would still dominate the o
 
 def _few(model: Model, meas, pos) -> list[str]:
     """A warning naming the few rows whose errors (``pos (K, M)`` mm) are far beyond a
-    calibration's while the median row's are within one: outliers of the file (a lost marker
-    written as a number, swapped marker labels, a knock), which no mistake of :func:`_far` (every
-    row read wrong) explains, and the RMS over all rows hides."""
+    calibration's while the median row's are within one, with those far beyond the median row
+    (:data:`FAR_FROM_MEDIAN`): outliers of the file (a lost marker written as a number, swapped
+    marker labels, a knock), which no mistake of :func:`_far` (every row read wrong) explains, and
+    the RMS over all rows hides."""
     limit = RESIDUAL_SHARE * model.robot.reach(np.asarray(meas.q))
     worst = np.nanmax(pos, -1)
     if not (np.sqrt(np.nanmean(pos**2)) > limit >= np.median(worst)):

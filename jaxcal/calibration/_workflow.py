@@ -288,7 +288,8 @@ def _outliers_found(p: _Problem, fr: _Frames) -> outliers.Detection:
     # noise given, or a loss scale that sets the noise found: nothing to learn by detecting again
     given = p.opts.sigma_pos_mm is not None or p.opts.sigma_rot_rad is not None or p.opts.loss_scale is not None
     loose = max(p.detector.ridge_mm or 0.0, float(sig[0, 0]))
-    if not given and p.detector.ridge_mm is not None and not det.noise[0, 0] < outliers.REWEIGHT_SHARE * sig[0, 0]:
+    far = p.detector.ridge_mm is not None and loose > p.detector.ridge_mm
+    if not given and far and not det.noise[0, 0] < outliers.REWEIGHT_SHARE * sig[0, 0]:
         # an arm far from its nominal (its frames-only residual, the weights, far above the prior):
         # the prior holds the detector where the data would not; loosened to the weights' scale
         tight, prior = prior, prior_mm(loose)
@@ -420,8 +421,11 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
         return report_of(*_left_out(p, fr))
     # named as without the option (its detection and second look), then every pose fitted
     plain = _left_out(dataclasses.replace(p, opts=dataclasses.replace(opts, keep_outliers=False)), fr)
+    named = ~plain[0].valid
+    if not named.any():  # nothing left out: its fits are every pose's
+        return report_of(dataclasses.replace(plain[0], opts=opts), *plain[1:], named=named)
     fr, p, lin, final, per_fold, fits = _weighed_fits(p, fr)
-    return report_of(p, fr, plain[2], lin, final, per_fold, fits, named=~plain[0].valid)
+    return report_of(p, fr, plain[2], lin, final, per_fold, fits, named=named)
 
 
 def _left_out(p: _Problem, fr: _Frames):

@@ -26,7 +26,9 @@ import numpy as np
 from .._io import json_text, write_atomic
 from ..errors import DataError
 
-FORMAT = 1
+FORMAT = 2
+"""What a study's chunks hold and how their errors are measured: a folder of another format is
+another study, refused rather than mixed with this one's chunks."""
 
 
 def fingerprint(tree) -> str:

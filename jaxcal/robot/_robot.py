@@ -180,7 +180,8 @@ class Robot(eqx.Module):
 
     def limits_given(self) -> np.ndarray:
         """``(n,)`` False for a joint whose limits are :data:`DEFAULT_LIMITS`: given none (a URDF
-        ``continuous`` joint, a file without them), or given exactly those, which reads the same."""
+        ``continuous`` joint without both bounds, a file without them), or given exactly those,
+        which reads the same."""
         lim = np.asarray(self.q_limits)
         default = np.array([DEFAULT_LIMITS[t] for t in self.joint_types])
         return ~np.all(np.abs(lim - default) < 1e-12, axis=1)

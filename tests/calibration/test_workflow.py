@@ -4,7 +4,7 @@ guess, the cross-validated choice of parameter set, camera models, recovery of t
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import random_transform, solve_keys
+from helpers import dh_fk, random_transform, solve_keys
 from numpy.testing import assert_allclose, assert_array_equal
 
 from jaxcal import DataError, Measurements, fk, preset
@@ -250,3 +250,21 @@ def test_millimetres_read_as_metres_are_refused_before_the_fit():
     with pytest.raises(DataError, match="millimetres read as metres") as e:
         calibrate_data(robot, mm, progress=lambda *a: pytest.fail("fitted before refusing"))
     assert e.value.option == "length_unit"
+
+
+def test_a_marker_far_out_on_a_flange_that_barely_moves_is_not_taken_for_another_unit():
+    """A pan-tilt head (axes 5 mm apart) carrying a marker 400 mm out, in mm: the start fitted to
+    the data spreads some 45x the nominal flange, as a tool far out does; only another unit's
+    factor between the data and the nominal (100x and more) makes that no evidence."""
+    dh = np.array([[0.0, 0.0, 5.0, np.pi / 2], [0.0, 0.0, 5.0, 0.0]])
+    from jaxcal import Robot
+
+    robot = Robot(dh, convention="sdh", q_limits=np.array([[-1.5, 1.5], [-0.8, 0.8]]), name="pan-tilt")
+    rng = np.random.default_rng(0)
+    q = np.c_[rng.uniform(-1.2, 1.2, 60), rng.uniform(-0.6, 0.6, 60)]
+    T = dh_fk(dh + rng.normal(0, [0.002, 0.3, 0.3, 0.002], dh.shape), q)
+    p = np.einsum("kij,j->ki", T[:, :3, :3], [400.0, 30.0, -20.0]) + T[:, :3, 3]
+    rep = calibrate_data(
+        robot, Measurements(q, p[:, None] + rng.normal(0, 0.02, (60, 1, 3))), nested_max_poses=0
+    ).report
+    assert rep["plausible"] and rep["heldout_rms_mm"] < 0.1
