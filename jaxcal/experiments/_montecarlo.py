@@ -611,7 +611,8 @@ MIN_EFFICIENCY_ROBOTS = 3
 """Fewest robots whose squared errors give a CRLB efficiency: the ratio of the bound to a mean of
 ``n`` squared errors is biased up by about ``n / (n - 2)``, without bound below three."""
 FEW_EFFICIENCY_ROBOTS = 30
-"""Below this many robots the CLI warns that the efficiency is biased up and uncertain."""
+"""Below this many robots the summary notes that the efficiency is biased up and uncertain
+(``crlb_efficiency_note``, which the CLI prints as a warning)."""
 
 
 class _Sums:
@@ -668,7 +669,7 @@ class _Sums:
             out["crlb_efficiency_note"] = (
                 f"{self.n} robot(s): the CRLB efficiency "
                 + (
-                    "needs at least 3"
+                    f"needs at least {MIN_EFFICIENCY_ROBOTS}"
                     if self.n < MIN_EFFICIENCY_ROBOTS
                     else "is biased up (about n / (n - 2)) and uncertain"
                 )
