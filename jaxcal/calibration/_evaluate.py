@@ -129,15 +129,17 @@ def _few(model: Model, meas, pos) -> list[str]:
     if not (np.sqrt(np.nanmean(pos**2)) > limit >= np.median(worst)):
         return []
     # beyond a calibration's, or far beyond the file's median row (hidden in "the other rows")
-    bad = np.flatnonzero(worst > min(limit, FAR_FROM_MEDIAN * np.median(worst)))
+    line = min(limit, FAR_FROM_MEDIAN * np.median(worst))
+    bad = np.flatnonzero(worst > line)
     bad = bad[np.argsort(-worst[bad])]
     numbers = list(getattr(meas, "point_numbers", ()) or range(1, pos.shape[1] + 1))
     rows = meas.rows if getattr(meas, "rows", None) is not None else np.arange(1, len(worst) + 1)
-    where = [
-        f"row {rows[k]}" + (f" point {numbers[int(np.nanargmax(pos[k]))]}" if pos.shape[1] > 1 else "")
-        + f" ({worst[k]:.3g} mm)"
-        for k in bad[:5]
-    ]  # fmt: skip
+
+    def points(k):  # every point of the row beyond the line, the worst first (two of a swapped pair)
+        far = [j for j in np.argsort(-np.nan_to_num(pos[k], nan=-1.0)) if pos[k, j] > line]
+        return f" point{'s' * (len(far) > 1)} {', '.join(str(numbers[j]) for j in far)}" if pos.shape[1] > 1 else ""
+
+    where = [f"row {rows[k]}{points(k)} ({worst[k]:.3g} mm)" for k in bad[:5]]
     rest = np.sqrt(np.nanmean(np.delete(pos, bad, 0) ** 2))
     return [
         f"{len(bad)} row(s) err far beyond a calibration's ({limit:.3g} mm)"

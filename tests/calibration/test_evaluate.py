@@ -187,6 +187,23 @@ def test_a_few_rows_far_off_are_named_not_blamed_on_the_frame():
     assert f"the other rows score {rest:.3g} mm RMS" in w and "moved" not in w
 
 
+def test_a_swapped_pair_of_markers_is_named_by_both_points():
+    """Three markers; rows 10 and 20 with markers 1 and 2 swapped, row 5 with marker 3 100 mm off:
+    each row names every point far off, the swapped ones both."""
+    rng = np.random.default_rng(14)
+    ur5, dh = _truth(rng)
+    pts = np.array([[60.0, 0.0, 40.0], [-50.0, 40.0, 60.0], [0.0, -70.0, 90.0]])
+    q = rng.uniform(-np.pi, np.pi, (30, 6))
+    T = dh_fk(dh, q)
+    P = np.einsum("kij,mj->kmi", T[:, :3, :3], pts) + T[:, None, :3, 3] + rng.normal(0, 0.05, (30, 3, 3))
+    P[[9, 19]] = P[[9, 19]][:, [1, 0, 2]]
+    P[4, 2] += [100.0, 0.0, 0.0]
+    (w,) = evaluate(Model(ur5.replace(dh=dh), pts), Measurements(q, P))["warnings"]
+    assert "row 5 point 3 (100 mm)" in w, w
+    for row in (10, 20):
+        assert f"row {row} points 1, 2 (" in w or f"row {row} points 2, 1 (" in w, w
+
+
 @pytest.mark.parametrize(
     "edit, msg",
     [
