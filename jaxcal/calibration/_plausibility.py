@@ -46,6 +46,8 @@ MISTAKES = (
     "radians read as degrees",
     "metres read as millimetres",
     "millimetres read as metres",
+    "prismatic joints in metres read as millimetres",
+    "prismatic joints in millimetres read as metres",
 )
 """The input mistakes :func:`diagnose` tests, besides two adjacent joint columns swapped."""
 
@@ -201,6 +203,9 @@ def variants(robot: Robot, q, target, n_points: int):
     out["radians read as degrees"] = (np.where(rev, np.degrees(q), q), target)
     out["metres read as millimetres"] = (q, with_pos(lambda p: p * 1000.0))
     out["millimetres read as metres"] = (q, with_pos(lambda p: p / 1000.0))
+    if not rev.all():  # a length option applies to the prismatic columns too, not always rightly
+        out["prismatic joints in metres read as millimetres"] = (np.where(rev, q, q * 1000.0), target)
+        out["prismatic joints in millimetres read as metres"] = (np.where(rev, q, q / 1000.0), target)
     del pos
     return out
 

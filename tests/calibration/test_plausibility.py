@@ -184,3 +184,19 @@ def test_data_that_fit_as_given_are_not_blamed_on_an_input_mistake():
     res = jaxcal.calibrate(robot, q, m)
     assert not res.plausible and "only 1 of the 40 data rows have distinct joint values" in res.implausible
     assert "Likely cause" not in res.implausible and "no input mistake" in res.implausible, res.implausible
+
+
+def test_a_prismatic_column_in_another_unit_than_the_positions_is_named():
+    """The bundled TIAGo file read with positions right but its torso column in metres taken for
+    millimetres (one length option for both): the torso barely moves, the fit is refused, and the
+    likely cause names the prismatic column, the correction bringing the residual to the data's."""
+    from jaxcal.measurements import tiago_paths
+
+    urdf, csv = tiago_paths()
+    robot = jaxcal.load_robot(urdf)
+    m = jaxcal.read_measurements(csv, robot)
+    q = np.array(m.q, copy=True)
+    q[:, 0] /= 1000.0
+    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q=q, measured=m.measured), nested_max_poses=0).report
+    assert not rep["plausible"]
+    assert "Likely cause: prismatic joints in metres read as millimetres" in rep["implausible"], rep["implausible"]
