@@ -26,6 +26,10 @@ COMMAND_FLAGS: dict[str, str] = {}
 says ``--poses`` for ``n_poses``)."""
 
 
+NAMED_BESIDE = ("base_link", "tip_link")
+"""Options a message may name in parentheses beside the one it is about."""
+
+
 def flag(option: str) -> str:
     return COMMAND_FLAGS.get(option) or FLAGS.get(option, "--" + option.replace("_", "-"))
 
@@ -57,6 +61,8 @@ def check_outputs(outputs: dict, inputs: dict) -> None:
 def say_error(message: str, option: str | None) -> str:
     """A library error in the command line's words: the option's name, where the message starts
     with it or names it in parentheses, becomes its flag."""
+    for other in NAMED_BESIDE:  # a message about one link option names the other too
+        message = message.replace(f"({other})", f"({flag(other)})")
     if not option:
         return message
     if message.startswith(option):

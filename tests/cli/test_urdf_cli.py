@@ -185,3 +185,9 @@ def test_compensate_brings_the_measured_point_to_the_targets(monkeypatch, capsys
         monkeypatch, capsys, "compensate", tmp_path / "p2.urdf", tmp_path / "targets.csv", "--point", "1"
     )
     assert code == 2 and "--point 1: " in err and "fitted on the data file's point(s) 2 only" in err
+
+
+def test_a_chain_error_names_both_link_options_as_flags(monkeypatch, capsys):
+    code, _, err = run_cli(monkeypatch, capsys, "info", URDF, "--base-link", "arm_4_link", "--tip-link", "arm_2_link")
+    err = " ".join(err.split())
+    assert code == 2 and "'arm_2_link' (--tip-link) is not below 'arm_4_link' (--base-link)" in err, err
