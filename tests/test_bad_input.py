@@ -60,12 +60,12 @@ PY = {
         DataError,
         "q: expected real numbers, got booleans",
     ),
-    "calibrate_batch point never seen in one data set": (
+    "calibrate_batch point never seen in any data set": (
         lambda: calibrate_batch(
-            jaxcal.preset("ur5"), np.zeros((3, 30, 6)), _with(np.zeros((3, 30, 2, 3)), (1, slice(None), 1), np.nan)
+            jaxcal.preset("ur5"), np.zeros((3, 30, 6)), _with(np.zeros((3, 30, 2, 3)), (..., 1, slice(None)), np.nan)
         ),
         DataError,
-        r"point\(s\) 2 not seen at any pose of data set\(s\) 1 ",
+        r"point\(s\) 2 not seen at any pose of any data set ",
     ),
     "calibrate q a list of booleans": (
         lambda: calibrate(jaxcal.preset("ur5"), [[True] * 6] * 30, np.zeros((30, 3))),

@@ -24,7 +24,8 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     Measurements as users have them: positions ``(K, 3)``, points ``(K, M, 3)`` (several points
     on the tool per pose; a point lost at a pose is NaN in its three coordinates, and every
     pose keeps at least one) or poses ``(K, 4, 4)`` (``position_only=True`` keeps their
-    translations); with a leading data-set axis when ``batched``.
+    translations); with a leading data-set axis when ``batched`` (where a data set may miss a
+    point, or have a pose of no point: :func:`lost_in_batch`).
     """
     if not isinstance(robot, Robot):
         raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}", option="robot")
@@ -58,17 +59,18 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             idx = tuple(int(i) for i in np.argwhere(bad)[0])
             what = "; a point not measured is NaN in all three coordinates" if kind != "poses" and name != "q" else ""
             raise DataError(f"{name}: non-finite value at index {idx}{what}", option=name)
-    if kind == "points" and lost.all(-2).any():  # a marker never measured: every fit would be singular
-        never = lost.all(-2).reshape(-1, lost.shape[-1])
-        j = [int(i) + 1 for i in np.flatnonzero(never.any(0))]
-        sets = [int(r) for r in np.flatnonzero(never.any(1))]
-        where = f" of data set(s) {', '.join(map(str, sets))}" if batched else ""
+    # a marker never measured makes every fit singular; in a batch, only one never measured in any
+    # data set (a data set missing it, or with a pose of no point, is calibrate_batch's to handle)
+    never = lost.all(-2).all(0) if batched else lost.all(-2)
+    if kind == "points" and never.any():
+        j = [int(i) + 1 for i in np.flatnonzero(never)]
+        where = " of any data set" if batched else ""
         raise DataError(
             f"measured: point(s) {', '.join(map(str, j))} not seen at any pose{where} (all NaN, empty in the "
             f"file); leave them out (choose the measured points with --points / Measurements.select_points)",
             option="points",
         )
-    if lost.all(-1).any():
+    if lost.all(-1).any() and not batched:
         idx = tuple(int(i) for i in np.argwhere(lost.all(-1))[0])
         raise DataError(
             f"measured{list(idx)}: no point measured at this pose (all NaN); leave the pose out", option="measured"
@@ -96,6 +98,13 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             )
         return q, measured, 0
     return q, measured, measured.shape[-2]
+
+
+def lost_in_batch(target) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, K)`` the poses of each data set with no point measured, and ``(R, M)`` the points
+    a data set never measured, of a batch's ``target (R, K, M, 3)`` (positions, NaN where lost)."""
+    lost = np.isnan(target).all(-1)
+    return lost.all(-1), lost.all(-2)
 
 
 START_SPREAD_LIMIT = 30.0

@@ -29,7 +29,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
-from ._checks import as_target, check_units
+from ._checks import as_target, check_units, lost_in_batch
 from ._core import nominal_model
 from ._options import ELIMINATION_METHODS, Options, make_options
 from ._param_sets import Candidate, parse_params
@@ -138,7 +138,7 @@ class BatchResult:
     """The devices the data sets were shared over (:func:`jaxcal.sharding.describe`)."""
     problems: tuple[str, ...] = ()
     """Per data set, why its poses cannot identify what a generic pose set does (a joint that
-    never moves, too few distinct poses; not converged then), or ""."""
+    never moves, too few distinct poses, a point never measured; not converged then), or ""."""
     rechosen: np.ndarray | None = None
     """``(R,)``: data sets whose fit ran where the batch's parameter set is not separable (an arm
     far from its file), fitted again with the set identifiable at their fit, as
@@ -558,7 +558,10 @@ def calibrate_batch(
     the set is not separable (an arm far from its file) are fitted again with the set
     identifiable at their fit (``rechosen``). A given ``ident`` is the caller's: only too few
     distinct poses are named, and there is neither retry. A data set whose solve gives
-    non-finite values is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN."""
+    non-finite values is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN.
+    A pose with no point measured (NaN) is left out of its data set's fits; a data set that never
+    measured one of the points is named in ``problems`` (that point's place cannot be estimated
+    from it), and the other data sets are fitted as without it."""
     devs = select_devices(devices)
     opts = make_options(options, kw, elimination=True)
     q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
@@ -572,6 +575,7 @@ def calibrate_batch(
             f"has {layout.size}: pass the analysis of the same robot and options",
             option="ident",
         )
+    q, target, masks, unfit = _lost_filled(q, target, n_points)
     # robust, as calibrate: one wild row (a sentinel, an unreachable target) is the outliers' to name
     nominal_pos = core.nominal_positions(robot, q)
     check_units(robot, q, target, n_points, batched=True, model_positions=nominal_pos, robust=True)
@@ -584,9 +588,8 @@ def calibrate_batch(
     still, distinct = _still_joints(robot, q), core.distinct_poses(q, core.same_pose(robot))
     # the identifiable set from the data set that moves the most joints through the most distinct
     # poses: one degenerate data set must not take parameters from the others
-    r0 = int(np.lexsort((-distinct, still.sum(-1)))[0])
+    r0 = int(np.lexsort((-distinct, still.sum(-1), [bool(u) for u in unfit]))[0])
     check_enough_poses(K, layout, core.generic_rank(core.generic_model(robot, layout), layout, K, wanted))
-    masks = np.ones((R, K))
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
     nominal = core.broadcast_model(nominal_model(robot, layout), R)
     core.prepare_members(cfg, nominal, q, target, masks, memory_mb=opts.memory_mb, devices=devs)
@@ -611,6 +614,7 @@ def calibrate_batch(
     mine = given_ident is None
     alone = (still & ~still[r0] & mine) | still.all(-1, keepdims=True)  # no joint moving: it identifies nothing
     problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), K)
+    problems = tuple(u or p for u, p in zip(unfit, problems))
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
     reweigh = n_points == 0 and not given and opts.method != "linear"  # as calibrate
@@ -672,9 +676,10 @@ def calibrate_batch(
     failed = nonfinite | np.array([bool(p) for p in problems])
     x[failed] = 0.0  # a data set that cannot identify its set estimated nothing, as estimated says
     ok = np.asarray(b["converged"]) & ~failed
-    share = det.flags.mean(-1)
+    flags = det.flags & ~failed[:, None]  # a data set not fitted has no outliers to name
+    share = flags.mean(-1)
     free = (np.asarray(prior) < PIN) & ~failed[:, None]
-    kept = masks * ~det.flags if not opts.keep_outliers else masks
+    kept = masks * ~flags if not opts.keep_outliers else masks
     why = _implausible(robot, opts, q, layout, x, b, kept.astype(bool), free, n_points, nonfinite)
     return BatchResult(
         x=x,
@@ -684,8 +689,8 @@ def calibrate_batch(
         layout=layout,
         method=opts.method,
         loss=opts.loss,
-        outlier_mask=det.flags,
-        degraded=(det.flags.any(-1) & (opts.keep_outliers and opts.loss == "l2")) | (share > opts.max_outlier_fraction),
+        outlier_mask=flags,
+        degraded=(flags.any(-1) & (opts.keep_outliers and opts.loss == "l2")) | (share > opts.max_outlier_fraction),
         nonfinite=nonfinite,
         devices=tuple(describe(devs)),
         problems=problems,
@@ -755,6 +760,30 @@ def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, 
 def _still_joints(robot: Robot, q) -> np.ndarray:
     """``(..., n)`` which joints never move over the poses ``q (..., K, n)``."""
     return np.ptp(np.asarray(q), axis=-2) <= core.joint_tolerance(robot)
+
+
+def _lost_filled(q, target, n_points: int):
+    """A batch's data with what was not measured made finite for the compiled solve, and the
+    pose weights ``masks (R, K)``: a pose with no point is left out of its data set's fits (and
+    holds a copy of one of its poses); a data set that never measured a point, or no pose, holds
+    a sound data set's data, and the reason (``unfit``, "" for the others) makes it a problem,
+    whose results are discarded."""
+    R, K = q.shape[:2]
+    masks, unfit = np.ones((R, K)), [""] * R
+    if not n_points:
+        return q, target, masks, unfit
+    gone, unseen = lost_in_batch(target)
+    for r in np.flatnonzero(unseen.any(-1) | gone.all(-1)):  # the few data sets that cannot be fitted
+        points = ", ".join(str(int(j) + 1) for j in np.flatnonzero(unseen[r]))
+        unfit[r] = f"point(s) {points} never measured" if not gone[r].all() else "no point measured at any pose"
+    bad = np.array([bool(u) for u in unfit])
+    if bad.all():
+        raise DataError(f"measured: no data set can be fitted: data set 0: {unfit[0]}", option="measured")
+    src = np.where(gone, np.argmax(~gone, axis=1)[:, None], np.arange(K))  # a lost pose: the first measured
+    src[bad] = src[np.argmin(bad)]
+    rows = np.where(bad, np.argmin(bad), np.arange(R))[:, None]
+    masks = (~gone[rows[:, 0]]).astype(float)
+    return q[rows, src], target[rows, src], masks, unfit
 
 
 def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_rows: int) -> tuple[str, ...]:

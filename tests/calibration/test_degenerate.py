@@ -186,3 +186,34 @@ def test_rows_repeating_a_few_joint_vectors_are_not_a_calibration():
     assert not res.plausible and "only 4 of the 30 data rows have distinct joint values" in res.implausible
     with pytest.raises(jaxcal.DataError, match=r"4 distinct poses \(the other 26 of 30 rows repeat"):
         jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(q, points[:, None]))
+
+
+def test_a_batch_data_set_that_lost_a_pose_or_never_saw_a_point_does_not_stop_the_others():
+    """Three data sets of paper-6r measured at two points on the tool (NumPy FK, tests.helpers):
+    the second lost both points at one pose, the third never saw point 2. The second is fitted
+    as calibrate fits it without that pose; the third is named in problems, not converged, with
+    nothing estimated; the first is fitted as alone."""
+    from tests.helpers import dh_fk, random_transform
+
+    rng = np.random.default_rng(5)
+    dh0, lim = np.asarray(ROBOT.dh), np.asarray(ROBOT.q_limits)
+    q = lim[:, 0] + rng.uniform(size=(3, 30, 6)) * (lim[:, 1] - lim[:, 0])
+    offsets = np.array([[0.0, 0.0, 60.0], [40.0, 30.0, 10.0]])
+    pts = []
+    for r in range(3):
+        dh = dh0 + rng.normal(size=dh0.shape) * [0.005, 0.05, 0.05, 0.005]
+        T = dh_fk(dh, q[r], base=random_transform(rng), tool=random_transform(rng))
+        pts.append(np.einsum("kij,mj->kmi", T[:, :3, :3], offsets) + T[:, None, :3, 3])
+    pts = np.stack(pts) + rng.normal(size=(3, 30, 2, 3)) * 0.02
+    pts[1, 7] = np.nan
+    pts[2, :, 1] = np.nan
+    given = pts.copy()
+    res = calibrate_batch(ROBOT, q, pts)
+    np.testing.assert_array_equal(pts, given)  # the caller's arrays untouched
+    assert res.problems == ("", "", "point(s) 2 never measured")
+    assert list(res.converged) == [True, True, False]
+    assert not res.estimated[2].any() and np.all(res.x[2] == 0.0) and not res.outlier_mask[2].any()
+    assert not res.outlier_mask[1, 7]  # a lost pose is no outlier
+    keep = np.arange(30) != 7
+    np.testing.assert_allclose(res.x[1], calibrate(ROBOT, q[1, keep], pts[1, keep]).x, atol=1e-6)
+    np.testing.assert_allclose(res.x[0], calibrate(ROBOT, q[0], pts[0]).x, atol=1e-6)
