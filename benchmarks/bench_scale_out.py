@@ -49,7 +49,7 @@ print(json.dumps({"jaxcal": jaxcal.__file__, "first": first, "runs": runs,
                   "devices": jax.device_count(), "converged": float(res.converged.mean()),
                   "max_steps": int(res.num_steps.max())}))
 """
-SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+SINGLE_THREAD = "--xla_cpu_multi_thread_eigen=false"
 
 
 def configurations(before: str | None, tree: Path | None):

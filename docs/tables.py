@@ -140,14 +140,62 @@ def tiago() -> str:
     return "\n".join(rows)
 
 
+def _study_rows(rel: str, label: str) -> list[tuple[str, str, list[str]]]:
+    """The rows of a study's text tables (``docs/studies/*.txt``: a heading line per data set,
+    right-aligned columns) whose label starts with ``label``: ``(heading, label, figures)``."""
+    out, heading = [], ""
+    for line in (D / rel).read_text().splitlines():
+        if line and not line[0].isspace():
+            heading = line
+        m = re.match(r"^\s*(\S.*?)\s{2,}([-\d.]+(?:\s+[-\d.]+)*)\s*$", line)
+        if m and m.group(1).startswith(label):
+            out.append((heading, m.group(1), m.group(2).split()))
+    return out
+
+
+SCORING_DATA = {"TIAGo": "TIAGo, 4 points", "Franka": "Franka, poses"}
+
+
+def scoring_rule() -> str:
+    rows = ["| data | rule | tomorrow RMS of the choice (mm) | regret (mm) | rank correlation |", "|---" * 5 + "|"]
+    last = None
+    for heading, rule, (rms, regret, rank) in _study_rows("studies/scoring_rule.txt", "K-fold"):
+        data = next(v for k, v in SCORING_DATA.items() if heading.startswith(k))
+        cell = f" {data} " if data != last else " "
+        rows.append(f"|{cell}| {rule} | {rms} | {regret} | {rank} |")
+        last = data
+    return "\n".join(rows)
+
+
+CAMERA_WAYS = {
+    "jaxcal": "jaxcal (camera unknowns free, not pruned)",
+    "camera under the prior": "camera unknowns under the candidate's scaled prior",
+    "camera pruned": "camera unknowns pruned like the others",
+    "prune every candidate": "every candidate pruned, the lowest pruned score chosen",
+    "prune by score": "pruning by score (backward stepwise) instead of by `t`",
+    "+ joint harmonics": "with a once-per-turn joint angle error (`sin q`, `cos q`) as candidates",
+}
+
+
+def camera_selection() -> str:
+    rows = ["| way of choosing | tomorrow RMS (mm) | regret (mm) |", "|---|---|---|"]
+    found = {way: figs for _, way, figs in _study_rows("studies/camera_selection.txt", "")}
+    for way, label in CAMERA_WAYS.items():
+        rms, regret = found[way]
+        rows.append(f"| {label} | {rms} | {regret} |")
+    return "\n".join(rows)
+
+
 TABLES = {
     "reproduction": reproduction,
     "montecarlo": montecarlo,
     "franka": franka,
     "fold_seeds": fold_seeds,
     "tiago": tiago,
+    "scoring_rule": scoring_rule,
+    "camera_selection": camera_selection,
 }
-PAGES = ("reproduction.md", "franka.md", "tiago.md")
+PAGES = ("reproduction.md", "franka.md", "tiago.md", "selection.md")
 
 
 def main() -> None:

@@ -31,7 +31,7 @@ def dot3(row, col):
 
 def rotate_soa(R, v):
     """``R @ v`` with the pose axis last: ``R (..., 3, 3, K)``, ``v (..., 3, K)``, as broadcast
-    multiply-adds (a reduction ran several times slower on XLA CPU)."""
+    multiply-adds (XLA CPU runs them several times faster than a reduction)."""
     return sum(R[..., :, j, :] * v[..., j : j + 1, :] for j in range(3))
 
 

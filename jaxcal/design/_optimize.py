@@ -111,7 +111,7 @@ def _optimise(
         u, f, conv, n = minimise(vg, to_u(problem, q_), (problem, cons), max_evals=max_steps, tol=tol)
         return to_q(problem, u), conv, n
 
-    # one start after another: batched LAPACK calls (Cholesky) inside a vmapped while_loop ran
+    # one start after another: batched LAPACK calls (Cholesky) inside a vmapped while_loop are
     # many times slower than the same starts in turn on the CPU backend
     return jax.lax.map(one, q0)
 
