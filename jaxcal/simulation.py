@@ -10,13 +10,12 @@ from __future__ import annotations
 
 import dataclasses
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._config import as_f64
+from ._config import as_f64, jit
 from .error_model import n_params, perturb
 from .errors import DataError
 from .kinematics import fk
@@ -106,7 +105,13 @@ def inject_outliers(key, measured: Float[Array, "K 4 4"], n: int, lo_mm: float, 
     return measured.at[:, :3, 3].add(jnp.where(mask[:, None], d, 0.0)), mask
 
 
-@eqx.filter_jit
+QUICK_POSES = 2**16
+"""Simulated poses (robots x calibration and inspection poses) up to which the simulation is
+compiled quickly (:func:`jaxcal._config.jit`): beyond, its run time outweighs the compile time
+saved."""
+
+
+@jit
 def _measure_batch(robot: Robot, x, q, q_val, keys, sigma_pos, sigma_rot, *, base: bool, tool: bool, outliers=None):
     def run(x_, q_, qv, key):
         meas = measure(robot, x_, q_, key, sigma_pos=sigma_pos, sigma_rot=sigma_rot, base=base, tool=tool)
@@ -236,6 +241,7 @@ def simulate(
         base=base,
         tool=tool,
         outliers=(n_out, float(lo_hi[0]), float(lo_hi[1])) if n_out else None,
+        quick=n_robots * (q.shape[-2] + q_val.shape[-2]) <= QUICK_POSES,
     )
     return Simulation(
         robot=robot,

@@ -154,6 +154,14 @@ def pad_poses(a, K: int, axis: int):
     return np.concatenate([a, np.repeat(first, extra, axis=axis)], axis=axis)
 
 
+def members_per_call(n_members: int, most: float) -> int:
+    """Members per call of a vmapped program over members: the largest power of two up to
+    ``most`` (and :data:`MAX_CHUNK`), or the least one that holds ``n_members`` when that is
+    smaller, so that member counts of similar size share one program."""
+    cap = int(max(1, min(MAX_CHUNK, most)))
+    return min(1 << (cap.bit_length() - 1), 1 << max(n_members - 1, 0).bit_length())
+
+
 def chunk_size(n_members: int, n_poses: int, layout: Layout, memory_mb: float) -> int:
     """Members per compiled call within ``memory_mb`` (the Jacobian and its few working copies
     dominate, ``n_poses x rows x parameters`` doubles each) and with their Jacobians within
@@ -161,9 +169,16 @@ def chunk_size(n_members: int, n_poses: int, layout: Layout, memory_mb: float) -
     solve."""
     jac = 8.0 * n_poses * layout.rows * layout.size
     per = jac * (layout.size + 8) / layout.size * 8
-    cap = int(max(1, min(MAX_CHUNK, memory_mb * 2**20 // per, CACHE_BYTES // jac)))
-    cap = 2 ** int(np.floor(np.log2(cap)))
-    return int(min(cap, 2 ** int(np.ceil(np.log2(max(n_members, 1))))))
+    return members_per_call(n_members, min(memory_mb * 2**20 // per, CACHE_BYTES // jac))
+
+
+def members_chunk(layout: Layout, n_members: int, n_poses: int, memory_mb: float, devices=None) -> int:
+    """Members per device in each call of :func:`run_members` for ``n_members`` members of
+    ``n_poses`` poses: a refit of some of them with this ``chunk`` runs the same program."""
+    mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
+    D = mesh.size if mesh is not None else 1
+    Kp = pose_bucket(n_poses, fine=n_members * n_poses >= FINE_BUCKET)
+    return chunk_size(-(-n_members // D), Kp, layout, memory_mb / D)
 
 
 def _plan(cfg: Config, q, target, pose_w, weights, prior, loss_scale, J0, x0, chunk, memory_mb, devices):
@@ -175,8 +190,7 @@ def _plan(cfg: Config, q, target, pose_w, weights, prior, loss_scale, J0, x0, ch
     Kp = pose_bucket(K, fine=B * K >= FINE_BUCKET)
     mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
     D = mesh.size if mesh is not None else 1
-    per = chunk_size(-(-B // D), Kp, cfg.layout, memory_mb / D) if chunk is None else chunk
-    c = per * D
+    c = members_chunk(cfg.layout, B, K, memory_mb, devices) * D if chunk is None else chunk * D
     n0 = column_norms(J0, weights, pose_w, prior)
     x0 = np.zeros(np.shape(prior)) if x0 is None else np.asarray(x0)
     axis = 0 if cfg.shared_data else 1
@@ -281,10 +295,20 @@ def run_members(
         ls = None if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))[idx]
         data = (q, target) if cfg.shared_data else take([q, target], idx)
         again = run_members(
-            dataclasses.replace(cfg, method="lm"), take(models, idx), *data, take(pose_w, idx), take(weights, idx),
-            take(prior, idx), ls, J0=J0, x0=None if x0 is None else take(x0, idx), memory_mb=memory_mb,
-            label=label + " (Levenberg-Marquardt)", devices=devices,
-        )  # fmt: skip
+            dataclasses.replace(cfg, method="lm"),
+            take(models, idx),
+            *data,
+            take(pose_w, idx),
+            take(weights, idx),
+            take(prior, idx),
+            ls,
+            J0=J0,
+            x0=None if x0 is None else take(x0, idx),
+            memory_mb=memory_mb,
+            label=label + " (Levenberg-Marquardt)",
+            devices=devices,
+            chunk=c // (1 if mesh is None else mesh.size),
+        )  # fmt: skip  (the call's chunk: one program whatever the number retried)
         again["retried"] = np.ones(len(idx), bool)
 
         def merged(a, b):
@@ -310,12 +334,12 @@ def start_models(robot: Robot, layout: Layout, q, target, masks, *, shared: bool
     closed-form guess of its frames (:mod:`._initial`) from the member's poses, when estimated."""
     masks = np.asarray(masks, float)
     S, K = masks.shape
-    axis = 0 if shared else 1
     robot = carrying(robot, layout)
     if shared:  # the analysis program of the nominal model has them (one program fewer to compile)
         F = _analysed(jax.tree.map(np.asarray, nominal_model(robot, layout)), layout, q)[2]
-    else:
-        F = np.asarray(_chain_poses(robot, pad_poses(q, pose_bucket(K), axis)))[:, :K]
+    else:  # every member's poses in one padded row: batches of similar size share one program
+        flat = np.asarray(q).reshape(S * K, -1)
+        F = np.asarray(_chain_poses(robot, pad_poses(flat, pose_bucket(S * K), 0)))[: S * K].reshape(S, K, 4, 4)
     B, X, pts = initial_frames(
         F,
         robot.base,
@@ -440,9 +464,7 @@ def levers(models: Model, layout: Layout, q, memory_mb: float) -> np.ndarray:
     bucket: chunks of a power of two members, poses padded as the solves pad them."""
     R, K = np.shape(q)[:2]
     Kb = pose_bucket(K)
-    per = 2 * Kb * layout.rows * layout.size * 8
-    c = int(max(1, min(R, MAX_CHUNK, memory_mb * 2**20 // per)))
-    c = 1 << (c.bit_length() - 1)  # a power of two: few distinct chunk shapes
+    c = members_per_call(R, memory_mb * 2**20 // (2 * Kb * layout.rows * layout.size * 8))
     qp = pad_poses(np.asarray(q), Kb, 1)
     real = jnp.asarray(np.arange(Kb) < K)
     out = []
@@ -550,10 +572,10 @@ def reidentified(
 
 
 @jit(keep=True)
-def _base_normals(models: Model, layout: Layout, q, cols):
+def _normals(models: Model, layout: Layout, q, real):
     def one(m, q_):
-        J = jacobian(m, layout, q_).reshape(-1, layout.size)[:, cols]
-        J = J / jnp.maximum(jnp.linalg.norm(J, axis=0), 1e-300)
+        J = jnp.where(real[:, None, None], jacobian(m, layout, q_), 0.0)  # the padding poses out
+        J = J.reshape(-1, layout.size)
         return J.T @ J
 
     return jax.vmap(one)(models, q)
@@ -562,14 +584,17 @@ def _base_normals(models: Model, layout: Layout, q, cols):
 def singular_at_fit(models: Model, layout: Layout, q, base, max_condition: float, memory_mb: float) -> np.ndarray:
     """``(R,)`` which members' set ``base`` is not separable at their fit ``models`` (leading
     axis, with ``q (R, K, n)``), as :func:`reidentified` judges one fit: the column-scaled
-    condition above ``max_condition``. One compiled program over chunks within ``memory_mb``."""
+    condition above ``max_condition``. One compiled program over chunks within ``memory_mb``
+    (the normal matrix of every parameter; the set's columns taken and scaled here)."""
     R, K = np.shape(q)[:2]
-    per = 4 * K * layout.rows * layout.size * 8  # a member's Jacobian and its copies, bytes
-    c = int(max(1, min(R, MAX_CHUNK, memory_mb * 2**20 // per)))
-    cols, out = jnp.asarray(list(base), dtype=jnp.int32), []
+    Kb = pose_bucket(K)
+    c = members_per_call(R, memory_mb * 2**20 // (4 * Kb * layout.rows * layout.size * 8))  # a Jacobian, copies
+    qp, real, cols, out = pad_poses(np.asarray(q), Kb, 1), jnp.asarray(np.arange(Kb) < K), list(base), []
     for start in range(0, R, c):
         idx = np.minimum(np.arange(start, start + c), R - 1)  # the last chunk padded: one compile
-        out.append(np.asarray(_base_normals(take(models, idx), layout, np.asarray(q)[idx], cols))[: R - start])
+        N = np.asarray(_normals(take(models, idx), layout, qp[idx], real))[: R - start][:, cols][:, :, cols]
+        d = np.maximum(np.sqrt(np.abs(np.diagonal(N, axis1=1, axis2=2))), 1e-300)
+        out.append(N / d[:, :, None] / d[:, None, :])
     N = np.concatenate(out)
     bad = ~np.all(np.isfinite(N), axis=(1, 2))
     ev = np.linalg.eigvalsh(np.where(bad[:, None, None], np.eye(N.shape[-1]), N))
@@ -734,6 +759,16 @@ def residual_stats(pos_err, rot_err, mask=None, *, n_points: int) -> dict:
     return out
 
 
+@jit
+def _tool_positions(robot: Robot, q):
+    return fk(robot, q)[..., :3, 3]
+
+
 def nominal_positions(robot: Robot, q):
-    """Tool positions of the nominal robot at ``q`` (any leading axes), for the unit check."""
-    return np.asarray(fk(robot, jnp.asarray(q)))[..., :3, 3]
+    """Tool positions of the nominal robot at ``q`` (any leading axes), for the unit check: the
+    poses flattened and padded as the solves pad theirs, so data sets of similar size share one
+    program."""
+    q = np.asarray(q)
+    flat = q.reshape(-1, q.shape[-1])
+    n = len(flat)
+    return np.asarray(_tool_positions(robot, pad_poses(flat, pose_bucket(n), 0)))[:n].reshape(q.shape[:-1] + (3,))

@@ -647,12 +647,14 @@ def calibrate_batch(
     ref_b, weights, b = stages(ref, masks)
     rechosen = np.zeros(R, bool)
     if mine:  # before the outliers, which a fit stopped at a point of the parameterisation would misjudge
+        chunk = core.members_chunk(layout, R, K, opts.memory_mb, devs)  # the fits' own program
 
         def again(idx, priors):  # from each member's last fit
             data = (core.take(q, idx), core.take(target, idx), masks[idx], weights[idx], priors)
             return core.run_members(
-                cfg, core.take(ref_b, idx), *data, opts.loss_scale, x0=b["x"][idx], **run, label="set chosen again"
-            )
+                cfg, core.take(ref_b, idx), *data, opts.loss_scale, x0=b["x"][idx], chunk=chunk, **run,
+                label="set chosen again",
+            )  # fmt: skip
 
         sound = np.array([not p for p in problems])  # a data set that cannot identify the set is named
         prior_for = lambda r, i: prior_of(layout, i, cand, lever=lever[r])  # noqa: E731

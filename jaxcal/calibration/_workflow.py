@@ -178,18 +178,21 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     fid = fold_ids(K, F, opts.seed)
     everything = np.ones(K, bool)
     held = np.concatenate([np.stack([fid == o for o in range(F)]), selection.range_end_held(q, everything)])
-    cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     union = set().union(*(c.dh for c in candidates))
-    wanted = list(layout.frames) + list(layout.cameras) + sorted(union)
-    needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted)
-    check_enough_poses(int(core.distinct_poses(q, core.same_pose(robot))), layout, needed, K)
     n_train = K - int(np.bincount(fid).max())
-    if compliance and opts.compliance == "auto" and n_train * layout.rows < 2 * (needed + layout.n_comp):
-        # too few poses to tell a compliance from noise: the rigid candidates alone
-        candidates = [c for c in candidates if not c.compliance]
-        detector = dataclasses.replace(detector, compliance=False)
-        layout = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=False)
-        cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
+    wanted = lambda lay: list(lay.frames) + list(lay.cameras) + sorted(union)  # noqa: E731
+    if compliance and opts.compliance == "auto" and n_train * layout.rows < 2 * (len(wanted(layout)) + layout.n_comp):
+        # perhaps too few poses to tell a compliance from noise: decided on the rigid layout's rank
+        # (the same columns), before either layout's programs are compiled
+        rigid = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=False)
+        needed = core.generic_rank(core.generic_model(robot, rigid), rigid, K, wanted(rigid))
+        if n_train * layout.rows < 2 * (needed + layout.n_comp):  # the rigid candidates alone
+            candidates = [c for c in candidates if not c.compliance]
+            detector = dataclasses.replace(detector, compliance=False)
+            layout = rigid
+    cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
+    needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted(layout))
+    check_enough_poses(int(core.distinct_poses(q, core.same_pose(robot))), layout, needed, K)
     if n_train * layout.rows < needed:
         raise DataError(
             f"too few poses for {F}-fold cross-validation: training sets of {n_train} poses x "
