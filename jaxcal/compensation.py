@@ -283,6 +283,22 @@ def orientation_note(n_points: int, targets: Targets, name: str) -> str:
     )
 
 
+def tool_note(n_points: int, calibrated: Robot, nominal: Robot | None, name: str) -> str:
+    """A warning for joint commands alone (targets where the ``nominal`` robot puts its tool)
+    given to a model calibrated from measured points (``n_points`` > 0, the model file ``name``):
+    its tool frame is where the points hang, not a calibrated tool centre point, so the commands
+    bring that frame to the nominal tool's targets. Empty otherwise."""
+    if not n_points or nominal is None:
+        return ""
+    d = float(np.linalg.norm(np.asarray(calibrated.tool)[:3, 3] - np.asarray(nominal.tool)[:3, 3]))
+    return (
+        f"{name} was calibrated from measured points: its tool frame is where they hang ({d:.4g} mm from the "
+        "nominal robot's tool), not a calibrated tool centre point, and the commands' targets are where the "
+        "nominal robot puts its tool: the compensated commands bring that frame there, right only where the "
+        "measured point is the tool centre point (otherwise give x, y, z targets for the point, with --point)"
+    )
+
+
 def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | None = None, **kw):
     """Resolve a :class:`Targets` file into ``(target poses, start q)`` and compensate.
 

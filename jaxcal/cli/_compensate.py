@@ -31,7 +31,7 @@ def compensate(
     import numpy as np
 
     from .._io import write_atomic
-    from ..compensation import MAX_MOVE_DEG, compensate_targets, orientation_note, read_targets
+    from ..compensation import MAX_MOVE_DEG, compensate_targets, orientation_note, read_targets, tool_note
     from ..measurements import unit_scale
     from ..robot import ANGLE_UNITS, LENGTH_UNITS, calibrated_chain
 
@@ -44,9 +44,12 @@ def compensate(
         nom = load_robot_arg(nominal, *(chain if chain and urdf else (None, None)))
     tg = read_targets(targets, model.robot, length_unit=length_unit, angle_unit=angle_unit)
     cal = _target_frame(model, calibrated, point, commands_only=tg.poses is None)
-    note = orientation_note(model.n_points, tg, str(calibrated))
-    if note:
-        console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)
+    for note in (
+        orientation_note(model.n_points, tg, str(calibrated)),
+        tool_note(model.n_points, cal, nom, str(calibrated)),
+    ):
+        if note:
+            console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)
     _, res = compensate_targets(cal, tg, nominal=nom)
     table = Table(title=f"compensation of {len(res.q)} targets")
     for col in ("", "position residual (mm)", "rotation residual (deg)"):

@@ -11,7 +11,7 @@ import pytest
 from helpers import dh_fk, run_cli
 
 import jaxcal
-from jaxcal.compensation import orientation_note, read_targets
+from jaxcal.compensation import orientation_note, read_targets, tool_note
 from jaxcal.measurements import write_measurements
 from jaxcal.simulation import simulate
 
@@ -166,6 +166,14 @@ def test_four_points_with_occluded_markers(tmp_path, monkeypatch, capsys):
     targets.write_text("x,y,z,qw,qx,qy,qz\n1,2,3,1,0,0,0\n")
     note = orientation_note(p1.n_points, read_targets(targets, p1.robot), "p1.toml")
     assert "its tool's orientation is the nominal one, not calibrated" in note
+    # joint commands alone: their targets are the nominal tool's, and the model's tool is point 1,
+    # which the data put at the simulated tool: 50 mm from a nominal whose tool is 50 mm further
+    ur5 = jaxcal.preset("ur5")
+    shift = np.eye(4)
+    shift[2, 3] = 50.0
+    further = np.asarray(ur5.tool) @ shift
+    note = tool_note(p1.n_points, p1.robot, ur5.replace(tool=further), "p1.toml")
+    assert abs(float(re.search(r"\(([\d.]+) mm from the nominal robot's tool\)", note).group(1)) - 50.0) < 1.0
     # all four points of a four-point model: the lost ones are None per pose and left out of the figures
     code, out, err = run_cli(
         monkeypatch, capsys, "evaluate", tmp_path / "m4.toml", data, "--json", tmp_path / "e4.json"
