@@ -4,6 +4,7 @@ and evidence of a length unit that is not the robot's."""
 from __future__ import annotations
 
 import numpy as np
+from jaxtyping import Bool, Float
 
 from .._config import as_f64
 from ..errors import DataError
@@ -25,7 +26,7 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     on the tool per pose; a point lost at a pose is NaN in its three coordinates, and every
     pose keeps at least one) or poses ``(K, 4, 4)`` (``position_only=True`` keeps their
     translations); with a leading data-set axis when ``batched`` (where a data set may miss a
-    point, or have a pose of no point: :func:`lost_in_batch`).
+    point, or have a pose of no point: :func:`lost_points`).
     """
     if not isinstance(robot, Robot):
         raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}", option="robot")
@@ -53,6 +54,7 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             option="measured",
         )
     lost = np.isnan(measured).all(-1) if kind != "poses" else np.zeros(measured.shape[:-1], bool)
+    gone, unseen = lost_points(measured) if kind != "poses" else (lost.all(-1), lost.all(-2))
     for name, arr in (("q", q), ("measured", np.where(lost[..., None], 0.0, measured))):
         bad = ~np.isfinite(arr)
         if bad.any():
@@ -61,7 +63,7 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             raise DataError(f"{name}: non-finite value at index {idx}{what}", option=name)
     # a marker never measured makes every fit singular; in a batch, only one never measured in any
     # data set (a data set missing it, or with a pose of no point, is calibrate_batch's to handle)
-    never = lost.all(-2).all(0) if batched else lost.all(-2)
+    never = unseen.all(0) if batched else unseen
     if kind == "points" and never.any():
         j = [int(i) + 1 for i in np.flatnonzero(never)]
         where = " of any data set" if batched else ""
@@ -70,8 +72,8 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
             f"file); leave them out (choose the measured points with --points / Measurements.select_points)",
             option="points",
         )
-    if lost.all(-1).any() and not batched:
-        idx = tuple(int(i) for i in np.argwhere(lost.all(-1))[0])
+    if gone.any() and not batched:
+        idx = tuple(int(i) for i in np.argwhere(gone)[0])
         raise DataError(
             f"measured{list(idx)}: no point measured at this pose (all NaN); leave the pose out", option="measured"
         )
@@ -100,9 +102,9 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
     return q, measured, measured.shape[-2]
 
 
-def lost_in_batch(target) -> tuple[np.ndarray, np.ndarray]:
-    """``(R, K)`` the poses of each data set with no point measured, and ``(R, M)`` the points
-    a data set never measured, of a batch's ``target (R, K, M, 3)`` (positions, NaN where lost)."""
+def lost_points(target: Float[np.ndarray, "*R K M 3"]) -> tuple[Bool[np.ndarray, "*R K"], Bool[np.ndarray, "*R M"]]:
+    """The poses with no point measured, and the points never measured, of point measurements
+    (NaN in all three coordinates where a point was lost), with or without a data-set axis."""
     lost = np.isnan(target).all(-1)
     return lost.all(-1), lost.all(-2)
 

@@ -18,6 +18,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Float
 
 from .._config import jit
 from ..identifiability import Identifiability, analyze
@@ -174,7 +175,9 @@ def chunk_size(n_members: int, n_poses: int, layout: Layout, memory_mb: float) -
 
 def members_chunk(layout: Layout, n_members: int, n_poses: int, memory_mb: float, devices=None) -> int:
     """Members per device in each call of :func:`run_members` for ``n_members`` members of
-    ``n_poses`` poses: a refit of some of them with this ``chunk`` runs the same program."""
+    ``n_poses`` poses: a refit of some of them with this ``chunk`` runs the same program where
+    its poses fall in the same bucket and its work on the same side of :data:`QUICK_WORK` (a
+    batch within that work: every workflow, small batches)."""
     mesh = member_mesh(devices) if devices is not None and sharded(member_mesh(devices)) else None
     D = mesh.size if mesh is not None else 1
     Kp = pose_bucket(n_poses, fine=n_members * n_poses >= FINE_BUCKET)
@@ -294,21 +297,12 @@ def run_members(
         idx = np.flatnonzero(bad)
         ls = None if loss_scale is None else np.broadcast_to(np.asarray(loss_scale, float), (B,))[idx]
         data = (q, target) if cfg.shared_data else take([q, target], idx)
+        # in the call's chunk: one program for any number retried (within a pose bucket and mode)
         again = run_members(
-            dataclasses.replace(cfg, method="lm"),
-            take(models, idx),
-            *data,
-            take(pose_w, idx),
-            take(weights, idx),
-            take(prior, idx),
-            ls,
-            J0=J0,
-            x0=None if x0 is None else take(x0, idx),
-            memory_mb=memory_mb,
-            label=label + " (Levenberg-Marquardt)",
-            devices=devices,
-            chunk=c // (1 if mesh is None else mesh.size),
-        )  # fmt: skip  (the call's chunk: one program whatever the number retried)
+            dataclasses.replace(cfg, method="lm"), take(models, idx), *data, take(pose_w, idx), take(weights, idx),
+            take(prior, idx), ls, J0=J0, x0=None if x0 is None else take(x0, idx), memory_mb=memory_mb,
+            label=label + " (Levenberg-Marquardt)", devices=devices, chunk=c // (1 if mesh is None else mesh.size),
+        )  # fmt: skip
         again["retried"] = np.ones(len(idx), bool)
 
         def merged(a, b):
@@ -448,29 +442,36 @@ def column_norms(J0, weights, pose_w, prior) -> np.ndarray:
 
 @jit(keep=True)
 def _levers(models: Model, layout: Layout, q, real):
-    def one(m, q_):  # selection.lever's RMS point displacement per unit, of the position rows
+    def one(m, q_, real_):  # selection.lever's RMS point displacement per unit, of the position rows
         J = jacobian(m, layout, q_)
         P = J[:, : 3 * max(layout.n_points, 1)].reshape(J.shape[0], max(layout.n_points, 1), 3, -1)
-        P = jnp.where(jnp.isfinite(P) & real[:, None, None, None], P, 0.0)  # the padding poses out
-        return jnp.sqrt(jnp.sum(jnp.sum(P**2, 2), axis=(0, 1)) / (jnp.sum(real) * P.shape[1]))
+        P = jnp.where(jnp.isfinite(P) & real_[:, None, None, None], P, 0.0)  # padded and unmeasured poses out
+        return jnp.sqrt(jnp.sum(jnp.sum(P**2, 2), axis=(0, 1)) / (jnp.sum(real_) * P.shape[1]))
 
-    return jax.vmap(one)(models, q)
+    return jax.vmap(one)(models, q, real)
 
 
-def levers(models: Model, layout: Layout, q, memory_mb: float) -> np.ndarray:
+def _measured(masks: Float[np.ndarray, "R K"], Kb: int):
+    """``(R, Kb)`` the poses a member measured, False for those padded up to ``Kb``."""
+    masks = np.asarray(masks) > 0
+    return jnp.asarray(np.concatenate([masks, np.zeros((len(masks), Kb - masks.shape[1]), bool)], 1))
+
+
+def levers(models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], memory_mb: float, masks=None) -> np.ndarray:
     """``(R, m)`` each member's lever (:func:`._selection.lever`) at its model ``models`` (leading
-    axis) and poses ``q (R, K, n)``: a physically scaled prior is each data set's own, as
-    :func:`jaxcal.calibrate` gives it alone. One compiled program for every batch of a pose
-    bucket: chunks of a power of two members, poses padded as the solves pad them."""
+    axis) and poses ``q``, over the poses of ``masks (R, K)`` (default all): a physically scaled
+    prior is each data set's own, as :func:`jaxcal.calibrate` gives it alone. One compiled program
+    for every batch of a pose bucket: chunks of a power of two members, poses padded as the
+    solves pad them."""
     R, K = np.shape(q)[:2]
     Kb = pose_bucket(K)
     c = members_per_call(R, memory_mb * 2**20 // (2 * Kb * layout.rows * layout.size * 8))
     qp = pad_poses(np.asarray(q), Kb, 1)
-    real = jnp.asarray(np.arange(Kb) < K)
+    real = _measured(np.ones((R, K)) if masks is None else masks, Kb)
     out = []
     for start in range(0, R, c):
         idx = np.minimum(np.arange(start, start + c), R - 1)  # the last chunk padded: one compile
-        out.append(np.asarray(_levers(take(models, idx), layout, qp[idx], real))[: R - start])
+        out.append(np.asarray(_levers(take(models, idx), layout, qp[idx], real[idx]))[: R - start])
     return np.concatenate(out)
 
 
@@ -573,26 +574,31 @@ def reidentified(
 
 @jit(keep=True)
 def _normals(models: Model, layout: Layout, q, real):
-    def one(m, q_):
-        J = jnp.where(real[:, None, None], jacobian(m, layout, q_), 0.0)  # the padding poses out
+    def one(m, q_, real_):
+        J = jnp.where(real_[:, None, None], jacobian(m, layout, q_), 0.0)  # padded and unmeasured poses out
         J = J.reshape(-1, layout.size)
         return J.T @ J
 
-    return jax.vmap(one)(models, q)
+    return jax.vmap(one)(models, q, real)
 
 
-def singular_at_fit(models: Model, layout: Layout, q, base, max_condition: float, memory_mb: float) -> np.ndarray:
+def singular_at_fit(
+    models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], base, max_condition: float, memory_mb: float,
+    masks=None,
+) -> np.ndarray:  # fmt: skip
     """``(R,)`` which members' set ``base`` is not separable at their fit ``models`` (leading
-    axis, with ``q (R, K, n)``), as :func:`reidentified` judges one fit: the column-scaled
-    condition above ``max_condition``. One compiled program over chunks within ``memory_mb``
-    (the normal matrix of every parameter; the set's columns taken and scaled here)."""
+    axis) on their poses ``q`` of ``masks (R, K)`` (default all), as :func:`reidentified` judges
+    one fit: the column-scaled condition above ``max_condition``. One compiled program over
+    chunks within ``memory_mb`` (the normal matrix of every parameter; the set's columns taken
+    and scaled here)."""
     R, K = np.shape(q)[:2]
     Kb = pose_bucket(K)
     c = members_per_call(R, memory_mb * 2**20 // (4 * Kb * layout.rows * layout.size * 8))  # a Jacobian, copies
-    qp, real, cols, out = pad_poses(np.asarray(q), Kb, 1), jnp.asarray(np.arange(Kb) < K), list(base), []
+    qp, cols, out = pad_poses(np.asarray(q), Kb, 1), list(base), []
+    real = _measured(np.ones((R, K)) if masks is None else masks, Kb)
     for start in range(0, R, c):
         idx = np.minimum(np.arange(start, start + c), R - 1)  # the last chunk padded: one compile
-        N = np.asarray(_normals(take(models, idx), layout, qp[idx], real))[: R - start][:, cols][:, :, cols]
+        N = np.asarray(_normals(take(models, idx), layout, qp[idx], real[idx]))[: R - start][:, cols][:, :, cols]
         d = np.maximum(np.sqrt(np.abs(np.diagonal(N, axis1=1, axis2=2))), 1e-300)
         out.append(N / d[:, :, None] / d[:, None, :])
     N = np.concatenate(out)
@@ -771,4 +777,5 @@ def nominal_positions(robot: Robot, q):
     q = np.asarray(q)
     flat = q.reshape(-1, q.shape[-1])
     n = len(flat)
-    return np.asarray(_tool_positions(robot, pad_poses(flat, pose_bucket(n), 0)))[:n].reshape(q.shape[:-1] + (3,))
+    pos = _tool_positions(robot.stripped(), pad_poses(flat, pose_bucket(n), 0))  # one program per structure
+    return np.asarray(pos)[:n].reshape(q.shape[:-1] + (3,))

@@ -29,7 +29,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
-from ._checks import as_target, check_units, lost_in_batch
+from ._checks import as_target, check_units, lost_points
 from ._core import nominal_model
 from ._options import ELIMINATION_METHODS, Options, make_options
 from ._param_sets import Candidate, parse_params
@@ -576,6 +576,7 @@ def calibrate_batch(
             option="ident",
         )
     q, target, masks, unfit = _lost_filled(q, target, n_points)
+    copied = np.array([bool(u) for u in unfit])  # fitted on another data set's data: results discarded
     # robust, as calibrate: one wild row (a sentinel, an unreachable target) is the outliers' to name
     nominal_pos = core.nominal_positions(robot, q)
     check_units(robot, q, target, n_points, batched=True, model_positions=nominal_pos, robust=True)
@@ -588,7 +589,7 @@ def calibrate_batch(
     still, distinct = _still_joints(robot, q), core.distinct_poses(q, core.same_pose(robot))
     # the identifiable set from the data set that moves the most joints through the most distinct
     # poses: one degenerate data set must not take parameters from the others
-    r0 = int(np.lexsort((-distinct, still.sum(-1), [bool(u) for u in unfit]))[0])
+    r0 = int(np.lexsort((-distinct, still.sum(-1), copied))[0])
     check_enough_poses(K, layout, core.generic_rank(core.generic_model(robot, layout), layout, K, wanted))
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
     nominal = core.broadcast_model(nominal_model(robot, layout), R)
@@ -603,17 +604,20 @@ def calibrate_batch(
     ref = start(masks)
     J0 = core.analyse(core.member(ref, r0), layout, q[r0])[0]
     given_ident = ident
-    if ident is None:
-        ident = core.identify(J0, layout, robot)
+    if ident is None:  # on the poses it measured
+        ident = core.identify(J0[masks[r0] > 0], layout, robot)
     # each data set's own lever, as calibrate gives it alone (the start models: the frames-only
     # fits of calibrate come later and move no lever a prior needs)
-    lever = core.levers(ref, layout, q, opts.memory_mb) if cand.ridge_mm is not None else np.ones((R, layout.size))
+    lever = (
+        core.levers(ref, layout, q, opts.memory_mb, masks) if cand.ridge_mm is not None else np.ones((R, layout.size))
+    )
     prior = member_priors(layout, ident, cand, lever)
     # a given set is the caller's: only its count is judged, and a data set that cannot separate it
     # stays unconverged (Levenberg-Marquardt's damping would hold it and call it converged)
     mine = given_ident is None
     alone = (still & ~still[r0] & mine) | still.all(-1, keepdims=True)  # no joint moving: it identifies nothing
-    problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), K)
+    measured = masks.sum(-1).astype(int)
+    problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), measured)
     problems = tuple(u or p for u, p in zip(unfit, problems))
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
@@ -658,7 +662,7 @@ def calibrate_batch(
 
         sound = np.array([not p for p in problems])  # a data set that cannot identify the set is named
         prior_for = lambda r, i: prior_of(layout, i, cand, lever=lever[r])  # noqa: E731
-        b, rechosen, prior = _rechosen(robot, layout, ident, q, b, prior, prior_for, again, opts, sound)
+        b, rechosen, prior = _rechosen(robot, layout, ident, q, masks, b, prior, prior_for, again, opts, sound)
     refit = lambda w, x0: core.run_members(  # noqa: E731
         cfg, ref_b, q, target, w, weights, prior, opts.loss_scale, x0=x0, **run, label="outliers"
     )
@@ -669,7 +673,7 @@ def calibrate_batch(
         _, _, b = stages(start(kept), kept, np.where(rechosen[:, None], b["x"], 0.0) if rechosen.any() else None)
         found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)
         det = outliers.assess(b, masks, outliers.position_rows(target), excluded=det.flags, **found)
-    nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1)
+    nonfinite = ~np.all(np.isfinite(b["x"]), axis=-1) & ~copied
     x = core.relative_x(robot, layout, b["model"]) if layout.frames else np.array(b["x"])
     if rechosen.any():  # a refit with another set can wander by whole turns: within half a turn, as calibrate
         idx = np.flatnonzero(rechosen)
@@ -679,14 +683,15 @@ def calibrate_batch(
     x[failed] = 0.0  # a data set that cannot identify its set estimated nothing, as estimated says
     ok = np.asarray(b["converged"]) & ~failed
     flags = det.flags & ~failed[:, None]  # a data set not fitted has no outliers to name
-    share = flags.mean(-1)
+    share = flags.sum(-1) / np.maximum(masks.sum(-1), 1)  # of the poses it measured
     free = (np.asarray(prior) < PIN) & ~failed[:, None]
     kept = masks * ~flags if not opts.keep_outliers else masks
     why = _implausible(robot, opts, q, layout, x, b, kept.astype(bool), free, n_points, nonfinite)
+    why = tuple("" if c else w for c, w in zip(copied, why))
     return BatchResult(
         x=x,
         converged=ok,
-        num_steps=np.asarray(b["steps"]),
+        num_steps=np.where(copied, 0, np.asarray(b["steps"])),
         identifiability=ident,
         layout=layout,
         method=opts.method,
@@ -727,7 +732,9 @@ def _implausible(robot: Robot, opts: Options, q, layout: Layout, x, b, kept, fre
     return tuple(out)
 
 
-def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, prior, prior_for, again, opts, sound):
+def _rechosen(
+    robot: Robot, layout: Layout, ident: Identifiability, q, masks, b: dict, prior, prior_for, again, opts, sound
+):  # fmt: skip
     """``(b, which, prior)``: the members whose fit ran where ``ident``'s set is not separable (an
     arm far from its file, :func:`._core.reidentified`) fitted again with the set identifiable at
     their fit (``prior_for(member, set)`` their rows of ``prior``; ``again(members, priors)``), as
@@ -736,10 +743,11 @@ def _rechosen(robot: Robot, layout: Layout, ident: Identifiability, q, b: dict, 
     R = len(q)
     which = np.zeros(R, bool)
     sound = sound & np.all(np.isfinite(b["x"]), -1)
-    far = core.singular_at_fit(b["model"], layout, q, ident.base, selection.MAX_CONDITION, opts.memory_mb) & sound
+    far = core.singular_at_fit(b["model"], layout, q, ident.base, selection.MAX_CONDITION, opts.memory_mb, masks)
     idx, priors = [], []
-    for r in np.flatnonzero(far):  # rare: the members that ran there, each analysed alone
-        found = core.reidentified(ident, core.member(b["model"], r), layout, q[r], robot, selection.MAX_CONDITION)
+    for r in np.flatnonzero(far & sound):  # rare: the members that ran there, each analysed alone
+        qr = q[r][masks[r] > 0]  # the poses it measured
+        found = core.reidentified(ident, core.member(b["model"], r), layout, qr, robot, selection.MAX_CONDITION)
         if found is not None:
             idx.append(r)
             priors.append(prior_for(r, found[0]))
@@ -774,11 +782,11 @@ def _lost_filled(q, target, n_points: int):
     masks, unfit = np.ones((R, K)), [""] * R
     if not n_points:
         return q, target, masks, unfit
-    gone, unseen = lost_in_batch(target)
-    for r in np.flatnonzero(unseen.any(-1) | gone.all(-1)):  # the few data sets that cannot be fitted
+    gone, unseen = lost_points(target)
+    bad = unseen.any(-1) | gone.all(-1)
+    for r in np.flatnonzero(bad):  # the few data sets that cannot be fitted
         points = ", ".join(str(int(j) + 1) for j in np.flatnonzero(unseen[r]))
         unfit[r] = f"point(s) {points} never measured" if not gone[r].all() else "no point measured at any pose"
-    bad = np.array([bool(u) for u in unfit])
     if bad.all():
         raise DataError(f"measured: no data set can be fitted: data set 0: {unfit[0]}", option="measured")
     src = np.where(gone, np.argmax(~gone, axis=1)[:, None], np.arange(K))  # a lost pose: the first measured
@@ -788,17 +796,17 @@ def _lost_filled(q, target, n_points: int):
     return q[rows, src], target[rows, src], masks, unfit
 
 
-def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_rows: int) -> tuple[str, ...]:
+def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_poses) -> tuple[str, ...]:
     """Why each data set cannot identify the ``needed`` parameters of the batch's set ("" where it
     can): the joints ``still (R, n)`` that never move in it alone (all of them: no joint moves), or
-    too few ``distinct`` poses."""
+    too few ``distinct`` poses among the ``n_poses (R,)`` it measured."""
     out = [""] * len(still)
     for r in np.flatnonzero(still.any(-1) | (distinct * rows < needed)):  # the data sets with a problem
         moves = not still[r].all()
         why = [f"joint {j + 1} ({robot.joint_names[j]}) never moves" for j in np.flatnonzero(still[r]) if moves]
         why += [] if moves else ["no joint moves"]
         if distinct[r] * rows < needed:
-            eq, k = distinct[r] * rows, n_rows
+            eq, k = distinct[r] * rows, n_poses[r]
             why.append(f"{distinct[r]} distinct poses of {k} x {rows} rows = {eq} equations for {needed} parameters")
         out[r] = "; ".join(why)
     return tuple(out)

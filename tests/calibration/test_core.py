@@ -34,7 +34,8 @@ def test_unconverged_members_and_only_those_are_fitted_again_by_lm():
     lm = core.run_members(
         core.Config(layout, "lm", max_steps=3, shared_data=True), *core.take(list(args[:1]), [1, 2]), q, target,
         np.ones((2, len(q))), weights[1:], prior[1:], J0=J0, x0=x0[1:], chunk=4,
-    )  # fmt: skip  (in the first call's chunk of 4 members: one program whatever the count retried)
+    )  # fmt: skip
+    # (in the first call's chunk of 4 members: the same program whatever the count retried)
     np.testing.assert_array_equal(out["x"][1:], lm["x"])
     np.testing.assert_array_equal(out["converged"][1:], lm["converged"])
     assert not np.array_equal(out["x"][1:], plain["x"][1:])

@@ -208,12 +208,14 @@ def test_a_batch_data_set_that_lost_a_pose_or_never_saw_a_point_does_not_stop_th
     pts[1, 7] = np.nan
     pts[2, :, 1] = np.nan
     given = pts.copy()
-    res = calibrate_batch(ROBOT, q, pts)
+    kw = dict(ridge_mm=0.5)  # each data set's prior scaled by its own levers, over the poses it measured
+    res = calibrate_batch(ROBOT, q, pts, **kw)
     np.testing.assert_array_equal(pts, given)  # the caller's arrays untouched
     assert res.problems == ("", "", "point(s) 2 never measured")
     assert list(res.converged) == [True, True, False]
     assert not res.estimated[2].any() and np.all(res.x[2] == 0.0) and not res.outlier_mask[2].any()
+    assert res.implausible[2] == "" and res.num_steps[2] == 0 and not res.nonfinite[2]  # nothing of another's
     assert not res.outlier_mask[1, 7]  # a lost pose is no outlier
     keep = np.arange(30) != 7
-    np.testing.assert_allclose(res.x[1], calibrate(ROBOT, q[1, keep], pts[1, keep]).x, atol=1e-6)
-    np.testing.assert_allclose(res.x[0], calibrate(ROBOT, q[0], pts[0]).x, atol=1e-6)
+    np.testing.assert_allclose(res.x[1], calibrate(ROBOT, q[1, keep], pts[1, keep], **kw).x, atol=1e-6)
+    np.testing.assert_allclose(res.x[0], calibrate(ROBOT, q[0], pts[0], **kw).x, atol=1e-6)
