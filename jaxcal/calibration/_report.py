@@ -425,6 +425,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         "base": frame_doc(f.model.robot.base),
         "tool": frame_doc(f.model.robot.tool),
         "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
+        "training_ranges_units": list(robot.units),  # the robot file's, not the data's ("units")
         "plausible": not why,
         # judged where the solver stopped: when that is not a solution, that comes first
         "implausible": (

@@ -65,6 +65,11 @@ def test_calibrate_then_evaluate(monkeypatch, capsys, split):
     ranges = read_training_ranges(d / "cal.urdf")
     assert list(ranges) == list(model.robot.joint_names)
     assert np.allclose([ranges[n] for n in ranges], np.c_[fitted_q.min(0), fitted_q.max(0)], rtol=1e-12, atol=1e-12)
+    # the report gives them in the robot file's units (a URDF's metres for the torso), and says so
+    assert rep["training_ranges_units"] == ["m", "rad"]
+    per_mm = np.array([[1e-3] if t == "P" else [1.0] for t in model.robot.joint_types])
+    got = np.array([rep["training_ranges"][n] for n in model.robot.joint_names])
+    np.testing.assert_allclose(got, np.c_[fitted_q.min(0), fitted_q.max(0)] * per_mm, rtol=1e-12, atol=1e-15)
     tol = np.array([1.0 if t == "P" else 1e-2 for t in model.robot.joint_types])
     away = ((meas.q < fitted_q.min(0) - tol) | (meas.q > fitted_q.max(0) + tol)).any(1)
     assert held["outside_training_ranges"]["poses"] == int(away.sum()) > 0.1 * len(away)
