@@ -19,7 +19,8 @@ are read again as they would be without that mistake (:data:`MISTAKES`: two posi
 swapped, a mirrored axis, a quaternion written x, y, z, w, two joint columns swapped, the joint
 order reversed, degrees read as radians or the reverse, metres read as millimetres or the
 reverse), and the frames-only fit (nominal DH, base and tool estimated, all in one batch) is
-repeated on each. A mistake whose correction brings that residual down to a calibration's size is
+repeated on each; a DH table is also read in the other convention (standard or modified DH).
+A mistake whose correction brings that residual down to a calibration's size is
 named, with the residual before and after (:func:`diagnose`).
 """
 
@@ -210,8 +211,13 @@ def variants(robot: Robot, q, target, n_points: int):
     return out
 
 
+CONVENTION_MISTAKES = {"sdh": "modified DH read as standard DH", "mdh": "standard DH read as modified DH"}
+"""A DH table in the other convention than its file says, by the convention the file gives: tried
+on the data as given (:func:`diagnose`)."""
+
+
 def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thresholds, *, memory_mb: float = 1024.0):
-    """Test the likely input mistakes (module docstring).
+    """Test the likely input mistakes (module docstring), and for a DH table the other convention.
 
     **Returns** ``(before, ranked)``: ``before`` the frames-only ``(position RMS mm, rotation RMS
     deg or None)`` of the data as given; ``ranked`` ``[(mistake, position RMS, rotation RMS),
@@ -221,6 +227,18 @@ def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thr
     names = list(tried)
     Q = np.stack([v[0] for v in tried.values()])
     T = np.stack([v[1] for v in tried.values()])
+    res = _frames_only(robot, Q, T, n_points, layout, memory_mb)
+    if robot.convention in CONVENTION_MISTAKES:  # the same table read in the other convention
+        other = robot.replace(convention="mdh" if robot.convention == "sdh" else "sdh")
+        names.append(CONVENTION_MISTAKES[robot.convention])
+        res += _frames_only(other, Q[:1], T[:1], n_points, layout, memory_mb)
+    ranked = sorted(((m, *r) for m, r in zip(names[1:], res[1:])), key=lambda t: badness(t[1], t[2], limits))
+    return res[0], ranked
+
+
+def _frames_only(robot: Robot, Q, T, n_points: int, layout: Layout, memory_mb: float) -> list:
+    """``[(position RMS mm, rotation RMS deg or None)]`` of the frames-only fit (nominal
+    kinematics, base and tool estimated) of each data set ``Q (R, K, n)``, ``T`` in one batch."""
     R, K = Q.shape[:2]
     lay = dataclasses.replace(layout, camera="none")
     kin = robot.stripped()
@@ -251,9 +269,7 @@ def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thr
     pos = np.sqrt(np.nanmean(out["pos_err"] ** 2, axis=(1, 2)))  # a lost point (NaN) left out
     rot = np.degrees(np.sqrt(np.mean(out["rot_err"] ** 2, axis=1))) if n_points == 0 else np.full(R, np.nan)
     pos, rot = np.where(np.isfinite(pos), pos, np.inf), np.where(np.isfinite(rot), rot, np.inf)
-    res = [(float(p), None if n_points else float(r)) for p, r in zip(pos, rot)]
-    ranked = sorted(((m, *r) for m, r in zip(names[1:], res[1:])), key=lambda t: badness(t[1], t[2], limits))
-    return res[0], ranked
+    return [(float(p), None if n_points else float(r)) for p, r in zip(pos, rot)]
 
 
 def badness(pos_mm: float, rot_deg: float | None, limits: Thresholds) -> float:
@@ -304,6 +320,12 @@ def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str 
                 f"frames-only RMS residual drops from {_fmt(*before)} to {_fmt(p, r)}). Check the data file's "
                 f"position columns; if they are right, a sign in the robot model (an alpha, a joint axis) makes "
                 f"it the mirror image of the arm measured"
+            )
+        if m in CONVENTION_MISTAKES.values():
+            return (
+                f"{head}{LIKELY}the robot file's DH table is {m} (read as {m.split(' read as ')[0]}, the "
+                f"frames-only RMS residual drops from {_fmt(*before)} to {_fmt(p, r)}). Check the robot file's "
+                "convention"
             )
         return (
             f"{head}{LIKELY}{m} (with that corrected, the frames-only RMS residual drops from "

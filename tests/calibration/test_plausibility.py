@@ -200,3 +200,23 @@ def test_a_prismatic_column_in_another_unit_than_the_positions_is_named():
     rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q=q, measured=m.measured), nested_max_poses=0).report
     assert not rep["plausible"]
     assert "Likely cause: prismatic joints in metres read as millimetres" in rep["implausible"], rep["implausible"]
+
+
+def test_a_dh_table_in_the_other_convention_is_named():
+    """The UR5's table measured as a modified-DH arm (NumPy FK, tests.helpers) and read as standard
+    DH, and the reverse: the refusal names the convention, with the frames-only residual the
+    table gives in the other one (the same data's, at the noise)."""
+    ur5 = jaxcal.preset("ur5")
+    rng = np.random.default_rng(8)
+    lim = np.asarray(ur5.q_limits)
+    q = lim[:, 0] + rng.uniform(size=(40, 6)) * (lim[:, 1] - lim[:, 0])
+    for truth, read in (("mdh", "sdh"), ("sdh", "mdh")):
+        T = dh_fk(np.asarray(ur5.dh), q, convention=truth)
+        points = T[:, :3, 3] + rng.normal(0, 0.02, (40, 3))
+        res = jaxcal.calibrate(ur5.replace(convention=read), q, points)
+        want = {"sdh": "modified DH read as standard DH", "mdh": "standard DH read as modified DH"}[read]
+        assert not res.plausible and f"Likely cause: the robot file's DH table is {want}" in res.implausible, (
+            res.implausible
+        )
+        after = float(res.implausible.split(" to ")[-1].split(" mm")[0])
+        assert after < 0.1  # the noise's 0.035 mm per point, with frames only
