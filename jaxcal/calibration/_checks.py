@@ -8,7 +8,7 @@ from jaxtyping import Bool, Float
 
 from .._config import as_f64
 from ..errors import DataError
-from ..robot import LENGTH_UNITS, Robot
+from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
 
 
 def _dtype(a):
@@ -118,6 +118,41 @@ UNIT_RATIO = 100.0
 PRISMATIC_UNIT_FACTOR = 100.0
 """A prismatic joint's values beyond this many times its limits' magnitude, in most poses, are in
 another length unit (a factor of 1000 between mm and m)."""
+
+
+BEYOND_LIMIT = 1e-6
+"""A reading beyond its joint's limit by more than this (rad or mm) lies outside them (less is the
+limit, written with rounding)."""
+
+
+def limit_notes(robot: Robot, q: Float[np.ndarray, "K n"], rows=None) -> tuple[str, ...]:
+    """A note per joint with limits of its own that some data rows lie beyond (``rows``: their
+    numbers in the file, default 1..K): the readings or the limits are wrong, and where most rows
+    lie beyond them, the limits may be in another unit than the robot file says."""
+    q = np.asarray(q)
+    rows = np.arange(1, len(q) + 1) if rows is None else np.asarray(rows)
+    lim = np.asarray(robot.q_limits)
+    beyond = ((q < lim[:, 0] - BEYOND_LIMIT) | (q > lim[:, 1] + BEYOND_LIMIT)) & robot.limits_given()
+    out = []
+    for j in np.flatnonzero(beyond.any(0)):  # few joints: each its own note
+        scale, unit = (
+            (ANGLE_UNITS[robot.units[1]], robot.units[1])
+            if robot.joint_types[j] == "R"
+            else (LENGTH_UNITS[robot.units[0]], robot.units[0])
+        )
+        k = np.flatnonzero(beyond[:, j])
+        listed = ", ".join(map(str, rows[k[:8]])) + (f" and {len(k) - 8} more" if len(k) > 8 else "")
+        lo, hi = lim[j] / scale
+        span = q[k, j] / scale
+        note = (
+            f"joint {j + 1} ({robot.joint_names[j]}): row(s) {listed} lie beyond its limits in the robot file "
+            f"([{lo:.6g}, {hi:.6g}] {unit}; readings {span.min():.6g} to {span.max():.6g}): the model is fitted "
+            "there, compensate flags commands beyond the limits; check the readings or the limits"
+        )
+        if len(k) > len(q) / 2:
+            note += f" (most rows lie beyond them: are the limits in another unit than the file's {unit}?)"
+        out.append(note)
+    return tuple(out)
 
 
 def check_angles(robot: Robot, q) -> None:

@@ -17,6 +17,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
+from ._checks import limit_notes
 from ._markers import moved_point
 from ._param_sets import Candidate
 from ._single import estimated, judge, still_joint_notes
@@ -436,6 +437,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         or None,
         "likely_input_mistake": plausibility.names_a_cause(why),
         "notes": list(still_joint_notes(robot, q))
+        + list(limit_notes(robot, q[p.valid], p.rows[p.valid]))
         + list(p.notes)
         + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
     }

@@ -29,7 +29,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
-from ._checks import as_target, check_units, lost_points
+from ._checks import as_target, check_units, limit_notes, lost_points
 from ._core import nominal_model
 from ._options import ELIMINATION_METHODS, Options, make_options
 from ._param_sets import Candidate, parse_params
@@ -529,7 +529,7 @@ def calibrate(
         options=opts,
         plausible=not why,
         implausible=why,
-        notes=still_joint_notes(robot, q) + ((reidentified,) if again is not None else ()),
+        notes=still_joint_notes(robot, q) + limit_notes(robot, q) + ((reidentified,) if again is not None else ()),
     )
 
 
