@@ -489,7 +489,13 @@ def _files(tmp_path):
     header_only.write_text(LINES[0] + "\n")
     mixed = tmp_path / "mixed.csv"
     mixed.write_text("\n".join(_mixed_m(LINES)) + "\n")
-    return dict(good=good_csv, bad_toml=bad_toml, header=header_only, mixed=mixed)
+    degrees = tmp_path / "degrees.csv"  # every joint column in degrees
+    rows = [line.split(",") for line in LINES[1:]]
+    degrees.write_text(
+        "\n".join([LINES[0]] + [",".join([repr(float(np.degrees(float(v)))) for v in r[:6]] + r[6:]) for r in rows])
+        + "\n"
+    )
+    return dict(good=good_csv, bad_toml=bad_toml, header=header_only, mixed=mixed, degrees=degrees)
 
 
 CLI = {
@@ -517,6 +523,10 @@ CLI = {
     "reproduce --pairs 0": (lambda f: ["reproduce", "--pairs", "0", "--out", f["good"].parent / "o"], "--pairs"),
     "calibrate header-only file": (lambda f: ["calibrate", "paper-6r", f["header"]], "header only, no data rows"),
     "calibrate mixed units": (lambda f: ["calibrate", "paper-6r", f["mixed"]], "mixed length units?"),
+    "calibrate joints in degrees": (
+        lambda f: ["calibrate", "paper-6r", f["degrees"]],
+        "(row 1, joint 'q",  # the file's row and column, not an array index
+    ),
     "calibrate missing data": (
         lambda f: ["calibrate", "paper-6r", f["good"].parent / "none.csv"],
         "measurement file not found",

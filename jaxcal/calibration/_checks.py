@@ -18,7 +18,7 @@ def _dtype(a):
         return None
 
 
-def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None):
+def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None, rows=None):
     """Validate ``q`` and the measurements; return ``(q, target, n_points)`` as float64 NumPy
     arrays (copies: the caller's arrays are never touched).
 
@@ -77,7 +77,7 @@ def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool |
         raise DataError(
             f"measured{list(idx)}: no point measured at this pose (all NaN); leave the pose out", option="measured"
         )
-    check_angles(robot, q)
+    check_angles(robot, q, rows)
     if kind == "poses":
         bad_row = np.abs(measured[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(-1) > 1e-9
         if bad_row.any():
@@ -155,13 +155,14 @@ def limit_notes(robot: Robot, q: Float[np.ndarray, "K n"], rows=None) -> tuple[s
     return tuple(out)
 
 
-def check_angles(robot: Robot, q) -> None:
+def check_angles(robot: Robot, q, rows=None) -> None:
     """Refuse joint angles that look like degrees: revolute values beyond both a full turn and
     the joint limits in most poses (a few such poses are left to the fit and its checks). A
     joint whose limits are the default ones may be a continuous joint turning several times: the
     message says so, since its values may be radians. Prismatic values far beyond their given
     limits in most poses are refused too (:data:`PRISMATIC_UNIT_FACTOR`): a positions check
-    cannot see millimetres read as metres when the points are scaled with the joint."""
+    cannot see millimetres read as metres when the points are scaled with the joint. ``rows``:
+    the poses' row numbers in the data file, to name one."""
     _prismatic_units(robot, np.asarray(q))
     revolute = np.array([t == "R" for t in robot.joint_types])
     if not revolute.any() or q.shape[-2] < 3:
@@ -171,16 +172,20 @@ def check_angles(robot: Robot, q) -> None:
     frac = over.any(-1).mean(-1)
     if np.any(frac > 0.5):
         idx = tuple(int(i) for i in np.argwhere(over)[0])
+        name = robot.joint_names[idx[-1]]
+        where = (
+            f"row {np.asarray(rows)[idx[0]]}, joint {name!r}" if rows is not None and q.ndim == 2 else f"q{list(idx)}"
+        )
         unit = robot.units[1]
         turns = (
-            f"; if joint {robot.joint_names[idx[-1]]!r} is a continuous joint whose readings run over several "
+            f"; if joint {name!r} is a continuous joint whose readings run over several "
             "turns, they are radians: give it limits that cover them in the robot file"
             if not robot.limits_given()[idx[-1]]
             else ""
         )
         raise DataError(
             f"q: joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the poses have a "
-            f"revolute joint beyond a full turn and its limits (q{list(idx)} = {q[idx]:.6g} rad); the "
+            f"revolute joint beyond a full turn and its limits ({where} = {q[idx]:.6g} rad); the "
             f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"{turns}',
             option="angle_unit",
         )

@@ -160,8 +160,9 @@ def _solve(robot: Robot, layout: Layout, opts: Options, q, target, n_sets: int) 
 
 def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     """Stage 1 (module docstring)."""
-    q, target, n_points = as_target(robot, data.q, data.measured, batched=False)
-    rows = np.arange(1, len(q) + 1) if getattr(data, "rows", None) is None else np.asarray(data.rows)
+    given = getattr(data, "rows", None)
+    rows = np.arange(1, len(data.q) + 1) if given is None else np.asarray(given)
+    q, target, n_points = as_target(robot, data.q, data.measured, batched=False, rows=rows)
     if len(still_joint_notes(robot, q)) == robot.n_joints:
         raise DataError(
             f"no joint moves over the {len(q)} poses: every row is the same posture (rows {rows[0]}..{rows[-1]}), "
