@@ -90,7 +90,10 @@ def read_ur_kinematics(path) -> Robot:
         raise RobotFileError(f"{path}: not valid YAML: {e}") from None
     kin = doc.get("kinematics") if isinstance(doc, dict) else None
     if not isinstance(kin, dict):
-        raise RobotFileError(f"{path}: a UR kinematics file needs a top-level 'kinematics' mapping")
+        raise RobotFileError(
+            f"{path}: a UR kinematics file needs a top-level 'kinematics' mapping (a .yaml robot file is read as "
+            "UR's ROS 2 kinematics file; a DH table goes in a .toml robot file)"
+        )
     origins = np.tile(np.eye(4), (6, 1, 1))
     for i, key in enumerate(UR_ORIGINS):
         v = _entry(kin, key, path)

@@ -122,7 +122,7 @@ def test_other_robots_refused(tmp_path, robot, why):
 @pytest.mark.parametrize(
     "text, msg",
     [
-        ("joints: []\n", "needs a top-level 'kinematics' mapping"),
+        ("joints: []\n", "read as UR's ROS 2 kinematics file; a DH table goes in a .toml robot file"),
         ("kinematics:\n  shoulder: 3\n", "kinematics.shoulder must be a mapping"),
         ("kinematics: [1, 2\n", "not valid YAML"),
     ],
