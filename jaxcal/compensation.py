@@ -283,19 +283,20 @@ def orientation_note(n_points: int, targets: Targets, name: str) -> str:
     )
 
 
-def tool_note(n_points: int, calibrated: Robot, nominal: Robot | None, name: str) -> str:
+def tool_note(n_points: int, calibrated: Robot, nominal: Robot | None, name: str, *, commands_only: bool) -> str:
     """A warning for joint commands alone (targets where the ``nominal`` robot puts its tool)
     given to a model calibrated from measured points (``n_points`` > 0, the model file ``name``):
-    its tool frame is where the points hang, not a calibrated tool centre point, so the commands
-    bring that frame to the nominal tool's targets. Empty otherwise."""
-    if not n_points or nominal is None:
+    no tool centre point was measured, and the commands bring the model's tool frame to the
+    targets, at its distance from the nominal tool on the flange. Empty otherwise."""
+    if not n_points or nominal is None or not commands_only:
         return ""
     d = float(np.linalg.norm(np.asarray(calibrated.tool)[:3, 3] - np.asarray(nominal.tool)[:3, 3]))
     return (
-        f"{name} was calibrated from measured points: its tool frame is where they hang ({d:.4g} mm from the "
-        "nominal robot's tool), not a calibrated tool centre point, and the commands' targets are where the "
-        "nominal robot puts its tool: the compensated commands bring that frame there, right only where the "
-        "measured point is the tool centre point (otherwise give x, y, z targets for the point, with --point)"
+        f"{name} was calibrated from measured points, not a tool centre point: the commands' targets are where "
+        f"the nominal robot puts its tool, and the compensated commands bring the model's tool frame there, "
+        f"{d:.4g} mm from the nominal robot's tool on the flange (a one-point model written by --out-robot has it "
+        "at the point); right only where that frame is the tool centre point, otherwise give x, y, z targets "
+        "for the point (--point)"
     )
 
 
@@ -331,7 +332,7 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
         poses, position_only = targets.poses, targets.position_only
     if targets.q is not None:  # the units checks calibrate and evaluate make, on the commands
         q = np.asarray(targets.q)
-        check_angles(calibrated, q)
+        check_angles(calibrated, q, targets.rows)
         model = np.asarray(fk(calibrated, q))[:, :3, 3]
         check_units(
             calibrated, q, poses, 0, batched=False, model_positions=model, robust=True, what="targets",

@@ -489,8 +489,9 @@ def _files(tmp_path):
     header_only.write_text(LINES[0] + "\n")
     mixed = tmp_path / "mixed.csv"
     mixed.write_text("\n".join(_mixed_m(LINES)) + "\n")
-    degrees = tmp_path / "degrees.csv"  # every joint column in degrees
+    degrees = tmp_path / "degrees.csv"  # every joint column in degrees; data row 1 has no position (dropped)
     rows = [line.split(",") for line in LINES[1:]]
+    rows[0][6:] = ["", "", ""]
     degrees.write_text(
         "\n".join([LINES[0]] + [",".join([repr(float(np.degrees(float(v)))) for v in r[:6]] + r[6:]) for r in rows])
         + "\n"
@@ -525,7 +526,7 @@ CLI = {
     "calibrate mixed units": (lambda f: ["calibrate", "paper-6r", f["mixed"]], "mixed length units?"),
     "calibrate joints in degrees": (
         lambda f: ["calibrate", "paper-6r", f["degrees"]],
-        "(row 1, joint 'q",  # the file's row and column, not an array index
+        "(row 2, joint 'q",  # the file's row (the first is dropped) and column, not an array index
     ),
     "calibrate missing data": (
         lambda f: ["calibrate", "paper-6r", f["good"].parent / "none.csv"],

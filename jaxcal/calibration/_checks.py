@@ -4,7 +4,7 @@ and evidence of a length unit that is not the robot's."""
 from __future__ import annotations
 
 import numpy as np
-from jaxtyping import Bool, Float
+from jaxtyping import Bool, Float, Int
 
 from .._config import as_f64
 from ..errors import DataError
@@ -18,7 +18,15 @@ def _dtype(a):
         return None
 
 
-def as_target(robot: Robot, q, measured, *, batched: bool, position_only: bool | None = None, rows=None):
+def as_target(
+    robot: Robot,
+    q,
+    measured,
+    *,
+    batched: bool,
+    position_only: bool | None = None,
+    rows: Int[np.ndarray, " K"] | None = None,
+):
     """Validate ``q`` and the measurements; return ``(q, target, n_points)`` as float64 NumPy
     arrays (copies: the caller's arrays are never touched).
 
@@ -121,41 +129,44 @@ another length unit (a factor of 1000 between mm and m)."""
 
 
 BEYOND_LIMIT = 1e-6
-"""A reading beyond its joint's limit by more than this (rad or mm) lies outside them (less is the
-limit, written with rounding)."""
+"""A reading beyond its joint's limit by more than this share of the limit (in the robot file's
+unit, at least one of it) lies outside them; less is the limit written with rounding."""
 
 
-def limit_notes(robot: Robot, q: Float[np.ndarray, "K n"], rows=None) -> tuple[str, ...]:
-    """A note per joint with limits of its own that some data rows lie beyond (``rows``: their
-    numbers in the file, default 1..K): the readings or the limits are wrong, and where most rows
-    lie beyond them, the limits may be in another unit than the robot file says."""
+def limit_notes(
+    robot: Robot, q: Float[np.ndarray, "K n"], rows: Int[np.ndarray, " K"] | None = None, *, poses=None
+) -> tuple[str, ...]:
+    """A note per joint with limits of its own that some poses lie beyond: the readings or the
+    limits are wrong, and where most poses lie beyond them, the limits may be in another unit
+    than the robot file says. ``rows``: the poses' row numbers in a data file; without, they are
+    named by their indices ``poses`` (default ``0..K-1``)."""
     q = np.asarray(q)
-    rows = np.arange(1, len(q) + 1) if rows is None else np.asarray(rows)
-    lim = np.asarray(robot.q_limits)
-    beyond = ((q < lim[:, 0] - BEYOND_LIMIT) | (q > lim[:, 1] + BEYOND_LIMIT)) & robot.limits_given()
+    scale = np.array(
+        [ANGLE_UNITS[robot.units[1]] if t == "R" else LENGTH_UNITS[robot.units[0]] for t in robot.joint_types]
+    )
+    lim = np.asarray(robot.q_limits) / scale[:, None]  # the file's units, as the note gives them
+    v = q / scale
+    slack = BEYOND_LIMIT * np.maximum(np.abs(lim), 1.0)
+    beyond = ((v < lim[:, 0] - slack[:, 0]) | (v > lim[:, 1] + slack[:, 1])) & robot.limits_given()
+    label, names = ("row(s)", np.asarray(rows)) if rows is not None else ("pose(s)", np.arange(len(q)))
+    names = names if poses is None else np.asarray(poses)
     out = []
     for j in np.flatnonzero(beyond.any(0)):  # few joints: each its own note
-        scale, unit = (
-            (ANGLE_UNITS[robot.units[1]], robot.units[1])
-            if robot.joint_types[j] == "R"
-            else (LENGTH_UNITS[robot.units[0]], robot.units[0])
-        )
+        unit = robot.units[1] if robot.joint_types[j] == "R" else robot.units[0]
         k = np.flatnonzero(beyond[:, j])
-        listed = ", ".join(map(str, rows[k[:8]])) + (f" and {len(k) - 8} more" if len(k) > 8 else "")
-        lo, hi = lim[j] / scale
-        span = q[k, j] / scale
+        listed = ", ".join(map(str, names[k[:8]])) + (f" and {len(k) - 8} more" if len(k) > 8 else "")
         note = (
-            f"joint {j + 1} ({robot.joint_names[j]}): row(s) {listed} lie beyond its limits in the robot file "
-            f"([{lo:.6g}, {hi:.6g}] {unit}; readings {span.min():.6g} to {span.max():.6g}): the model is fitted "
-            "there, compensate flags commands beyond the limits; check the readings or the limits"
+            f"joint {j + 1} ({robot.joint_names[j]}): {label} {listed} lie beyond its limits in the robot file "
+            f"([{lim[j, 0]:.8g}, {lim[j, 1]:.8g}] {unit}; readings {v[k, j].min():.8g} to {v[k, j].max():.8g}): the "
+            "model is fitted there, compensate flags commands beyond the limits; check the readings or the limits"
         )
         if len(k) > len(q) / 2:
-            note += f" (most rows lie beyond them: are the limits in another unit than the file's {unit}?)"
+            note += f" (most lie beyond them: are the limits in another unit than the file's {unit}?)"
         out.append(note)
     return tuple(out)
 
 
-def check_angles(robot: Robot, q, rows=None) -> None:
+def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> None:
     """Refuse joint angles that look like degrees: revolute values beyond both a full turn and
     the joint limits in most poses (a few such poses are left to the fit and its checks). A
     joint whose limits are the default ones may be a continuous joint turning several times: the

@@ -210,7 +210,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
         raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}{why}", option="data")
     # the checks calibrate makes (finite values, a lost point NaN in all three coordinates, proper
     # rotations): a NaN joint or coordinate would otherwise leave a pose out of the figures unsaid
-    as_target(model.robot, meas.q, meas.measured, batched=False)
+    as_target(model.robot, meas.q, meas.measured, batched=False, rows=getattr(meas, "rows", None))
     q = np.asarray(meas.q)
     pred = np.asarray(_predict(model, q))
     check_units(model.robot, q, meas.measured, M, batched=False, model_positions=_positions(pred, M), model="the model")

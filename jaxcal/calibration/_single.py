@@ -529,7 +529,9 @@ def calibrate(
         options=opts,
         plausible=not why,
         implausible=why,
-        notes=still_joint_notes(robot, q) + limit_notes(robot, q) + ((reidentified,) if again is not None else ()),
+        notes=still_joint_notes(robot, q)
+        + limit_notes(robot, q[fitted], poses=np.flatnonzero(fitted))  # the poses fitted, indexed as outliers
+        + ((reidentified,) if again is not None else ()),
     )
 
 

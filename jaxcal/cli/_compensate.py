@@ -46,7 +46,7 @@ def compensate(
     cal = _target_frame(model, calibrated, point, commands_only=tg.poses is None)
     for note in (
         orientation_note(model.n_points, tg, str(calibrated)),
-        tool_note(model.n_points, cal, nom, str(calibrated)),
+        tool_note(model.n_points, cal, nom, str(calibrated), commands_only=tg.poses is None),
     ):
         if note:
             console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)

@@ -172,8 +172,9 @@ def test_four_points_with_occluded_markers(tmp_path, monkeypatch, capsys):
     shift = np.eye(4)
     shift[2, 3] = 50.0
     further = np.asarray(ur5.tool) @ shift
-    note = tool_note(p1.n_points, p1.robot, ur5.replace(tool=further), "p1.toml")
-    assert abs(float(re.search(r"\(([\d.]+) mm from the nominal robot's tool\)", note).group(1)) - 50.0) < 1.0
+    note = tool_note(p1.n_points, p1.robot, ur5.replace(tool=further), "p1.toml", commands_only=True)
+    assert abs(float(re.search(r"there, ([\d.]+) mm from the nominal robot's tool", note).group(1)) - 50.0) < 1.0
+    assert tool_note(p1.n_points, p1.robot, ur5, "p1.toml", commands_only=False) == ""  # x, y, z targets
     # all four points of a four-point model: the lost ones are None per pose and left out of the figures
     code, out, err = run_cli(
         monkeypatch, capsys, "evaluate", tmp_path / "m4.toml", data, "--json", tmp_path / "e4.json"
