@@ -323,9 +323,9 @@ def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str 
             )
         if m in CONVENTION_MISTAKES.values():
             return (
-                f"{head}{LIKELY}the robot file's DH table is {m} (read as {m.split(' read as ')[0]}, the "
-                f"frames-only RMS residual drops from {_fmt(*before)} to {_fmt(p, r)}). Check the robot file's "
-                "convention"
+                f"{head}{LIKELY}the robot file's DH table is {m.replace(' read', ', read')} (in "
+                f"{m.split(' read as ')[0]} the frames-only RMS residual drops from {_fmt(*before)} to {_fmt(p, r)}). "
+                f'Check the robot file\'s convention (convention = "{"mdh" if m.startswith("modified") else "sdh"}")'
             )
         return (
             f"{head}{LIKELY}{m} (with that corrected, the frames-only RMS residual drops from "

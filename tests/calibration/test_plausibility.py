@@ -214,9 +214,10 @@ def test_a_dh_table_in_the_other_convention_is_named():
         T = dh_fk(np.asarray(ur5.dh), q, convention=truth)
         points = T[:, :3, 3] + rng.normal(0, 0.02, (40, 3))
         res = jaxcal.calibrate(ur5.replace(convention=read), q, points)
-        want = {"sdh": "modified DH read as standard DH", "mdh": "standard DH read as modified DH"}[read]
+        want = {"sdh": "modified DH, read as standard DH", "mdh": "standard DH, read as modified DH"}[read]
         assert not res.plausible and f"Likely cause: the robot file's DH table is {want}" in res.implausible, (
             res.implausible
         )
+        assert f'(convention = "{truth}")' in res.implausible
         after = float(res.implausible.split(" to ")[-1].split(" mm")[0])
         assert after < 0.1  # the noise's 0.035 mm per point, with frames only
