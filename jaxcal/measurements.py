@@ -591,8 +591,8 @@ def write_measurements(
     if robot is not None:  # the robot's units, which read_measurements assumes for it
         if q.shape[1] != robot.n_joints:
             raise DataError(f"write_measurements: q has {q.shape[1]} joints, robot {robot.name!r} {robot.n_joints}")
-        lu, au = LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]
-        q = q / np.array([lu if t == "P" else au for t in robot.joint_types])
+        lu = LENGTH_UNITS[robot.units[0]]
+        q = q / robot.joint_scale()
         if meas.shape == (K, 4, 4):
             meas[:, :3, 3] /= lu
         else:

@@ -8,7 +8,7 @@ from jaxtyping import Bool, Float, Int
 
 from .._config import as_f64
 from ..errors import DataError
-from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
+from ..robot import LENGTH_UNITS, Robot
 
 
 def _dtype(a):
@@ -141,9 +141,7 @@ def limit_notes(
     than the robot file says. ``rows``: the poses' row numbers in a data file; without, they are
     named by their indices ``poses`` (default ``0..K-1``)."""
     q = np.asarray(q)
-    scale = np.array(
-        [ANGLE_UNITS[robot.units[1]] if t == "R" else LENGTH_UNITS[robot.units[0]] for t in robot.joint_types]
-    )
+    scale = robot.joint_scale()
     lim = np.asarray(robot.q_limits) / scale[:, None]  # the file's units, as the note gives them
     v = q / scale
     slack = BEYOND_LIMIT * np.maximum(np.abs(lim), 1.0)

@@ -11,7 +11,7 @@ from .._io import json_text
 from ..camera import n_params as camera_size
 from ..kinematics import fk
 from ..model import Layout, Model, measured_robot, observed, predict
-from ..robot import ANGLE_UNITS, LENGTH_UNITS, Robot
+from ..robot import Robot
 from ..solvers import robust_scale
 from . import _core as core
 from . import _outliers as outliers
@@ -115,12 +115,8 @@ def frame_doc(T) -> dict:
 def training_ranges(robot, q, valid, *, file_units: bool = False) -> dict:
     """``{joint name: [lowest, highest]}`` of the poses a model was fitted on: mm and rad, or in the
     robot file's units (a prismatic joint in its length unit)."""
-    lu, au = (LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]) if file_units else (1.0, 1.0)
-    q = np.asarray(q)[np.asarray(valid, bool)]
-    return {
-        name: [float(q[:, j].min() / (au if t == "R" else lu)), float(q[:, j].max() / (au if t == "R" else lu))]
-        for j, (name, t) in enumerate(zip(robot.joint_names, robot.joint_types))
-    }
+    q = np.asarray(q)[np.asarray(valid, bool)] / (robot.joint_scale() if file_units else 1.0)
+    return {name: [float(q[:, j].min()), float(q[:, j].max())] for j, name in enumerate(robot.joint_names)}
 
 
 def _heldout(fits, fr, p):

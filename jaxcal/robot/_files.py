@@ -9,7 +9,7 @@ import numpy as np
 
 from .._io import check_writable
 from ..errors import RobotFileError
-from ._robot import ANGLE_UNITS, LENGTH_UNITS, Robot
+from ._robot import Robot
 from ._toml import point_numbers_toml, read_toml, save_toml, training_ranges_toml
 from ._ur import read_ur_kinematics
 from ._urdf import calibrated_chain as _urdf_chain
@@ -117,8 +117,7 @@ def save_robot(
         )  # fmt: skip
     else:
         if training_ranges:
-            lu, au = LENGTH_UNITS[robot.units[0]], ANGLE_UNITS[robot.units[1]]
-            kind = dict(zip(robot.joint_names, robot.joint_types))
-            file = {n: [v / (au if kind[n] == "R" else lu) for v in r] for n, r in training_ranges.items()}
+            scale = dict(zip(robot.joint_names, robot.joint_scale()))
+            file = {n: [v / scale[n] for v in r] for n, r in training_ranges.items()}
             comment = dict(comment or {}) | {"training_ranges": file}
         save_toml(robot, path, comment=comment, points=points, point_numbers=point_numbers)

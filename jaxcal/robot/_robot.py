@@ -186,6 +186,13 @@ class Robot(eqx.Module):
         default = np.array([DEFAULT_LIMITS[t] for t in self.joint_types])
         return ~np.all(np.abs(lim - default) < 1e-12, axis=1)
 
+    def joint_scale(self) -> np.ndarray:
+        """``(n,)`` mm or rad per unit of the robot file, per joint (its length unit for a
+        prismatic joint, its angle unit for a revolute one): a joint value in the file's units is
+        ``q / joint_scale()``."""
+        lu, au = LENGTH_UNITS[self.units[0]], ANGLE_UNITS[self.units[1]]
+        return np.array([au if t == "R" else lu for t in self.joint_types])
+
     def reach(self, q=None) -> float:
         """A rough size of the arm in mm: the DH lengths, the tool offset and the prismatic
         strokes added up (the scale that judges residuals and parameter changes). A stroke is

@@ -216,7 +216,7 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None, poi
     lu_name, au_name = robot.units
     lu, au = LENGTH[lu_name], ANGLE[au_name]
     dh = np.asarray(robot.dh) / np.array([au, lu, lu, au])
-    lim = np.asarray(robot.q_limits) / np.array([[au if t == "R" else lu] for t in robot.joint_types])
+    lim = np.asarray(robot.q_limits) / robot.joint_scale()[:, None]
     doc = {
         "name": robot.name,
         "convention": robot.convention,
