@@ -134,7 +134,11 @@ unit, at least one of it) lies outside them; less is the limit written with roun
 
 
 def limit_notes(
-    robot: Robot, q: Float[np.ndarray, "K n"], rows: Int[np.ndarray, " K"] | None = None, *, poses=None
+    robot: Robot,
+    q: Float[np.ndarray, "K n"],
+    rows: Int[np.ndarray, " K"] | None = None,
+    *,
+    poses: Int[np.ndarray, " K"] | None = None,
 ) -> tuple[str, ...]:
     """A note per joint with limits of its own that some poses lie beyond: the readings or the
     limits are wrong, and where most poses lie beyond them, the limits may be in another unit

@@ -29,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from jaxtyping import Float
 
 from ..model import Layout, Model
 from ..robot import Robot
@@ -236,7 +237,14 @@ def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thr
     return res[0], ranked
 
 
-def _frames_only(robot: Robot, Q, T, n_points: int, layout: Layout, memory_mb: float) -> list:
+def _frames_only(
+    robot: Robot,
+    Q: Float[np.ndarray, "R K n"],
+    T: Float[np.ndarray, "R K ..."],
+    n_points: int,
+    layout: Layout,
+    memory_mb: float,
+) -> list:
     """``[(position RMS mm, rotation RMS deg or None)]`` of the frames-only fit (nominal
     kinematics, base and tool estimated) of each data set ``Q (R, K, n)``, ``T`` in one batch."""
     R, K = Q.shape[:2]
