@@ -10,7 +10,9 @@ from .._config import jit
 from ..errors import DataError
 from ..model import Model, predict
 from ..robot import Robot
+from ..solvers import OUTLIER_SIGMAS
 from ._checks import as_target, check_units, zero_points
+from ._outliers import assess
 from ._plausibility import RESIDUAL_SHARE, variants
 
 _predict = jit(predict)  # one program, not one per operation
@@ -73,6 +75,30 @@ def _errors(pred, target, n_points: int):
     dR = np.einsum("kij,klj->kil", target[:, :3, :3], pred[:, :3, :3])
     rot = np.degrees(np.arccos(np.clip((np.trace(dR, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)))
     return np.linalg.norm(target[:, :3, 3] - pred[:, :3, 3], axis=-1)[:, None], rot
+
+
+def _stand_out(pos, rot) -> tuple[np.ndarray, np.ndarray]:
+    """``(flags (K,), sigmas (K,))``: the poses whose errors stand out of the others' as the
+    outlier rule of a calibration judges a fit's residuals (:func:`._outliers.assess` at
+    :data:`jaxcal.solvers.OUTLIER_SIGMAS`), from ``pos (K, M)`` mm and ``rot (K,)`` deg or None.
+    A fit leaves such poses out; scored as they are, they can set a file's RMS alone."""
+    seen = np.isfinite(pos)
+    norms = np.sqrt(np.sum(np.where(seen, pos, 0.0) ** 2, -1))
+    fit = {"pos_norms": norms[None], "rot_norms": (np.zeros_like(norms) if rot is None else np.radians(rot))[None]}
+    det = assess(fit, seen.any(-1)[None], 3 * seen.sum(-1), poses=rot is not None, sigmas=OUTLIER_SIGMAS)
+    return det.flags[0], det.sigmas[0]
+
+
+def _stand_out_note(rows, sigmas, pos) -> str:
+    """The warning naming the poses that stand out, with the RMS of the others (mm)."""
+    listed = ", ".join(f"{int(r)} ({u:.3g})" for r, u in list(zip(rows, sigmas))[:10])
+    more = f" and {len(rows) - 10} more" if len(rows) > 10 else ""
+    return (
+        f"row(s) {listed}{more} stand out of the others' errors (in standard deviations of their noise, beyond "
+        f"the {OUTLIER_SIGMAS:g}-sigma rule calibrate leaves poses out by): a measurement gone wrong (a swapped "
+        f"marker label, a knock), postures the model predicts badly, or the rows its calibration left out as "
+        f"outliers; the figures include them; without them the position RMS is {_stats(pos)['rms_mm']:.4g} mm"
+    )
 
 
 def _rms(model: Model, q, target, n_points: int) -> tuple[float, float]:
@@ -183,7 +209,10 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
       rad, as a calibrated model file records them, or the ``training`` data's): how many poses
       have a joint outside them, and ``warnings`` when more than :data:`OUTSIDE_WARNING` do: the
       model was not fitted there and extrapolates; and when the errors are far beyond a
-      calibration's, with the input mistake that would explain them if one does.
+      calibration's, with the input mistake that would explain them if one does;
+    * ``outliers``: ``{row, sigmas}`` of the poses whose errors stand out of the others' by the rule
+      a calibration leaves poses out by (worst first), ``without_outliers`` the summary without
+      them, and a warning naming them; the figures above include them.
 
     Joint values that look like degrees, and positions whose spread is not the model's (another
     length unit), are refused (:class:`jaxcal.DataError` naming the option), as by calibrate.
@@ -242,6 +271,16 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             "the arm's own geometric errors: calibrate it first"
         )
     out["warnings"] = _zeros(meas) + few + far
+    flags, sigmas = _stand_out(pos, rot)
+    order = np.argsort(-np.where(flags, sigmas, -np.inf))[: int(flags.sum())]  # the worst first
+    out["outliers"] = [{"row": int(meas.rows[k]), "sigmas": float(sigmas[k])} for k in order]
+    if flags.any() and not flags.all():
+        kept = {f"position_{k}": v for k, v in _stats(pos[~flags]).items()}
+        if rot is not None:
+            kept |= {f"rotation_{k.replace('_mm', '_deg')}": v for k, v in _stats(rot[~flags]).items()}
+        out["without_outliers"] = {"poses": int((~flags).sum())} | kept
+        if not few:  # else named as rows far beyond a calibration's
+            out["warnings"].append(_stand_out_note(np.asarray(meas.rows)[order], sigmas[order], pos[~flags]))
     if ranges is not None:
         away = outside(model.robot, meas.q, ranges)
         share = float(away.mean()) if len(away) else 0.0
