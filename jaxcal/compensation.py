@@ -213,7 +213,8 @@ def compensate(
     # not for default limits: a continuous joint (no limits) would be sent a turn round instead
     q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]) & calibrated.limits_given())
     reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
-    outside = (q < lim[:, 0] - LIMIT_TOL) | (q > lim[:, 1] + LIMIT_TOL)
+    # a joint given no limits has none to be outside of (its defaults are a sampling range)
+    outside = ((q < lim[:, 0] - LIMIT_TOL) | (q > lim[:, 1] + LIMIT_TOL)) & calibrated.limits_given()
     rev = np.array([t == "R" for t in calibrated.joint_types])
     turned = np.abs(np.asarray(_wrap(q - q_start)))[:, rev]  # a whole turn into the limits is no move
     return Compensation(

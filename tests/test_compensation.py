@@ -131,6 +131,23 @@ def test_out_of_limit_and_unreachable_targets_are_flagged(rng):
     assert_allclose(res.q, q_true, atol=1e-8)
 
 
+def test_a_joint_given_no_limits_has_none_to_be_outside_of():
+    """The UR presets give no limits (their +-pi is a sampling range; the arms turn +-2 pi): a
+    command of 4.5 rad is within the limits, and stays where it is (not turned into +-pi). A
+    joint given limits is still judged by them."""
+    ur5 = preset("ur5")
+    assert not ur5.limits_given().any()
+    q = np.array([[4.5, -1.0, 1.2, -0.5, 1.0, 0.3], [-5.0, -1.2, 1.0, 0.4, -1.0, 2.0]])
+    targets = dh_fk(np.asarray(ur5.dh), q)
+    res = compensate(ur5, targets, q + 0.01)
+    assert res.ok.all() and res.within_limits.all()
+    assert_allclose(res.q, q, atol=1e-8)
+    lim = np.asarray(ur5.q_limits).copy()
+    lim[0] = -1.0, 1.0  # given: neither 4.5 nor -5.0 rad lies within them, a turn on or not
+    res = compensate(ur5.replace(q_limits=lim), targets, q + 0.01)
+    assert not res.within_limits.any() and not res.ok.any()
+
+
 def test_nominal_commands_are_moved_into_the_calibrated_frame(rng, tmp_path):
     """Targets given as nominal commands, a calibrated model whose base is a tracker frame far from
     the robot: the targets are built in the model's frame, every command is reached with a small

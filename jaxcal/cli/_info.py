@@ -25,20 +25,24 @@ def info(
     if r.convention == "joint":
         for col in ("joint", "name", "type", "axis", "origin xyz (mm)", "origin rpy (rad)", "limits (rad; P: mm)"):
             table.add_column(col)
-        for i, (O, a, t, n, lim) in enumerate(
-            zip(np.asarray(r.origins), np.asarray(r.axes), r.joint_types, r.joint_names, np.asarray(r.q_limits)), 1
-        ):
+        for i, (O, a, t, n, lim, given) in enumerate(
+            zip(
+                np.asarray(r.origins), np.asarray(r.axes), r.joint_types, r.joint_names, np.asarray(r.q_limits),
+                r.limits_given(),
+            ),
+            1,
+        ):  # fmt: skip
             rpy = np.asarray(matrix_to_rpy(O[:3, :3]))
             table.add_row(
                 str(i), n, t, " ".join(f"{v:.3g}" for v in a), " ".join(f"{v:.6g}" for v in O[:3, 3]),
-                " ".join(f"{v:.6g}" for v in rpy), f"{lim[0]:.4g} .. {lim[1]:.4g}",
+                " ".join(f"{v:.6g}" for v in rpy), _limits(lim, given),
             )  # fmt: skip
     else:
         for col in ("joint", "name", "type", "theta (rad)", "d (mm)", "a (mm)", "alpha (rad)", "limits (rad; P: mm)"):
             table.add_column(col)
-        rows = zip(np.asarray(r.dh), r.joint_types, r.joint_names, np.asarray(r.q_limits))
-        for i, (row, t, n, lim) in enumerate(rows, start=1):
-            table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row), f"{lim[0]:.4g} .. {lim[1]:.4g}")
+        rows = zip(np.asarray(r.dh), r.joint_types, r.joint_names, np.asarray(r.q_limits), r.limits_given())
+        for i, (row, t, n, lim, given) in enumerate(rows, start=1):
+            table.add_row(str(i), n, t, *(f"{v:.6g}" for v in row), _limits(lim, given))
     console.print(table)
     # the frames a calibration estimates (identity in a nominal file): part of the model as the chain is
     for what in ("base", "tool"):
@@ -53,3 +57,8 @@ def info(
             "(jaxcal_measurement_frame), tool = jaxcal_tool",
             highlight=False,
         )
+
+
+def _limits(lim, given: bool) -> str:
+    """A joint's limits; a joint given none says so (its defaults are where poses are drawn)."""
+    return f"{lim[0]:.4g} .. {lim[1]:.4g}" if given else f"none (sampled {lim[0]:.4g} .. {lim[1]:.4g})"

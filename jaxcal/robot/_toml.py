@@ -217,6 +217,7 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None, poi
     lu, au = LENGTH[lu_name], ANGLE[au_name]
     dh = np.asarray(robot.dh) / np.array([au, lu, lu, au])
     lim = np.asarray(robot.q_limits) / robot.joint_scale()[:, None]
+    given = robot.limits_given()
     doc = {
         "name": robot.name,
         "convention": robot.convention,
@@ -230,8 +231,9 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None, poi
                 "a": float(r[2]),
                 "alpha": float(r[3]),
                 "type": t,
-                "limits": [float(lim[i, 0]), float(lim[i, 1])],
             }
+            # limits the robot was given; without, the file gives none either (read back as none)
+            | ({"limits": [float(lim[i, 0]), float(lim[i, 1])]} if given[i] else {})
             for i, (r, t) in enumerate(zip(dh, robot.joint_types))
         ],
     }

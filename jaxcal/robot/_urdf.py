@@ -443,7 +443,7 @@ def urdf_text(
         doc = yourdfpy.Robot(name=robot.name)
         doc.links.append(yourdfpy.Link(name="base_link"))
         parent = "base_link"
-        lim = np.asarray(robot.q_limits)
+        lim, given = np.asarray(robot.q_limits), robot.limits_given()
         for i, nm in enumerate(robot.joint_names):
             child = f"link_{i + 1}"
             doc.links.append(yourdfpy.Link(name=child))
@@ -451,12 +451,16 @@ def urdf_text(
             doc.joints.append(
                 yourdfpy.Joint(
                     name=nm,
-                    type="revolute" if robot.joint_types[i] == "R" else "prismatic",
+                    # a revolute joint given no limits has none here either (its defaults are a
+                    # sampling range, not the arm's)
+                    type=("revolute" if given[i] else "continuous") if robot.joint_types[i] == "R" else "prismatic",
                     parent=parent,
                     child=child,
                     origin=_m(np.asarray(robot.origins)[i] @ _folded(robot, i)),
                     axis=np.asarray(robot.axes)[i],
-                    limit=yourdfpy.Limit(effort=0.0, velocity=0.0, lower=lim[i, 0] * scale, upper=lim[i, 1] * scale),
+                    limit=yourdfpy.Limit(effort=0.0, velocity=0.0, lower=lim[i, 0] * scale, upper=lim[i, 1] * scale)
+                    if given[i] or robot.joint_types[i] == "P"
+                    else yourdfpy.Limit(effort=0.0, velocity=0.0),
                 )
             )
             parent = child

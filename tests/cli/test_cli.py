@@ -261,3 +261,13 @@ def test_info_shows_the_frames_and_limits_of_a_dh_robot(tmp_path, monkeypatch, c
     assert code in (0, None), err
     assert "base: xyz 10 -20 30 mm, rpy 0.1 0.2 0.3 rad" in out and "tool: xyz 0 0 0 mm" in out
     assert out.count("-1.25") == 6  # each joint's lower limit (the column may wrap)
+
+
+def test_info_says_a_joint_given_no_limits_has_none(monkeypatch, capsys):
+    """The UR presets give no limits: `info` says so, and shows the range poses are sampled in
+    (the Panda preset's are its own)."""
+    code, out, err = run_cli(monkeypatch, capsys, "info", "ur5")
+    assert code in (0, None), err
+    assert out.count("none") == out.count("sampled") == 6 and out.count("3.142") == 12  # the column may wrap
+    code, out, err = run_cli(monkeypatch, capsys, "info", "panda")
+    assert "none" not in out and out.count("2.897") == 8

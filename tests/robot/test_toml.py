@@ -122,6 +122,34 @@ def test_limits_left_out_are_the_same_in_code_and_file(tmp_path):
     assert_allclose(np.asarray(load_robot(p).q_limits), want)
 
 
+def test_limits_not_given_are_not_written_as_limits(tmp_path):
+    """A robot given no limits (the UR presets: +-pi is their sampling range) is written without
+    them, in TOML (no ``limits`` key) and in a URDF (revolute joints continuous, as yourdfpy reads
+    them), and reads back as given none; a joint given limits keeps them in both."""
+    import tomllib
+
+    import yourdfpy
+
+    from jaxcal import preset, save_robot, to_joint
+
+    lim = np.tile([-np.pi, np.pi], (6, 1))
+    lim[2] = -2.5, 2.5  # one joint given limits
+    robot = preset("ur5").replace(q_limits=lim)
+    save_robot(robot, tmp_path / "u.toml")
+    joints = tomllib.loads((tmp_path / "u.toml").read_text())["joints"]
+    assert ["limits" in j for j in joints] == [False, False, True, False, False, False]
+    assert joints[2]["limits"] == [-2.5, 2.5]
+    save_robot(to_joint(robot), tmp_path / "u.urdf")
+    urdf = yourdfpy.URDF.load(str(tmp_path / "u.urdf"), build_scene_graph=False, load_meshes=False)
+    kinds = [urdf.joint_map[n].type for n in robot.joint_names]
+    assert kinds == ["continuous", "continuous", "revolute", "continuous", "continuous", "continuous"]
+    assert (urdf.joint_map["q3"].limit.lower, urdf.joint_map["q3"].limit.upper) == (-2.5, 2.5)
+    for path in ("u.toml", "u.urdf"):
+        back = load_robot(tmp_path / path)
+        assert back.limits_given().tolist() == [False, False, True, False, False, False]
+        assert_allclose(np.asarray(back.q_limits), lim)
+
+
 def test_constructor_does_not_mutate_inputs():
     dh = np.zeros((2, 4))
     before = dh.copy()
