@@ -60,6 +60,12 @@ def design(
         "replaces the --val-poses random ones",
     ),
     random_sets: int = typer.Option(200, "--random-sets", help="random pose sets to compare the design with"),
+    limit_margin: float = typer.Option(
+        None,
+        "--limit-margin",
+        help="share of each joint's range a gradient design keeps free at either end of the robot file's limits "
+        "(a real arm faults at its hard limits; default 0.02); 0 for none",
+    ),
     json_out: Path = typer.Option(None, "--json", help="write the design's summary as JSON"),
     base_link: str = typer.Option(None, help=BASE_LINK_HELP),
     tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
@@ -95,6 +101,7 @@ def design(
             q_val=q_val,
             seed=seed,
             params_from=params_from,
+            **({} if limit_margin is None else {"limit_margin": limit_margin}),
             **given,
             sigma_pos_mm=noise_mm,
             sigma_rot_rad=noise_rad,

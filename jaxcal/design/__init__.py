@@ -20,6 +20,7 @@ from ._optimize import objective_and_grad as objective_and_grad
 from ._optimize import optimal_poses as optimal_poses
 from ._problem import CRITERIA as CRITERIA
 from ._problem import DEFAULT_POINT_MM as DEFAULT_POINT_MM
+from ._problem import LIMIT_MARGIN as LIMIT_MARGIN
 from ._problem import DesignProblem as DesignProblem
 from ._problem import design_problem as design_problem
 from ._problem import evaluate as evaluate

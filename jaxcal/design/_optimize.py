@@ -81,6 +81,14 @@ def penalty(problem: DesignProblem, cons: Constraints, q: Float[Array, "K n"]) -
     return PENALTY * (pen + cons.box_on * jnp.sum(viol**2) + cons.view_on * jnp.sum(off**2))
 
 
+def within_margin(problem: DesignProblem) -> DesignProblem:
+    """The problem with its limits moved inside by its :attr:`~DesignProblem.margin` (the same
+    compiled programs: the limits are data)."""
+    return eqx.tree_at(
+        lambda p: (p.lower, p.upper), problem, (problem.lower + problem.margin, problem.upper - problem.margin)
+    )
+
+
 def to_q(problem: DesignProblem, u):
     c, h = (problem.upper + problem.lower) / 2, (problem.upper - problem.lower) / 2
     return c + h * jnp.sin(u)
@@ -150,7 +158,9 @@ def optimal_poses(
     * ``problem``: :func:`design_problem` (robot, options, criterion, validation set).
     * ``starts``: BFGS runs from that many random configuration sets (uniform within the limits,
       the tool in the region), in one compiled call; the best feasible result wins. ``seed`` seeds them and
-      the random comparison. ``q0 (S, N, n)`` or ``(N, n)`` gives the starts instead.
+      the random comparison. ``q0 (S, N, n)`` or ``(N, n)`` gives the starts instead. The
+      designs stay the problem's ``margin`` inside the joint limits (the random sets they are
+      compared with are drawn within the limits).
     * ``min_spread``: smallest joint-space Euclidean distance between two configurations (rad;
       mm for prismatic joints). ``region``: ``(lower xyz, upper xyz)`` in mm, a box in the frame
       of the forward kinematics that every measured point must stay in. ``view``: ``(origin
@@ -196,6 +206,7 @@ def optimal_poses(
             option="n_poses",
         )
     rng = np.random.default_rng([seed, 2])
+    full, problem = problem, within_margin(problem)  # designed inside the margin; compared with random sets in full
     pool_asked = start_pool
     if q0 is None and start_pool:
         where = constraints(0.0, region, view)  # the exchange keeps the spread among the chosen
@@ -240,8 +251,8 @@ def optimal_poses(
         q=frozen(q[best]),
         criterion=problem.criterion,
         values=values,
-        random_values=random_values(problem, cons, n_poses, n_random, rng),
-        random_by_count=random_by_count(problem, cons, n_poses, rng),
+        random_values=random_values(full, cons, n_poses, n_random, rng),
+        random_by_count=random_by_count(full, cons, n_poses, rng),
         method="gradient",
         base_names=problem.base_names(),
         feasible=bool(good[best]),

@@ -50,6 +50,10 @@ directions): off the last joint's axis, as a real marker is, yet where the tool 
 a region or a view."""
 
 
+LIMIT_MARGIN = 0.02
+"""Share of a joint's range a gradient design keeps free at either end of its limits."""
+
+
 class DesignProblem(eqx.Module):
     """What a criterion needs, built by :func:`design_problem` (arrays; the layout and the base
     columns static)."""
@@ -68,6 +72,9 @@ class DesignProblem(eqx.Module):
     """One-hot selection of the criterion (``d``, ``a``, ``validation``)."""
     lower: Float[Array, " n"]
     upper: Float[Array, " n"]
+    margin: Float[Array, " n"]
+    """How far inside its limits a designed configuration stays, per joint (rad; mm for a
+    prismatic joint): a real arm faults at its hard limits, where an optimum tends to lie."""
     layout: Layout = eqx.field(static=True)
     base: tuple[int, ...] = eqx.field(static=True)
 
@@ -283,6 +290,7 @@ def design_problem(
     n_val: int = 200,
     seed: int = 0,
     params_from=None,
+    limit_margin: float = LIMIT_MARGIN,
     **kw,
 ) -> DesignProblem:
     """The design problem of a calibration of ``robot`` with these options.
@@ -308,6 +316,9 @@ def design_problem(
       parameters that calibration estimated, with its prior, compliances, ``estimate_base`` and
       ``estimate_tool`` (:func:`jaxcal.design.report_options`); keywords given here win over
       the report.
+    * ``limit_margin``: the share of each joint's range a gradient design keeps free at either
+      end of the limits the robot gives (none for a joint given none: its range is a sampling
+      range); a pool's rows and the random sets are taken as they are.
     """
     if criterion not in CRITERIA:
         raise DataError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}", option="criterion")
@@ -363,6 +374,11 @@ def design_problem(
     lam, U = np.linalg.eigh((S + S.T) / 2)
     F = np.sqrt(np.clip(lam, 0.0, None))[:, None] * U.T
     lim = np.asarray(robot.q_limits)
+    if not (isinstance(limit_margin, (int, float)) and 0 <= limit_margin < 0.5):
+        raise DataError(
+            f"limit_margin must be a share of the range in [0, 0.5), got {limit_margin!r}", option="limit_margin"
+        )
+    margin = limit_margin * (lim[:, 1] - lim[:, 0]) * robot.limits_given()
     return DesignProblem(
         model=model,
         scale=jnp.asarray(scale),
@@ -372,6 +388,7 @@ def design_problem(
         weights=jnp.asarray(np.eye(3)[CRITERIA.index(criterion)]),
         lower=jnp.asarray(lim[:, 0]),
         upper=jnp.asarray(lim[:, 1]),
+        margin=jnp.asarray(margin),
         layout=layout,
         base=base,
     )
