@@ -202,7 +202,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     * ``rotation_rms_deg`` (and max, median) when poses are measured;
     * ``poses``: per pose its data row and error (mm; per point, None for a point not seen, and
       deg for poses); ``lost_points``: ``{row, point}`` of the points not seen, ``dropped_rows``
-      the rows with none;
+      the rows with none, ``ignored_columns`` the file's columns neither joints nor measurements;
     * ``groups`` (given the ``training`` measurements): the same summary for repeated postures,
       new ones within the training ranges and ones out of them;
     * ``outside_training_ranges`` (given ``ranges``, joint name -> ``(lowest, highest)`` mm and
@@ -257,6 +257,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     ]
     out["lost_points"] = [{"row": r, "point": j} for r, j in getattr(meas, "lost_points", [])]
     out["dropped_rows"] = [int(r) for r in getattr(meas, "dropped_rows", ())]
+    out["ignored_columns"] = list(getattr(meas, "ignored", ()))  # as calibrate's report lists them
     if ranges is None and training is not None:
         ranges = {
             n: (float(lo), float(hi))

@@ -51,13 +51,13 @@ def compensate(
         if note:
             console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)
     _, res = compensate_targets(cal, tg, nominal=nom)
+    rot = not (tg.poses is not None and tg.position_only)  # position targets: no rotation was asked for
     table = Table(title=f"compensation of {len(res.q)} targets")
-    for col in ("", "position residual (mm)", "rotation residual (deg)"):
+    for col in ("", "position residual (mm)", "rotation residual (deg)")[: 3 if rot else 2]:
         table.add_column(col, justify="right")
-    table.add_row("max", f"{res.pos_residual_mm.max():.3g}", f"{res.rot_residual_deg.max():.3g}")
-    table.add_row(
-        "RMS", f"{np.sqrt(np.mean(res.pos_residual_mm**2)):.3g}", f"{np.sqrt(np.mean(res.rot_residual_deg**2)):.3g}"
-    )
+    rms = [np.sqrt(np.mean(res.pos_residual_mm**2)), np.sqrt(np.mean(res.rot_residual_deg**2))]
+    table.add_row("max", *(f"{v:.3g}" for v in [res.pos_residual_mm.max(), res.rot_residual_deg.max()][: 1 + rot]))
+    table.add_row("RMS", *(f"{v:.3g}" for v in rms[: 1 + rot]))
     console.print(table)
     n_ok, n_in, n_br, K = int(res.converged.sum()), int(res.within_limits.sum()), int(res.on_branch.sum()), len(res.q)
     console.print(
@@ -92,11 +92,11 @@ def compensate(
         au = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", cal.units[1])[0]
         scale = np.array([au if t == "R" else lu for t in cal.joint_types])
         flag_names = ["reached", "within_limits", "on_branch"]
-        header = list(cal.joint_names) + ["pos_residual_mm", "rot_residual_deg"] + flag_names
+        header = list(cal.joint_names) + ["pos_residual_mm", "rot_residual_deg"][: 1 + rot] + flag_names
         lines = [",".join(header)]
         flags = np.stack([res.converged, res.within_limits, res.on_branch], -1).astype(int)
         for qk, ep, er, f in zip(res.q / scale, res.pos_residual_mm, res.rot_residual_deg, flags):
-            values = [repr(float(v)) for v in qk] + [repr(float(ep)), repr(float(er))] + [str(v) for v in f]
+            values = [repr(float(v)) for v in qk] + [repr(float(ep)), repr(float(er))][: 1 + rot] + [str(v) for v in f]
             lines.append(",".join(values))
         write_atomic(out, "\n".join(lines) + "\n")
         console.print(f"compensated commands written to {out} (rows to send: reached, within_limits and on_branch = 1)")

@@ -85,6 +85,8 @@ def evaluate(
     table.add_row("all", _fmt(rep["position_rms_mm"]), _fmt(rep["position_max_mm"]), _fmt(rep["position_median_mm"]))
     console.print(table)
     lost_notes(meas)
+    if rep["ignored_columns"]:
+        console.print(f"ignored columns: {', '.join(rep['ignored_columns'])}", highlight=False)
     if "rotation_rms_deg" in rep:
         console.print(f"rotation: RMS {rep['rotation_rms_deg']:.4f} deg, max {rep['rotation_max_deg']:.4f} deg")
     if "groups" in rep:

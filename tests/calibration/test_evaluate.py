@@ -50,7 +50,7 @@ def test_cli_on_a_toml_model_with_points(tmp_path, monkeypatch, capsys):
     meas = np.einsum("kij,mj->kmi", T[:, :3, :3], pts) + T[:, None, :3, 3]
     header = ",".join([f"q{i}" for i in range(1, 7)] + [f"{c}{j}" for j in (1, 2) for c in "xyz"])
     rows = [",".join(repr(float(v)) for v in np.concatenate([q[k], meas[k].ravel()])) for k in range(20)]
-    (tmp_path / "d.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
+    (tmp_path / "d.csv").write_text(header + ",timestamp\n" + "".join(f"{r},{k}.5\n" for k, r in enumerate(rows)))
     save_robot(ur5.replace(dh=dh), tmp_path / "true.toml", points=pts)  # the true arm: zero error
     code, out, err = run_cli(
         monkeypatch, capsys, "evaluate", tmp_path / "true.toml", tmp_path / "d.csv", "--json", tmp_path / "e.json"
@@ -58,6 +58,7 @@ def test_cli_on_a_toml_model_with_points(tmp_path, monkeypatch, capsys):
     assert code in (0, None), err
     rep = json.loads((tmp_path / "e.json").read_text())
     assert len(rep["points"]) == 2 and rep["position_max_mm"] < 1e-9  # the true arm predicts its own data
+    assert rep["ignored_columns"] == ["timestamp"] and "ignored columns: timestamp" in out  # listed, as by calibrate
     save_robot(ur5.replace(dh=dh), tmp_path / "one.toml", points=pts[:1])
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", tmp_path / "one.toml", tmp_path / "d.csv")
     assert code == 2 and "2 point(s) per pose" in err

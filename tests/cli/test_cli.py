@@ -177,6 +177,9 @@ def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys)
     rows = [ln.split(",") for ln in (tmp_path / "o.csv").read_text().splitlines()]
     assert rows[0][-3:] == ["reached", "within_limits", "on_branch"]
     assert [ln[-3] for ln in rows[1:]] == ["1", "1", "0", "1"]
+    # position targets: no rotation was asked for, so none is reported (not a residual of 0)
+    assert "rot_residual_deg" not in rows[0] and "rotation residual" not in out and rows[0][6] == "pos_residual_mm"
+    assert all(len(ln) == len(rows[0]) for ln in rows)
 
 
 def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
