@@ -436,7 +436,10 @@ def show_outliers(rep: dict) -> None:
     """The outlier poses by file row, or that there were none, with the threshold."""
     d, found = rep["outlier_detection"], rep["outliers"]
     noise = f"{d['noise_pos_mm']:.3g} mm" + (f", {d['noise_rot_deg']:.3g} deg" if d.get("noise_rot_deg") else "")
-    rule = f"a residual beyond {d['threshold_sigmas']:.3g} sigma of the noise ({noise} per coordinate, robust)"
+    rule = (
+        f"a residual beyond {d['threshold_sigmas']:.3g} sigma of the noise ({noise} per coordinate, robust, "
+        "over every pose: the outliers too)"
+    )
     if not found:
         console.print(f"outliers: none ({rule})")
         return
