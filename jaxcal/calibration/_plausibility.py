@@ -16,7 +16,8 @@ A fit whose residual or parameters are not finite (a diverged solve) is never pl
 
 Most such fits come from a mistake in the data file, and the likely ones can be tested: the data
 are read again as they would be without that mistake (:data:`MISTAKES`: two position columns
-swapped, a mirrored axis, a quaternion written x, y, z, w, two joint columns swapped, the joint
+swapped, a mirrored axis, a quaternion written x, y, z, w under names w, x, y, z or the reverse,
+two joint columns swapped, the joint
 order reversed, degrees read as radians or the reverse, metres read as millimetres or the
 reverse), and the frames-only fit (nominal DH, base and tool estimated, all in one batch) is
 repeated on each; a DH table is also read in the other convention (standard or modified DH).
@@ -43,6 +44,7 @@ MISTAKES = (
     "mirrored y",
     "mirrored z",
     "quaternion written x, y, z, w",
+    "quaternion written w, x, y, z under names x, y, z, w",
     "joints reversed",
     "degrees read as radians",
     "radians read as degrees",
@@ -190,10 +192,14 @@ def variants(robot: Robot, q, target, n_points: int):
     if n_points == 0:
         from scipy.spatial.transform import Rotation
 
-        wxyz_read = Rotation.from_matrix(target[:, :3, :3]).as_quat()[:, [3, 0, 1, 2]]  # as it was read
-        t = np.array(target, copy=True)
-        t[:, :3, :3] = Rotation.from_quat(wxyz_read).as_matrix()  # its fields taken as x, y, z, w
-        out["quaternion written x, y, z, w"] = (q, t)
+        xyzw_read = Rotation.from_matrix(target[:, :3, :3]).as_quat()
+        for name, order in (
+            ("quaternion written x, y, z, w", [3, 0, 1, 2]),  # the read w, x, y, z fields taken as x, y, z, w
+            ("quaternion written w, x, y, z under names x, y, z, w", [1, 2, 3, 0]),  # the read x, y, z, w as w, x, y, z
+        ):
+            t = np.array(target, copy=True)
+            t[:, :3, :3] = Rotation.from_quat(xyzw_read[:, order]).as_matrix()
+            out[name] = (q, t)
     n = q.shape[1]
     for j in range(n - 1):
         perm = list(range(n))

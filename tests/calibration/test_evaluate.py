@@ -155,6 +155,10 @@ def test_a_misread_file_is_refused_or_named():
     xyzw[:, :3, :3] = Rotation.from_quat(Rotation.from_matrix(T[:, :3, :3]).as_quat()[:, [1, 2, 3, 0]]).as_matrix()
     (w,) = evaluate(true, Measurements(q, xyzw))["warnings"]
     assert "quaternion written x, y, z, w" in w
+    wxyz = T.copy()  # named x, y, z, w, written w, x, y, z: (x, y, z, w) taken from (w, x, y, z)
+    wxyz[:, :3, :3] = Rotation.from_quat(Rotation.from_matrix(T[:, :3, :3]).as_quat()[:, [3, 0, 1, 2]]).as_matrix()
+    (w,) = evaluate(true, Measurements(q, wxyz))["warnings"]
+    assert "quaternion written w, x, y, z under names x, y, z, w" in w
     moved = T.copy()  # the tracker moved since the calibration: no mistake explains it
     moved[:, :3, 3] += [300.0, 0.0, 0.0]
     (w,) = evaluate(true, Measurements(q, moved))["warnings"]
