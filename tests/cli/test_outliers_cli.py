@@ -16,7 +16,7 @@ from jaxcal.measurements import write_measurements
 from jaxcal.simulation import simulate
 
 K, NOISE = 60, 0.02  # 60 poses: the pose bucket (64) of other tests' fits, one compile for both
-ARGS = ("--params", "all", "--folds", "3")
+ARGS = ("--params", "all", "--folds", "3", "--compliance", "no")  # outliers and markers, not compliance
 
 
 def _study(outliers: float):
@@ -73,6 +73,7 @@ def test_five_percent_outliers_named_and_left_out(tmp_path, monkeypatch, capsys,
         jaxcal.read_measurements(clean_csv, jaxcal.preset("ur5")),
         params="all",
         folds=3,
+        compliance="no",
         keep_outliers=True,
     )
     q = clean_sim.q_val[0]
