@@ -88,6 +88,8 @@ def _run(tmp_path, monkeypatch, capsys, text, *extra):
         "3",
         "--params",
         "all",
+        "--compliance",  # the data carry none; the refusals are the point
+        "no",
         "--out-robot",
         out_robot,
         "--json",
