@@ -197,7 +197,8 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     rows = [",".join(repr(float(v)) for v in np.r_[q, p.ravel()]) for q, p in zip(np.asarray(sim.q[0]), P)]
     data = _write(tmp_path, [head, *rows], "three.csv")
     code, out, err = run_cli(
-        monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--out-robot", tmp_path / "cal.toml",
+        monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--compliance", "no",
+        "--out-robot", tmp_path / "cal.toml",
         "--json", tmp_path / "rep.json",
     )  # fmt: skip
     assert code in (0, None), err
@@ -211,7 +212,8 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     # fitted on markers 3 and 1 only (in that order): the file records them, and evaluate scores
     # those two by default, each against its own point
     code, out, err = run_cli(
-        monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--points", "3,1",
+        monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--compliance", "no",
+        "--points", "3,1",
         "--out-robot", tmp_path / "c31.toml", "--json", tmp_path / "r31.json",
     )  # fmt: skip
     assert code in (0, None), err
