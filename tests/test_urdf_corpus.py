@@ -146,7 +146,7 @@ def test_a_failed_candidate_is_reported(monkeypatch, capsys, simulated):
     d, _ = simulated("xarm7")
     monkeypatch.setattr(jaxcal.identifiability, "SEPARATION", ())
     # the candidates' scores are the selection's (no nested cross-validation needed to see them)
-    rep, out = _calibrate(monkeypatch, capsys, "xarm7", d, "--nested-max-poses", "0")
+    rep, out = _calibrate(monkeypatch, capsys, "xarm7", d, "--nested-max-poses", "0", "--compliance", "no")
     rows = {row["name"]: row for row in rep["cv"]}
     why = rows["all"]["failure"]
     assert why.startswith("its parameters are not separable on these poses")
@@ -156,7 +156,7 @@ def test_a_failed_candidate_is_reported(monkeypatch, capsys, simulated):
     # asked for alone, it is refused with that reason (not blamed on the data or a camera model)
     code, out, err = run_cli(
         monkeypatch, capsys, "calibrate", DATA / "xarm7.urdf", d / "train.csv", "--base-link=link_base",
-        "--params", "all", "--nested-max-poses", "0",
+        "--params", "all", "--nested-max-poses", "0", "--compliance", "no",
     )  # fmt: skip
     msg = " ".join(err.split())
     assert code == 2 and "no candidate parameter set could be fitted (all: its parameters are not separable" in msg
