@@ -130,7 +130,7 @@ def test_camera_models_recovered_from_simulated_camera(rng):
     sim = _sim(r, x_dh, B, X, n=60, sp=0.05, sr=2e-4, seed=3)
     c = np.array([0.01, 0.004, -0.003, 0.002, 0.002, -0.003, 0.001, 0.002])  # depth, anisotropy, off-diagonal
     meas = np.asarray(apply_camera(np.asarray(sim.measured[0]), c, "linear"))
-    kw = dict(params="all", folds=3, compliance="no")  # the camera is the point
+    kw = dict(params="all", folds=3)
     lin = calibrate_measurements(r, sim.q[0], meas, camera="linear", **kw).report
     without = calibrate_measurements(r, sim.q[0], meas, **kw).report
     got = np.array([v["value"] for v in lin["camera_parameters"].values()])
@@ -169,7 +169,7 @@ def test_quadratic_camera_model_recovered_on_franka_geometry(rng):
     T[:, :3, 3] += rng.normal(0, 0.05, (len(q), 3))
     c = np.r_[0.005, 0.002, 0.004, -0.002, -0.01, 0.001, 0.003, 0.003, rng.normal(0, 0.01, 9)]
     meas = np.asarray(apply_camera(T, c, "quadratic"))
-    kw = dict(params="all", folds=3, compliance="no")  # the camera is the point
+    kw = dict(params="all", folds=3)
     quad = calibrate_measurements(r, q, meas, camera="quadratic", **kw).report
     auto = calibrate_measurements(r, q, meas, camera="auto", **kw).report
     lin = {row["name"]: row for row in auto["cv"]}["all, camera linear"]
