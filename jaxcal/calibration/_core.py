@@ -423,7 +423,7 @@ def wrapped(model: Model, nominal: Robot) -> Model:
 def described(model: Model, robot: Robot) -> Model:
     """``model`` with ``robot``'s name, joint names and file units (compiled functions work on
     the structure alone, :meth:`jaxcal.Robot.stripped`)."""
-    r = model.robot.with_meta(robot.name, robot.joint_names, robot.units)
+    r = model.robot.with_meta(robot.name, robot.joint_names, robot.units, robot.limits_set)
     return Model(r, model.points, model.camera_params, camera=model.camera)
 
 

@@ -76,6 +76,9 @@ class Robot(eqx.Module):
     units: tuple[str, str] = eqx.field(static=True, default=("mm", "rad"))
     """``(length, angle)`` units of the file the robot came from: data files are read in them
     unless told otherwise, and a calibrated robot is written in them."""
+    limits_set: tuple[bool, ...] | None = eqx.field(static=True, default=None)
+    """Which joints' limits the file (or caller) gave: a joint given exactly the defaults (a xacro
+    ``${pi}``) has them, one given none does not. ``None``: those other than the defaults."""
 
     def __init__(
         self,
@@ -93,6 +96,7 @@ class Robot(eqx.Module):
         axes=None,
         compliance=None,
         load=None,
+        limits_set=None,
     ):
         if convention not in CONVENTIONS:
             raise RobotFileError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
@@ -129,6 +133,11 @@ class Robot(eqx.Module):
             j = int(np.argmin(lim[:, 1] - lim[:, 0]))
             raise RobotFileError(f"joint {j + 1}: lower limit is not below the upper limit")
         self.q_limits = q_limits
+        if limits_set is not None:
+            limits_set = tuple(bool(v) for v in limits_set)
+            if len(limits_set) != n:
+                raise RobotFileError(f"limits_set must say for each of the {n} joints whether limits were given")
+        self.limits_set = limits_set
         self.compliance = _check_compliance(compliance, joint_types)
         self.load = None if load is None else as_f64(load, "load")
         if self.load is not None and (self.load.shape != (3,) or not np.all(np.isfinite(np.asarray(self.load)))):
@@ -179,9 +188,11 @@ class Robot(eqx.Module):
         return jnp.array([t == "R" for t in self.joint_types], dtype=jnp.float64)
 
     def limits_given(self) -> np.ndarray:
-        """``(n,)`` False for a joint whose limits are :data:`DEFAULT_LIMITS`: given none (a URDF
-        ``continuous`` joint without both bounds, a file without them), or given exactly those,
-        which reads the same."""
+        """``(n,)`` False for a joint given no limits (a URDF ``continuous`` joint without both
+        bounds, a file without them): its :data:`DEFAULT_LIMITS` are a range to draw poses in, not
+        the arm's. Without :attr:`limits_set`, a joint whose limits are those defaults."""
+        if self.limits_set is not None:
+            return np.array(self.limits_set, dtype=bool)
         lim = np.asarray(self.q_limits)
         default = np.array([DEFAULT_LIMITS[t] for t in self.joint_types])
         return ~np.all(np.abs(lim - default) < 1e-12, axis=1)
@@ -236,11 +247,13 @@ class Robot(eqx.Module):
             axes=self.axes,
             compliance=self.compliance,
             load=self.load,
+            # new limits say for themselves whether they are given
+            limits_set=None if "q_limits" in kw else self.limits_set,
         )
         args.update(kw)
         return Robot(**args)
 
-    def with_meta(self, name: str = "robot", joint_names=None, units=("mm", "rad")) -> "Robot":
+    def with_meta(self, name: str = "robot", joint_names=None, units=("mm", "rad"), limits_set=None) -> "Robot":
         """The same kinematics (arrays untouched, any leading batch axes kept) with other
         descriptive fields, without validating again. Compiled functions are specialised on
         the static fields: stripping the description lets robots of one structure share them."""
@@ -264,6 +277,7 @@ class Robot(eqx.Module):
             new, "joint_names", tuple(f"q{i + 1}" for i in range(n)) if joint_names is None else tuple(joint_names)
         )
         object.__setattr__(new, "units", tuple(units))
+        object.__setattr__(new, "limits_set", None if limits_set is None else tuple(limits_set))
         return new
 
     def stripped(self) -> "Robot":

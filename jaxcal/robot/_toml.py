@@ -90,7 +90,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
     joints = doc.get("joints")
     if not isinstance(joints, list) or not joints:
         raise RobotFileError(f"{source}: needs at least one [[joints]] table")
-    dh, types, limits, names, compliance = [], [], [], [], []
+    dh, types, limits, names, compliance, given = [], [], [], [], [], []
     for i, j in enumerate(joints, start=1):
         if not isinstance(j, dict):
             raise RobotFileError(f"{source}: joint {i} is not a table")
@@ -119,6 +119,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
         compliance.append(_num(j["compliance"], f"joint {i} compliance") * au / lu if "compliance" in j else None)
         lim = j.get("limits", None)
         scale = au if jt == "R" else lu
+        given.append(lim is not None)
         if lim is None:
             limits.append(DEFAULT_LIMITS[jt])
         else:
@@ -142,6 +143,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
         base=base,
         tool=tool,
         q_limits=np.array(limits),
+        limits_set=given,
         name=name,
         joint_names=names,
         units=(lu_name, au_name),

@@ -238,18 +238,19 @@ def _movable(j, source: str) -> np.ndarray:
     return axis / n
 
 
-def _limits(j, kind: str, source: str) -> list[float]:
-    """A movable joint's ``[lower, upper]`` (rad, mm): :data:`DEFAULT_LIMITS` for a joint without
-    bounds, URDF's default 0 for a bound not given; finite and increasing. A continuous joint's
-    bounds are read only when the file gives both, increasing: they say how far its readings run
-    (several turns), which the unit checks and pose design then take."""
+def _limits(j, kind: str, source: str) -> tuple[list[float], bool]:
+    """A movable joint's ``[lower, upper]`` (rad, mm) and whether the file gives them:
+    :data:`DEFAULT_LIMITS` for a joint without bounds, URDF's default 0 for a bound not given;
+    finite and increasing. A continuous joint's bounds are read only when the file gives both,
+    increasing: they say how far its readings run (several turns), which the unit checks and pose
+    design then take. A prismatic joint must give limits in URDF: its defaults read as none."""
     lim = j.limit
     if lim is None or (lim.lower is None and lim.upper is None):
-        return list(DEFAULT_LIMITS[kind])
+        return list(DEFAULT_LIMITS[kind]), False
     if j.type == "continuous":
         lower, upper = (float("nan") if v is None else float(v) for v in (lim.lower, lim.upper))
         if not (np.isfinite(lower) and np.isfinite(upper) and lower < upper):
-            return list(DEFAULT_LIMITS[kind])
+            return list(DEFAULT_LIMITS[kind]), False
     lower, upper = (0.0 if v is None else float(v) for v in (lim.lower, lim.upper))
     if not (np.isfinite(lower) and np.isfinite(upper)):
         raise RobotFileError(
@@ -267,7 +268,8 @@ def _limits(j, kind: str, source: str) -> list[float]:
             + ("" if lim.lower is not None and lim.upper is not None else " (a bound not given is 0 in URDF)")
         )
     scale = 1.0 if kind == "R" else M_TO_MM
-    return [lower * scale, upper * scale]
+    out = [lower * scale, upper * scale]
+    return out, kind == "R" or out != list(DEFAULT_LIMITS[kind])
 
 
 def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None):
@@ -285,7 +287,7 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         if tip_link is not None and any(j.child == TOOL_LINK and j.parent == tip_link for j in doc.joints):
             tip_link = TOOL_LINK
     joints, base_link, tip_link = _chain(doc, source, base_link, tip_link)
-    origins, axes, types, names, limits = [], [], [], [], []
+    origins, axes, types, names, limits, given = [], [], [], [], [], []
     pending = np.eye(4)
     for j in joints:
         T = _mm(j.origin)
@@ -298,7 +300,9 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         kind = MOVABLE[j.type]
         origins.append(pending @ T)
         pending = np.eye(4)
-        limits.append(_limits(j, kind, source))
+        lim, has = _limits(j, kind, source)
+        limits.append(lim)
+        given.append(has)
         types.append(kind)
         names.append(j.name)
     if not types:
@@ -314,6 +318,7 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         base=base,
         tool=pending,
         q_limits=np.array(limits),
+        limits_set=given,
         name=doc.name or path.stem,
         joint_names=names,
         units=("m", "rad"),

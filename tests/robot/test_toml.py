@@ -148,6 +148,21 @@ def test_limits_not_given_are_not_written_as_limits(tmp_path):
         back = load_robot(tmp_path / path)
         assert back.limits_given().tolist() == [False, False, True, False, False, False]
         assert_allclose(np.asarray(back.q_limits), lim)
+    # limits a file gives that happen to be the defaults (a xacro ${pi}) are limits all the same
+    text = (
+        (tmp_path / "u.toml")
+        .read_text()
+        .replace('type = "R"\n', 'type = "R"\nlimits = [-3.141592653589793, 3.141592653589793]\n', 1)
+    )
+    (tmp_path / "pi.toml").write_text(text)
+    pi = load_robot(tmp_path / "pi.toml")
+    assert pi.limits_given().tolist() == [True, False, True, False, False, False]
+    save_robot(pi, tmp_path / "pi2.toml")
+    save_robot(to_joint(pi), tmp_path / "pi2.urdf")
+    for path in ("pi2.toml", "pi2.urdf"):
+        assert load_robot(tmp_path / path).limits_given().tolist() == [True, False, True, False, False, False]
+    urdf = yourdfpy.URDF.load(str(tmp_path / "pi2.urdf"), build_scene_graph=False, load_meshes=False)
+    assert urdf.joint_map["q1"].type == "revolute" and urdf.joint_map["q1"].limit.upper == np.pi
 
 
 def test_constructor_does_not_mutate_inputs():
