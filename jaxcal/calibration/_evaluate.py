@@ -84,7 +84,13 @@ def _stand_out(pos, rot) -> tuple[np.ndarray, np.ndarray]:
     A fit leaves such poses out; scored as they are, they can set a file's RMS alone."""
     seen = np.isfinite(pos)
     norms = np.sqrt(np.sum(np.where(seen, pos, 0.0) ** 2, -1))
-    fit = {"pos_norms": norms[None], "rot_norms": (np.zeros_like(norms) if rot is None else np.radians(rot))[None]}
+    rn = np.zeros_like(norms) if rot is None else np.asarray(rot, float)
+
+    def unit(x):  # in units of their median, as a fit's weighted rows are: the scale's floor then holds
+        m = np.median(x[seen.any(-1)]) if seen.any() else 0.0
+        return x / m if m > 0 else x
+
+    fit = {"pos_norms": unit(norms)[None], "rot_norms": unit(rn)[None]}
     det = assess(fit, seen.any(-1)[None], 3 * seen.sum(-1), poses=rot is not None, sigmas=OUTLIER_SIGMAS)
     return det.flags[0], det.sigmas[0]
 

@@ -279,16 +279,27 @@ def test_rows_that_stand_out_by_the_outlier_rule_are_named_with_the_figures_with
 
 
 def test_a_pose_that_stands_out_in_rotation_alone_is_named():
-    """Pose data: the rule scales position and rotation each by its own robust noise, so a
-    0.5-degree orientation error among 0.01-degree noise is named though its position is clean."""
+    """Pose data: the rule scales position and rotation each by its own robust noise (scipy here:
+    each median norm over the chi-3 median, the threshold the chi-6 quantile of a 5-sigma normal
+    tail), so a 0.1-degree orientation error among 0.01-degree noise is named though its position
+    is clean, whatever the unit of the rotations' noise."""
+    from scipy.stats import chi2, norm
+
     rng = np.random.default_rng(15)
     ur5, dh = _truth(rng)
     q = rng.uniform(-np.pi, np.pi, (40, 6))
     T = dh_fk(dh, q)
     T[:, :3, 3] += rng.normal(0, 0.05, (40, 3))
     turn = Rotation.from_rotvec(rng.normal(0, np.radians(0.01), (40, 3)))
-    turn = turn * Rotation.from_rotvec(np.where(np.arange(40)[:, None] == 12, [0.0, 0.0, np.radians(0.5)], 0.0))
+    turn = turn * Rotation.from_rotvec(np.where(np.arange(40)[:, None] == 12, [0.0, 0.0, np.radians(0.1)], 0.0))
     T[:, :3, :3] = turn.as_matrix() @ T[:, :3, :3]
     rep = evaluate(Model(ur5.replace(dh=dh)), Measurements(q, T))
+    T0 = dh_fk(dh, q)
+    e = np.linalg.norm(T[:, :3, 3] - T0[:, :3, 3], axis=-1)
+    r = (Rotation.from_matrix(T[:, :3, :3]) * Rotation.from_matrix(T0[:, :3, :3]).inv()).magnitude()
+    med = np.sqrt(chi2.ppf(0.5, 3))
+    u = np.sqrt((e / (np.median(e) / med)) ** 2 + (r / (np.median(r) / med)) ** 2)
+    assert np.flatnonzero(u > np.sqrt(chi2.isf(norm.sf(5.0), 6))).tolist() == [12]
     assert [o["row"] for o in rep["outliers"]] == [13]
-    assert rep["without_outliers"]["rotation_max_deg"] < 0.1 < rep["rotation_max_deg"]
+    assert rep["outliers"][0]["sigmas"] == pytest.approx(u[12], rel=1e-6)
+    assert rep["without_outliers"]["rotation_max_deg"] < 0.08 < rep["rotation_max_deg"]
