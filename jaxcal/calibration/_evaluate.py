@@ -5,6 +5,7 @@ posture group relative to the training data."""
 from __future__ import annotations
 
 import numpy as np
+from jaxtyping import Float
 
 from .._config import jit
 from ..errors import DataError
@@ -77,7 +78,7 @@ def _errors(pred, target, n_points: int):
     return np.linalg.norm(target[:, :3, 3] - pred[:, :3, 3], axis=-1)[:, None], rot
 
 
-def _stand_out(pos, rot) -> tuple[np.ndarray, np.ndarray]:
+def _stand_out(pos: Float[np.ndarray, "K M"], rot: Float[np.ndarray, " K"] | None) -> tuple[np.ndarray, np.ndarray]:
     """``(flags (K,), sigmas (K,))``: the poses whose errors stand out of the others' as the
     outlier rule of a calibration judges a fit's residuals (:func:`._outliers.assess` at
     :data:`jaxcal.solvers.OUTLIER_SIGMAS`), from ``pos (K, M)`` mm and ``rot (K,)`` deg or None.
@@ -217,8 +218,9 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
       model was not fitted there and extrapolates; and when the errors are far beyond a
       calibration's, with the input mistake that would explain them if one does;
     * ``outliers``: ``{row, sigmas}`` of the poses whose errors stand out of the others' by the rule
-      a calibration leaves poses out by (worst first), ``without_outliers`` the summary without
-      them, and a warning naming them; the figures above include them.
+      a calibration leaves poses out by (worst first), ``without_outliers`` the position (and
+      rotation) RMS, max and median without them, and a warning naming them (unless the rows far
+      beyond a calibration's are named instead); the figures above include them.
 
     Joint values that look like degrees, and positions whose spread is not the model's (another
     length unit), are refused (:class:`jaxcal.DataError` naming the option), as by calibrate.

@@ -62,7 +62,8 @@ class CalibrationResult:
     sigma_rot_rad: float | None
     """The rows' weights (1-sigma per coordinate): the caller's; for points, the frames-only
     fit's residual, which holds the robot's own errors too; for poses, the calibrated fit's robust
-    residual. The noise left after the fit is ``robust_scale`` times them."""
+    residual where the fit reweighs (not the linear method), else the frames-only one. The noise
+    left after the fit is ``robust_scale`` times them."""
     method: str
     loss: str
     outliers: tuple[int, ...]

@@ -109,6 +109,12 @@ def design(
         status.update(f"designing {poses} poses ({'pool' if pool else 'gradient'}, {criterion})")
         common = dict(min_spread=min_spread, region=box, view=cone, seed=seed, n_random=random_sets)
         if candidates is not None:
+            if limit_margin:
+                console.print(
+                    "[yellow]warning:[/yellow] --limit-margin holds a gradient design; the --pool's rows are "
+                    "chosen as they are",
+                    highlight=False,
+                )
             result = select_poses(problem, candidates, poses, **common)
         else:
             result = optimal_poses(problem, poses, starts=starts, **common)

@@ -374,7 +374,8 @@ def design_problem(
     lam, U = np.linalg.eigh((S + S.T) / 2)
     F = np.sqrt(np.clip(lam, 0.0, None))[:, None] * U.T
     lim = np.asarray(robot.q_limits)
-    if not (isinstance(limit_margin, (int, float)) and 0 <= limit_margin < 0.5):
+    real = isinstance(limit_margin, (int, float, np.integer, np.floating)) and not isinstance(limit_margin, bool)
+    if not (real and 0 <= limit_margin < 0.5):
         raise DataError(
             f"limit_margin must be a share of the range in [0, 0.5), got {limit_margin!r}", option="limit_margin"
         )

@@ -97,6 +97,26 @@ def test_design_respects_limits_spread_and_region(robot):
         design.optimal_poses(pb, N, region=([0, 1, 0], [1, 0, 1]))
 
 
+def test_the_limit_margin_holds_given_limits_only():
+    """2 % of each range at either end of limits the robot gives (the Panda's); none for joints
+    given none (the UR5's +-pi is a sampling range); 0 turns it off; a share outside [0, 0.5)
+    is refused naming the option."""
+    panda, ur5 = jaxcal.preset("panda"), jaxcal.preset("ur5")
+    lim = np.asarray(panda.q_limits)
+    kw = dict(n_val=10, **FRAMES_KNOWN)
+    np.testing.assert_allclose(np.asarray(design.design_problem(panda, **kw).margin), 0.02 * (lim[:, 1] - lim[:, 0]))
+    assert not np.any(np.asarray(design.design_problem(ur5, **kw).margin))
+    assert not np.any(np.asarray(design.design_problem(panda, limit_margin=0, **kw).margin))
+    with pytest.raises(DataError, match="limit_margin must be a share") as e:
+        design.design_problem(panda, limit_margin=0.5, **kw)
+    assert e.value.option == "limit_margin"
+    import inspect
+
+    from jaxcal.cli._design import design as command  # its help gives the default it does not import
+
+    assert f"default {design.LIMIT_MARGIN:g}" in inspect.signature(command).parameters["limit_margin"].default.help
+
+
 VIEW = ([2500.0, 0.0, 300.0], [-1.0, 0.0, 0.0], np.radians(12.0), 1500.0, 3500.0)
 """A camera 2.5 m in front of the arm looking back at it: about a third of random poses in view."""
 
