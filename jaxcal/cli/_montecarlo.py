@@ -165,7 +165,7 @@ def montecarlo(
         se = 100 * out["crlb_efficiency_rel_se"]
         rows.append(
             (
-                "CRLB efficiency (CRLB var / empirical var), mean",
+                "CRLB efficiency (CRLB var / mean squared error against the truth), mean",
                 f"{out['crlb_efficiency_mean']:.3f} (each parameter's ± {se:.2g} %)",
             )
         )
