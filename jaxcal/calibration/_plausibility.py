@@ -18,10 +18,10 @@ Most such fits come from a mistake in the data file, and the likely ones can be 
 are read again as they would be without that mistake (:data:`MISTAKES`: two position columns
 swapped, a mirrored axis, a quaternion written x, y, z, w under names w, x, y, z or the reverse,
 two joint columns swapped, the joint order reversed, degrees read as radians or the reverse,
-metres read as millimetres or the reverse), and the frames-only fit (nominal DH, base and tool estimated, all in one batch) is
-repeated on each; a DH table is also read in the other convention (standard or modified DH).
-A mistake whose correction brings that residual down to a calibration's size is
-named, with the residual before and after (:func:`diagnose`).
+metres read as millimetres or the reverse), and the frames-only fit (nominal DH, base and tool
+estimated, all in one batch) is repeated on each; a DH table is also read in the other
+convention (standard or modified DH). A mistake whose correction brings that residual down to a
+calibration's size is named, with the residual before and after (:func:`diagnose`).
 """
 
 from __future__ import annotations
