@@ -6,6 +6,7 @@ One small problem (paper 6R arm, full pose, frames known, 8 poses, 2 starts) ser
 so that they share their compiled programs with the command-line test."""
 
 import dataclasses
+import inspect
 
 import jax
 import numpy as np
@@ -110,8 +111,6 @@ def test_the_limit_margin_holds_given_limits_only():
     with pytest.raises(DataError, match="limit_margin must be a share") as e:
         design.design_problem(panda, limit_margin=0.5, **kw)
     assert e.value.option == "limit_margin"
-    import inspect
-
     from jaxcal.cli._design import design as command  # its help gives the default it does not import
 
     assert f"default {design.LIMIT_MARGIN:g}" in inspect.signature(command).parameters["limit_margin"].default.help

@@ -1,11 +1,14 @@
 """Robot TOML files: round trip, units at the edge, clear errors."""
 
+import tomllib
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import yourdfpy
 from numpy.testing import assert_allclose
 
-from jaxcal import Robot, RobotFileError, fk, load_robot, save_robot
+from jaxcal import Robot, RobotFileError, fk, load_robot, save_robot, to_joint
 from jaxcal.robot import PRESETS, preset
 
 PAPER_TOML = """
@@ -126,12 +129,6 @@ def test_limits_not_given_are_not_written_as_limits(tmp_path):
     """A robot given no limits (the UR presets: +-pi is their sampling range) is written without
     them, in TOML (no ``limits`` key) and in a URDF (revolute joints continuous, as yourdfpy reads
     them), and reads back as given none; a joint given limits keeps them in both."""
-    import tomllib
-
-    import yourdfpy
-
-    from jaxcal import preset, save_robot, to_joint
-
     lim = np.tile([-np.pi, np.pi], (6, 1))
     lim[2] = -2.5, 2.5  # one joint given limits
     robot = preset("ur5").replace(q_limits=lim)
