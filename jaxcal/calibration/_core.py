@@ -714,7 +714,22 @@ def fit_statistics(J, weights, pose_w, norms, *, loss: str, loss_scale, rows: in
         "normal": np.einsum("k,kri,krj->ij", w, Jw, Jw),
         "rss": float(np.sum(w * norms**2)),
         "n_rows": int(np.sum(seen[pose_w > 0])),
+        "pose_weights": w,
     }
+
+
+def leverage(J, weights, st: dict, prior, seen=None) -> np.ndarray:
+    """Each row's leverage ``(K, rows)``, the hat matrix's diagonal ``w_k (W J)_r N^-1 (W J)_r^T``
+    of the fit :func:`fit_statistics` describes (``N`` as in :func:`covariance`, the prior rows in
+    it). Their sum is the effective number of parameters, fewer than the free ones under a prior:
+    a residual's variance is ``s^2 (1 - h_r)``, which is what a noise read from residuals lacks."""
+    prior = np.asarray(prior)
+    keep = prior < PIN
+    seen = np.ones(np.shape(J)[:2], bool) if seen is None else np.asarray(seen)
+    Jw = (np.asarray(J) * (np.asarray(weights)[None, :] * seen)[:, :, None])[:, :, keep]
+    N = st["normal"][np.ix_(keep, keep)] + np.diag(prior[keep] ** 2)
+    h = np.einsum("kri,ij,krj->kr", Jw, np.linalg.pinv(N), Jw)
+    return np.asarray(st["pose_weights"])[:, None] * h
 
 
 def covariance(normal, rss, n_rows, prior) -> tuple[np.ndarray, float]:

@@ -69,13 +69,21 @@ class DataCalibration:
         return json_text(self.report)
 
 
-def _noise(pos_err, flags, sigma_mm: float) -> float:
+def _noise(pos_err, flags, sigma_mm: float, leverage) -> float:
     """The final fit's position noise per coordinate (mm): :func:`jaxcal.solvers.robust_scale` of
     its position errors (three coordinates each) on the poses fitted, in units of the weight
     ``sigma_mm`` as the detector's. Neither outliers nor a given loss scale move it, unlike
-    ``sigma_pos_mm`` (the fits' weight: the frames-only residual, the robot's own errors too)."""
-    e = np.asarray(pos_err, float)[~np.asarray(flags, bool)].ravel()
-    return float(robust_scale(e[np.isfinite(e)] / sigma_mm, 3)) * sigma_mm
+    ``sigma_pos_mm`` (the fits' weight: the frames-only residual, the robot's own errors too).
+    A fit absorbs part of the noise in its parameters, so the residuals' scale is divided by
+    ``sqrt(1 - mean leverage)`` of those rows (the effective parameter count under the prior)."""
+    e = np.asarray(pos_err, float)
+    K, M = e.shape
+    h = np.asarray(leverage).reshape(K, -1, 3)[:, :M].sum(-1)  # (K, M): a point's three rows
+    use = ~np.asarray(flags, bool)[:, None] & np.isfinite(e)
+    if not use.any():
+        return float("nan")
+    scale = float(robust_scale(e[use] / sigma_mm, 3)) * sigma_mm
+    return scale / np.sqrt(max(1.0 - h[use].sum() / (3.0 * use.sum()), 1e-3))
 
 
 def _rms(v) -> float:
@@ -238,6 +246,8 @@ class _Final:
     normal: np.ndarray
     active: list
     cam_names: list
+    leverage: np.ndarray
+    """``(K, rows)``: each residual row's leverage (:func:`._core.leverage`)."""
 
 
 def _final(p, fr, final, fits) -> _Final:
@@ -258,12 +268,13 @@ def _final(p, fr, final, fits) -> _Final:
         rows=layout.rows, seen=observed(p.target),
     )  # fmt: skip
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], final.prior)
+    lev = core.leverage(J_fin, w, st, final.prior, observed(p.target))
     active = list(estimated(final.prior))
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     names, units = layout.names(), layout.units()
     deltas = {names[i]: (float(x[i]), float(se[i]), units[i]) for i in active}
     cam_names = [names[i] for i in layout.cameras[: camera_size(cand.camera)]]
-    return _Final(model, fin, x, deltas, cov, st["normal"], active, cam_names)
+    return _Final(model, fin, x, deltas, cov, st["normal"], active, cam_names, lev)
 
 
 def _figures(p, fr, fits, fin: dict, h: dict) -> dict:
@@ -385,7 +396,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
     h = _heldout(fits, fr, p)
-    noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]))
+    noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]), f.leverage)
     rep = {
         "robot": robot.name,
         "data": getattr(p.data, "source", "arrays"),

@@ -1,5 +1,6 @@
 """The member solve's Levenberg–Marquardt fallback: the members Gauss–Newton left unconverged are
-fitted again by LM, and only those; the others keep their Gauss–Newton fit bit for bit."""
+fitted again by LM, and only those; the others keep their Gauss–Newton fit bit for bit. The rows'
+leverage under a prior."""
 
 import numpy as np
 
@@ -39,3 +40,26 @@ def test_unconverged_members_and_only_those_are_fitted_again_by_lm():
     np.testing.assert_array_equal(out["x"][1:], lm["x"])
     np.testing.assert_array_equal(out["converged"][1:], lm["converged"])
     assert not np.array_equal(out["x"][1:], plain["x"][1:])
+
+
+def test_leverage_is_the_hat_diagonal_of_the_data_and_prior_rows():
+    """Against the hat matrix ``A (A^T A)^-1 A^T`` of the stacked weighted data rows and prior
+    rows, with a pinned parameter, a ridge, a pose left out (weight 0) and a lost row."""
+    rng = np.random.default_rng(3)
+    K, rows, m = 7, 6, 5
+    J = rng.normal(size=(K, rows, m))
+    weights = rng.uniform(0.5, 2.0, rows)
+    pose_w = np.array([1, 1, 0, 1, 1, 1, 1], float)
+    seen = np.ones((K, rows), bool)
+    seen[4, 2] = False
+    prior = np.array([0.0, 0.7, PIN, 0.0, 2.0])
+    st = core.fit_statistics(J, weights, pose_w, np.ones(K), loss="l2", loss_scale=None, rows=rows, seen=seen)
+    h = core.leverage(J, weights, st, prior, seen)
+
+    keep = prior < PIN
+    data = (np.sqrt(pose_w)[:, None, None] * weights[None, :, None] * seen[:, :, None] * J)[:, :, keep]
+    A = np.vstack([data.reshape(K * rows, -1), np.diag(prior[keep])])
+    H = A @ np.linalg.solve(A.T @ A, A.T)
+    np.testing.assert_allclose(h.ravel(), np.diag(H)[: K * rows], atol=1e-12)
+    assert h[2].max() == 0 and h[4, 2] == 0
+    assert np.sum(h) < keep.sum() - 0.05  # the ridge takes a share: fewer effective parameters

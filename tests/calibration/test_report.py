@@ -22,6 +22,24 @@ def _four_markers(slip_mm: float, noise3_mm: float = 0.1):
     return ur5, q, p + rng.normal(scale=[[0.1], [0.1], [noise3_mm], [0.1]], size=p.shape)
 
 
+def test_the_noise_is_the_measurements_not_the_residuals():
+    """30 poses of one point and 26 parameters: the residuals are about ``sqrt(1 - 26/90)``, 0.84,
+    of the simulated noise (the fit absorbs the rest); ``noise_pos_mm`` is the noise itself, on
+    average over six robots (each estimate spreads about 7 %)."""
+    rng = np.random.default_rng(41)
+    ur5, sigma = preset("ur5"), 0.05
+    ratios = []
+    for _ in range(12):
+        dh = np.asarray(ur5.dh) + rng.normal(0.0, [1e-3, 0.3, 0.3, 1e-3], (6, 4))
+        q = rng.uniform(-np.pi, np.pi, (30, 6))
+        T = dh_fk(dh, q, base=random_transform(rng, 1000.0))
+        tool = np.array([20.0, -30.0, 80.0])
+        p = np.einsum("kij,j->ki", T[:, :3, :3], tool) + T[:, :3, 3] + rng.normal(scale=sigma, size=(30, 3))
+        rep = calibrate_data(ur5, Measurements(q=q, measured=p[:, None]), params="all", nested_max_poses=0).report
+        ratios.append(rep["noise_pos_mm"] / sigma)
+    assert 0.92 < np.mean(ratios) < 1.08, ratios
+
+
 def test_a_marker_that_slipped_on_the_tool_is_named_with_the_row():
     """One noise weight for all markers hides the slip (nothing is an outlier); the step in the
     marker's error relative to the others' names it and where it moved."""
