@@ -162,15 +162,22 @@ def montecarlo(
             )
         )
     if "crlb_efficiency_mean" in out:
-        se = 100 * out["crlb_efficiency_rel_se"]
+        each = out["crlb_efficiency_rel_se_each"]
+        lo, hi = 100 * min(each.values()), 100 * out["crlb_efficiency_rel_se"]
+        se = f"{lo:.2g} %" if f"{lo:.2g}" == f"{hi:.2g}" else f"{lo:.2g} to {hi:.2g} %"
         rows.append(
             (
                 "CRLB efficiency (CRLB var / mean squared error against the truth), mean",
-                f"{out['crlb_efficiency_mean']:.3f} (each parameter's ± {se:.2g} %)",
+                f"{out['crlb_efficiency_mean']:.3f} (each parameter's ± {se})",
             )
         )
         worst = out["crlb_efficiency_worst"]
-        rows.append(("CRLB efficiency, worst parameter", f"{worst['parameter']} {worst['efficiency']:.3f}"))
+        rows.append(
+            (
+                "CRLB efficiency, worst parameter",
+                f"{worst['parameter']} {worst['efficiency']:.3f} (± {100 * each[worst['parameter']]:.2g} %)",
+            )
+        )
     if "crlb_validation_pos_rms_mm" in out:
         rows.append(("validation position RMS by the CRLB (mm)", f"{out['crlb_validation_pos_rms_mm']:.4g}"))
     rows.append(("conditions", _conditions_line(out["conditions"], out["n_val"])))

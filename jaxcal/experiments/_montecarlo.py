@@ -621,7 +621,7 @@ class _Sums:
 
     def __init__(self, r: int):
         self.n, self.conv, self.max_steps = 0, 0, 0
-        self.err2, self.val2, self.crlb = np.zeros(r), 0.0, np.zeros(r)
+        self.err2, self.val2, self.crlb, self.crlb2 = np.zeros(r), 0.0, np.zeros(r), np.zeros(r)
         self.crlb_val2 = 0.0
         self.flags = np.zeros(3, int)  # outliers found, missed, false alarms
 
@@ -637,6 +637,7 @@ class _Sums:
         self.val2 += float(np.sum(rec["val_rms"] ** 2))
         if "crlb_var" in rec:
             self.crlb = self.crlb + np.sum(rec["crlb_var"], 0)
+            self.crlb2 = self.crlb2 + np.sum(rec["crlb_var"] ** 2, 0)
         if "crlb_val2" in rec:
             self.crlb_val2 += float(np.sum(rec["crlb_val2"]))
         if "flags" in rec:
@@ -660,9 +661,12 @@ class _Sums:
             out["crlb_efficiency_mean"] = float(eff.mean())
             worst = int(np.argmin(eff))
             out["crlb_efficiency_worst"] = {"parameter": names[worst], "efficiency": float(eff[worst])}
-            # each figure is a bound over a mean of n squared errors: relative spread about sqrt(2 / n),
-            # and biased up by about n / (n - 2) (the mean of an inverse chi-square)
-            out["crlb_efficiency_rel_se"] = float(np.sqrt(2.0 / n))
+            # each figure is a bound over a sum of squared errors of variances c_i (the bound met):
+            # relative spread sqrt(2 sum c_i^2) / sum c_i, sqrt(2 / n) when the robots' bounds are
+            # equal, larger where a few robots' bounds dominate; biased up by about n / (n - 2)
+            rel = np.sqrt(2.0 * self.crlb2) / np.where(self.crlb > 0, self.crlb, np.nan)
+            out["crlb_efficiency_rel_se_each"] = dict(zip(names, rel.tolist()))
+            out["crlb_efficiency_rel_se"] = float(np.nanmax(rel))
         if noisy:
             out["crlb_validation_pos_rms_mm"] = float(np.sqrt(self.crlb_val2 / n))
         if noisy and self.n < FEW_EFFICIENCY_ROBOTS:
