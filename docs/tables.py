@@ -25,6 +25,12 @@ def g(v):
     return f"{v:.3g}"
 
 
+def chosen(r: dict) -> str:
+    """The chosen candidate, saying so when it came with compliances and pruned every one."""
+    pruned = "+ compliance" in r["choice"] and not r["compliance"]
+    return r["choice"] + (" (every compliance pruned)" if pruned else "")
+
+
 def reproduction() -> str:
     nf, ny = load("reproduce/noise-free/summary.json"), load("reproduce/noisy/summary.json")
     methods = [
@@ -93,7 +99,7 @@ def franka() -> str:
     ]
     for r, lab in reps:
         rows.append(
-            f"| {lab} | {r['choice']} | {r['train_rms_mm']:.2f} | {r['heldout_rms_mm']:.3f} | "
+            f"| {lab} | {chosen(r)} | {r['train_rms_mm']:.2f} | {r['heldout_rms_mm']:.3f} | "
             f"{r['extrapolation_rms_mm']:.3f} | {r['heldout_max_mm']:.2f} | {r['heldout_rot_rms_deg']:.2f} |"
         )
     rows.append("")
@@ -125,11 +131,11 @@ def tiago() -> str:
         ("auto", "auto (the default)"),
     ):
         one, four = load(f"tiago/{params}_1pt.json"), load(f"tiago/{params}_4pt.json")
-        chosen = f"{one['choice']}; {four['choice']}" if params == "auto" else ""
+        choice = f"{chosen(one)}; {chosen(four)}" if params == "auto" else ""
         rows.append(
             f"| {label} | {one['train_rms_mm']:.2f} | {one['heldout_rms_mm']:.2f} | {one['extrapolation_rms_mm']:.2f} "
             f"| {four['train_rms_mm']:.2f} | {four['heldout_rms_mm']:.2f} | {four['extrapolation_rms_mm']:.2f} "
-            f"| {four['heldout_points_rms_mm'][0]:.2f} | {len(one['outliers'])}; {len(four['outliers'])} | {chosen} |"
+            f"| {four['heldout_points_rms_mm'][0]:.2f} | {len(one['outliers'])}; {len(four['outliers'])} | {choice} |"
         )
     rows.append("")
     rows.append(

@@ -32,3 +32,17 @@ def test_each_table_in_the_docs_is_generated_from_its_results(name):
     made = TABLES.TABLES[name]() + "\n"
     for text in found:
         assert text == made, f"docs table {name!r} differs from `python docs/tables.py`: run it with --write"
+
+
+def test_each_stored_report_says_whether_it_estimates_a_compliance():
+    """A report's ``compliance`` is whether the model estimates one (what ``jaxcal design
+    --params-from`` designs for), not whether its candidate came with them: the Franka
+    quadratic camera model's candidate "all + compliance" prunes every one."""
+    import json
+
+    reports = sorted((DOCS / "franka").glob("report*.json")) + sorted((DOCS / "tiago").glob("*pt.json"))
+    assert len(reports) > 5
+    for path in reports:
+        rep = json.loads(path.read_text())
+        kept = any(k.startswith("compliance") for k in rep["selection"]["kept"])
+        assert rep["compliance"] == kept, path.name

@@ -734,18 +734,20 @@ def leverage(J, weights, st: dict, prior, seen=None) -> np.ndarray:
 
 def covariance(normal, rss, n_rows, prior) -> tuple[np.ndarray, float]:
     """Sandwich covariance of the free parameters, ``s^2 N^-1 (J^T J) N^-1`` with ``N = J^T J +
-    diag(p^2)`` (data and prior rows) and ``s^2`` the weighted residual variance; and ``s^2``."""
+    diag(p^2)`` (data and prior rows) and ``s^2`` the weighted residual variance over the rows
+    less the effective parameter count ``tr(N^-1 J^T J)`` (the leverages' sum, :func:`leverage`:
+    a parameter the prior holds absorbs less of the noise); and ``s^2``."""
     p = np.where(np.asarray(prior) >= PIN, 0.0, np.asarray(prior))
     held = np.asarray(prior) >= PIN
     N = normal + np.diag(p**2)
     keep = ~held
     cov = np.zeros_like(N)
     if keep.any():
-        Nk = N[np.ix_(keep, keep)]
-        dof = max(float(n_rows) - keep.sum(), 1.0)
+        Ni = np.linalg.pinv(N[np.ix_(keep, keep)])
+        JJ = normal[np.ix_(keep, keep)]
+        dof = max(float(n_rows) - float(np.trace(Ni @ JJ)), 1.0)
         s2 = float(rss) / dof
-        Ni = np.linalg.pinv(Nk)
-        cov[np.ix_(keep, keep)] = s2 * Ni @ normal[np.ix_(keep, keep)] @ Ni
+        cov[np.ix_(keep, keep)] = s2 * Ni @ JJ @ Ni
         return cov, s2
     return cov, float("nan")
 

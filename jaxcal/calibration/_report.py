@@ -335,7 +335,8 @@ def _choice(p, final, per_fold, names) -> dict:
             "kept": [names[i] for i in np.flatnonzero(ch.free) if i < layout.n_kin or i in layout.compliances],
             "dropped": [{"parameter": names[j], "t": float(t), "score_mm": float(s)} for j, t, s in ch.pruned],
         },
-        "compliance": bool(layout.n_comp) and cand.compliance,
+        # whether the model estimates a compliance: a candidate with them may have pruned them all
+        "compliance": bool(np.any(ch.free[list(layout.compliances)])) if layout.n_comp and cand.compliance else False,
         "ridge_mm": cand.ridge_mm,
         "not_estimated": _why_not(p, final, names),
     }
