@@ -419,7 +419,7 @@ def run_montecarlo(
         else:  # warm chunks time themselves: the first chunk's data are not needed again
             warm.append((len(q_i), dt))
             first = first[:2] + (None,)
-        nonlinear = estimate_base or estimate_tool or position_only
+        nonlinear = estimate_base or estimate_tool or position_only or robot.convention == "joint"
         exact = _truth_exactly(robot, q_i, true_q, position_only, opts, ident, devs) if nonlinear else None
         rec = _record(
             robot, res, x_true, q_i, q_val_i, true_val, ident, sigma_pos, sigma_rot, noisy, q_val is not None,
@@ -566,7 +566,8 @@ def _truth_exactly(robot, q, true_poses, position_only: bool, opts, ident, devs)
     would share its bias); NaN where it did not converge (the truth is then mapped linearly). With
     the base or the tool estimated, the frames absorb DH errors nonlinearly, and a linear map of
     the truth misses by more than the noise moves a well-determined frame parameter; so do the
-    combinations of points alone (``theta5 - c a5``: the flange's turn is not measured)."""
+    combinations of points alone (``theta5 - c a5``: the flange's turn is not measured) and those
+    of joint frames (``offset1 + rz1 - ry2``: turns of successive frames compose, not add)."""
     exact = dataclasses.replace(opts, method="gn", keep_outliers=True, sigma_pos_mm=None, sigma_rot_rad=None)
     res = calibrate_batch(robot, q, _measured(true_poses, position_only), exact, ident=ident, devices=devs)
     return np.where(res.converged[:, None], res.x, np.nan)
