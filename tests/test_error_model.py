@@ -159,3 +159,21 @@ def test_param_names_and_layout():
     assert len(names) == E.n_params(r, base=True, tool=True) == 36
     assert names[:5] == ["theta1", "d1", "a1", "alpha1", "theta2"]
     assert names[24] == "base_x" and names[-1] == "tool_rz"
+
+
+def test_base_and_tool_errors_are_applied_as_documented(rng):
+    """docs/conventions.md: the base ``[exp(w) R_B | t_B + v]``, the tool ``[R_X exp(w) | t_X +
+    R_X v]``, written here with scipy's rotation vectors, not jaxcal's Lie helpers."""
+    from scipy.spatial.transform import Rotation
+
+    robot = Robot(random_dh(rng), base=random_transform(rng, 1000.0), tool=random_transform(rng, 80.0))
+    x = np.zeros(robot.n_joints * 4 + 12)
+    x[-12:] = rng.normal(0.0, [2.0, 2.0, 2.0, 0.01, 0.01, 0.01] * 2)
+    out = E.perturb(robot, x, base=True, tool=True)
+    B, X = np.asarray(robot.base), np.asarray(robot.tool)
+    vb, wb, vt, wt = x[-12:-9], x[-9:-6], x[-6:-3], x[-3:]
+    want_B, want_X = np.eye(4), np.eye(4)
+    want_B[:3, :3], want_B[:3, 3] = Rotation.from_rotvec(wb).as_matrix() @ B[:3, :3], B[:3, 3] + vb
+    want_X[:3, :3], want_X[:3, 3] = X[:3, :3] @ Rotation.from_rotvec(wt).as_matrix(), X[:3, 3] + X[:3, :3] @ vt
+    assert_allclose(np.asarray(out.base), want_B, atol=1e-9)
+    assert_allclose(np.asarray(out.tool), want_X, atol=1e-9)

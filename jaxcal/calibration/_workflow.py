@@ -3,8 +3,9 @@ says, from poses it never fitted, how well that model predicts new postures and 
 the training ranges. The one behind ``jaxcal calibrate``.
 
 ## Model
-``T(x, q) = exp(xi_b) B0 · A_1(dh + dx_1) ... A_n(dh + dx_n) · X0 exp(xi_t)`` (or points ``m_j``
-on the tool) with ``B0, X0`` from the closed-form guess of each training set
+``T(x, q) = B(x_b) · A_1(dh + dx_1) ... A_n(dh + dx_n) · X(x_t)`` (or points ``m_j`` on the
+tool), the frames ``B0, X0`` corrected as :func:`jaxcal.error_model.perturb` does (docs/conventions.md), from
+the closed-form guess of each training set
 (:mod:`._initial`); joint compliances (:attr:`jaxcal.Robot.compliance`) and a camera model
 (:mod:`jaxcal.camera`) where the candidates carry them.
 
