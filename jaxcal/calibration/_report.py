@@ -420,6 +420,8 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         "camera_model_option": opts.camera,
         "camera_parameters": {k: {"value": f.deltas[k][0], "std_error": f.deltas[k][1]} for k in f.cam_names} or None,
         "sigma_pos_mm": float(fr.sig[-1, 0]),
+        # which weights the user gave (--sigma-pos-mm / --sigma-rot-rad); the others are the data's
+        "sigma_given": {"pos": opts.sigma_pos_mm is not None, "rot": opts.sigma_rot_rad is not None},
         "noise_pos_mm": noise,
         "sigma_rot_deg": float(np.degrees(fr.sig[-1, 1])) if p.n_points == 0 else None,
         "parameters": {

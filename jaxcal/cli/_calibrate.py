@@ -320,6 +320,13 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> Non
         console.print(f"report written to {report}")
 
 
+def _weight_source(rep: dict, which: str) -> str:
+    """Where a fit's weight came from: the option given, else the data (docs/conventions.md)."""
+    if rep.get("sigma_given", {}).get(which):
+        return "--sigma-pos-mm" if which == "pos" else "--sigma-rot-rad"
+    return "the frames-only residual" if which == "pos" else "the noise's ratio to the position's"
+
+
 def show(rep: dict, meas) -> None:
     """Print a calibration report."""
     from ..measurements import orientation_like
@@ -395,9 +402,9 @@ def show(rep: dict, meas) -> None:
         for name, why in held.items():
             console.print(f"  {name}: {why}", highlight=False)
     console.print(
-        f"noise of the fit {rep['noise_pos_mm']:.3g} mm per coordinate; weights (the frames-only "
-        f"residual): sigma_pos {rep['sigma_pos_mm']:.3g} mm"
-        + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg" if rep["points"] == 0 else "")
+        f"noise of the fit {rep['noise_pos_mm']:.3g} mm per coordinate; weights: sigma_pos "
+        f"{rep['sigma_pos_mm']:.3g} mm ({_weight_source(rep, 'pos')})"
+        + (f", sigma_rot {rep['sigma_rot_deg']:.3g} deg ({_weight_source(rep, 'rot')})" if rep["points"] == 0 else "")
         + f"; condition number {rep['condition_number']:.3g}; converged {rep['converged']} in "
         f"{rep['steps']} step{'' if rep['steps'] == 1 else 's'} "
         f"({rep['cv_fits_converged']}/{rep['cv_fits']} cross-validation fits converged"

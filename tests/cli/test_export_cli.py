@@ -48,6 +48,7 @@ def test_ur_kinematics_reproduce_the_calibrated_model(tmp_path, monkeypatch, cap
     ends = np.asarray(cal.base) @ chain @ np.asarray(cal.tool)
     np.testing.assert_allclose(ends[:, :3, 3], np.asarray(jaxcal.fk(cal, q))[:, :3, 3], atol=1e-6)
     out = " ".join(out.split())  # as rich wrapped it
+    assert f"sigma_pos {UR5_TRACKER['sigma_pos']:.3g} mm (--sigma-pos-mm)" in out  # the weight given, named
     assert "not in it" in out and "base (measurement frame -> base)" in out and "tool (tool0 -> TCP)" in out
     # the base as printed, rotation included, is the calibrated one (roll, pitch, yaw about fixed x, y, z)
     from scipy.spatial.transform import Rotation

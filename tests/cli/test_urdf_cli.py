@@ -31,6 +31,7 @@ def test_calibrate_then_evaluate(monkeypatch, capsys, split):
         "--compliance", "no", "--out-model", d / "cal.urdf", "--json", d / "rep.json",
     )  # fmt: skip
     assert code in (0, None), err
+    assert "sigma_pos" in out and "mm (the frames-only residual)" in " ".join(out.split())  # no weight given
     rep = json.loads((d / "rep.json").read_text())
     assert rep["points"] == 4 and "shipped_row" in rep["ignored_columns"]
     assert rep["train_rms_mm"] < 5.0  # the data set's README: a few mm
