@@ -39,27 +39,43 @@ def _stats(err: np.ndarray) -> dict:
     return {"rms_mm": float(np.sqrt(np.mean(e**2))), "max_mm": float(e.max()), "median_mm": float(np.median(e))}
 
 
+def _within(q, lo, hi, tol, revolute) -> np.ndarray:
+    """Whether each value of ``q`` lies in ``[lo - tol, hi + tol]``; a revolute joint's value
+    also where a whole turn away (``q + 2 pi k``: the same posture, nothing extrapolated)."""
+    q, lo, hi, tol = np.broadcast_arrays(*map(np.asarray, (q, lo, hi, tol)))
+    turned = lo - tol + np.mod(q - (lo - tol), 2 * np.pi)  # the first turn of q at or above the range's start
+    return np.where(revolute, turned <= hi + tol, (q >= lo - tol) & (q <= hi + tol))
+
+
+def _gap(a, b, revolute) -> np.ndarray:
+    """``|a - b|``, a revolute joint's the shorter way round."""
+    d = np.abs(np.asarray(a) - np.asarray(b))
+    return np.where(revolute, np.abs(np.mod(d + np.pi, 2 * np.pi) - np.pi), d)
+
+
 def posture_groups(robot: Robot, q: np.ndarray, q_train: np.ndarray) -> np.ndarray:
     """Index into :data:`GROUPS` of every pose ``q (K, n)`` relative to the training poses: a
     repeat of one (within :data:`REPEAT_RAD` / :data:`REPEAT_MM` on every joint), a new posture
-    with every joint inside the training data's range, or outside it on some joint."""
+    with every joint inside the training data's range, or outside it on some joint. A revolute
+    joint's reading a whole turn away is the same angle."""
+    rev = np.array([t == "R" for t in robot.joint_types])
     tol = np.array([REPEAT_RAD if t == "R" else REPEAT_MM for t in robot.joint_types])
-    near = np.all(np.abs(q[:, None, :] - q_train[None, :, :]) <= tol, axis=-1).any(axis=1)
-    lo, hi = q_train.min(0), q_train.max(0)
-    inside = np.all((q >= lo - tol) & (q <= hi + tol), axis=-1)
+    near = np.all(_gap(q[:, None, :], q_train[None, :, :], rev) <= tol, axis=-1).any(axis=1)
+    inside = np.all(_within(q, q_train.min(0), q_train.max(0), tol, rev), axis=-1)
     return np.where(near, 0, np.where(inside, 1, 2))
 
 
 def outside(robot: Robot, q, ranges: dict) -> np.ndarray:
     """Which poses ``q (K, n)`` have a joint outside its training range (``ranges``: joint name ->
-    ``(lowest, highest)``, mm and rad; tolerances :data:`REPEAT_RAD`, :data:`REPEAT_MM`)."""
+    ``(lowest, highest)``, mm and rad; tolerances :data:`REPEAT_RAD`, :data:`REPEAT_MM`; a
+    revolute joint's reading a whole turn away is inside)."""
     q = np.asarray(q)
     out = np.zeros(len(q), bool)
     for j, (name, t) in enumerate(zip(robot.joint_names, robot.joint_types)):
         if name in ranges:
             tol = REPEAT_RAD if t == "R" else REPEAT_MM
             lo, hi = ranges[name]
-            out |= (q[:, j] < lo - tol) | (q[:, j] > hi + tol)
+            out |= ~_within(q[:, j], lo, hi, tol, t == "R")
     return out
 
 

@@ -99,6 +99,11 @@ def test_posture_groups():
         ]
     )
     assert posture_groups(robot, q, train).tolist() == [0, 1, 2, 2]
+    # a revolute joint's reading a whole turn away is the same posture; a prismatic one's is not
+    turned = q.copy()
+    turned[:, 1] += 2 * np.pi * np.array([1, -1, 2, 0])
+    assert posture_groups(robot, turned, train).tolist() == [0, 1, 2, 2]
+    assert posture_groups(robot, q + [2 * np.pi, 0, 0, 0, 0, 0], train).tolist() == [1, 1, 2, 2]
 
 
 def test_model_and_data_must_measure_the_same_thing():
@@ -124,6 +129,10 @@ def test_postures_outside_the_training_ranges_are_counted_and_warned(rng):
     assert want.mean() > 0.1 and "outside the ranges the model was fitted on" in rep["warnings"][0]
     inside = evaluate(Model(ur5), Measurements(q * 0.5, dh_fk(dh, q * 0.5)), ranges=ranges)
     assert inside["outside_training_ranges"]["poses"] == 0 and inside["warnings"] == []
+    # the same postures with readings a whole turn away: the same count (a wrapped continuous joint)
+    turns = -2 * np.pi * np.sign(q) * rng.integers(0, 2, q.shape)  # within a turn of 0, as readings are
+    wrapped = evaluate(Model(ur5), Measurements(q + turns, dh_fk(dh, q + turns)), ranges=ranges)
+    assert wrapped["outside_training_ranges"] == rep["outside_training_ranges"]
 
 
 def test_a_misread_file_is_refused_or_named():
