@@ -86,6 +86,8 @@ class Measurements:
     * ``rows`` — ``(K,)`` 1-based CSV data-row numbers, kept through :meth:`subset` so messages
       after splitting or cross-validation still point at the file.
     * ``ignored`` — the file's columns that are neither joints nor measurements.
+    * ``ignored_ranges`` — the lowest and highest number of each ignored column that holds only
+      numbers, as written (a joint of the robot file outside the chain, still moving, shows here).
     * ``units`` — the ``(length, angle)`` units the file was read in.
     * ``dropped_rows`` — data rows left out because none of their points was seen.
     * ``point_numbers`` — the file's number of each measured point (after :meth:`select_points`);
@@ -99,6 +101,7 @@ class Measurements:
     source: str = "arrays"
     rows: np.ndarray | None = None
     ignored: tuple[str, ...] = ()
+    ignored_ranges: dict = dataclasses.field(default_factory=dict)
     units: tuple[str, str] = ("mm", "rad")
     dropped_rows: tuple[int, ...] = ()
     point_numbers: tuple[int, ...] = ()
@@ -506,6 +509,50 @@ def mixed_units(q, pos, robot: Robot, rows, src, joint_cols, point_numbers=()) -
             )
 
 
+def _numeric_ranges(header, records, names) -> dict[str, tuple[float, float]]:
+    """``(lowest, highest)`` of each column of ``names`` whose filled cells are all numbers."""
+    out = {}
+    for name in names:
+        if name not in header:
+            continue
+        i = header.index(name)
+        cells = [r[i].strip() for _, r in records if i < len(r) and r[i].strip()]
+        try:
+            v = np.array([float(c) for c in cells])
+        except ValueError:
+            continue
+        if v.size and np.isfinite(v).all():
+            out[name] = (float(v.min()), float(v.max()))
+    return out
+
+
+MOVED_RAD, MOVED_MM = 1e-2, 1.0
+"""How far a joint outside the chain may move over the file before :func:`joints_left_out`
+names it: beyond a reading's jitter, as :func:`jaxcal.evaluate` tells a repeated posture."""
+
+
+def joints_left_out(meas: Measurements, robot: Robot, movable: dict[str, str]) -> list[str]:
+    """Warnings for the file's columns named after a movable joint of the robot file
+    (``movable``: name -> ``"R"``/``"P"``, :func:`jaxcal.robot.read_movable_joints`) that is not in
+    the chain and moves over the rows: the model holds it where the chain's base is, so what it
+    moves is fitted into the other parameters, or refused."""
+    lu, au = LENGTH_UNITS[meas.units[0]], ANGLE_UNITS[meas.units[1]]
+    out = []
+    for name, (lo, hi) in meas.ignored_ranges.items():
+        kind = movable.get(name)
+        if kind is None or name in robot.joint_names:
+            continue
+        span, unit = ((hi - lo) * lu, "mm") if kind == "P" else ((hi - lo) * au, "rad")
+        if span > (MOVED_MM if kind == "P" else MOVED_RAD):
+            out.append(
+                f"column {name!r} is a joint of the robot file outside the chain calibrated "
+                f"({', '.join(robot.joint_names)}), and it moves over the rows (by {span:.4g} {unit}): the model "
+                f"takes it as fixed, so its motion is fitted into the other parameters; include it in the chain "
+                f"(--base-link above it) or use rows where it stands still"
+            )
+    return out
+
+
 def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, points=None) -> Measurements:
     """Read a measurement CSV (module docstring) for ``robot``; returns mm and rad.
 
@@ -530,6 +577,7 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
         if c not in used and (c.strip() or any(i < len(r) and r[i].strip() for _, r in records))
     )
     require_rows(records, src)
+    ignored_ranges = _numeric_ranges(header, records, ignored)
     values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else columns)
     seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(columns), 3).any(-1)).any(-1)
     if not seen.any():
@@ -551,6 +599,7 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
         source=Path(path).name,
         rows=rows,
         ignored=ignored,
+        ignored_ranges=ignored_ranges,
         units=(lu_name, au_name),
         dropped_rows=dropped,
     )

@@ -126,9 +126,9 @@ def calibrate(
     from ..calibration import GAUGE, JOINT_GAUGE, calibrate_data
     from ..errors import DataError, ImplausibleFitError
     from ..export import check_dh, check_ur
-    from ..measurements import read_measurements
+    from ..measurements import joints_left_out, read_measurements
     from ..model import Model, save_model
-    from ..robot import save_robot
+    from ..robot import read_movable_joints, save_robot
 
     outputs = {"json_out": json_out, "out_robot": out_robot, "out_model": out_model, "plots": plots}
     outputs |= {"out_ur_kinematics": out_ur_kinematics, "out_dh": out_dh, "report": report}
@@ -191,6 +191,8 @@ def calibrate(
     with progress("calibrating") as bar:
         res = calibrate_data(nominal, meas, opts, progress=bar)
     rep = res.report
+    left_out = joints_left_out(meas, nominal, read_movable_joints(robot))
+    rep["notes"] = left_out + rep["notes"]
     show(rep, meas)
     # a fit that stopped short is judged where it stopped: refused as implausible only where an
     # input mistake the check names explains it (reversed joints, units, swapped axes), else said
@@ -204,7 +206,9 @@ def calibrate(
         )
         raise typer.Exit(1)
     if not rep["plausible"]:
-        raise ImplausibleFitError(rep["implausible"] + "; nothing was written")
+        moving = [n.split("'")[1] for n in left_out]  # the cause a robot file's other joints name
+        cause = f"; likely: {', '.join(moving)} moved but is not in the chain (note above)" if moving else ""
+        raise ImplausibleFitError(rep["implausible"] + cause + "; nothing was written")
     # every output or none: one that fails late (a plot, an export) leaves no others behind; what
     # the block says ("written to ...") is said once the files are
     with console.capture() as said, all_or_nothing():

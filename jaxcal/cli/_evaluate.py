@@ -39,11 +39,11 @@ def evaluate(
 
     from .._io import json_text, write_atomic
     from ..calibration import evaluate as run
-    from ..measurements import measurement_columns, read_measurements, read_table
+    from ..measurements import joints_left_out, measurement_columns, read_measurements, read_table
     from ..model import Model, load_model, model_points
 
     check_outputs({"json_out": json_out}, {"model": model, "data": data, "--training": training})
-    from ..robot import PRESETS, preset, read_point_numbers, read_training_ranges
+    from ..robot import PRESETS, preset, read_movable_joints, read_point_numbers, read_training_ranges
 
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
     m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
@@ -70,6 +70,7 @@ def evaluate(
         same = chosen if chosen is not None and max(chosen) <= have else None
         train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same)
     rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
+    rep["warnings"] += [] if nominal else joints_left_out(meas, m.robot, read_movable_joints(model))
     if not nominal and model.suffix.lower() in (".yaml", ".yml"):  # UR's format: the arm alone
         rep["warnings"].append(
             f"{model.name} is a UR kinematics file, which holds no base or tool frame: the data are predicted "

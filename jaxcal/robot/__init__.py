@@ -3,6 +3,7 @@ files (TOML, URDF, UR kinematics YAML)."""
 
 from ._files import calibrated_chain as calibrated_chain
 from ._files import load_robot as load_robot
+from ._files import read_movable_joints as read_movable_joints
 from ._files import read_point_numbers as read_point_numbers
 from ._files import read_robot_file as read_robot_file
 from ._files import read_training_ranges as read_training_ranges

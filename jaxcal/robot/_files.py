@@ -13,7 +13,7 @@ from ._robot import Robot
 from ._toml import point_numbers_toml, read_toml, save_toml, training_ranges_toml
 from ._ur import read_ur_kinematics
 from ._urdf import calibrated_chain as _urdf_chain
-from ._urdf import point_numbers_urdf, read_urdf, save_urdf, training_ranges_urdf
+from ._urdf import movable_joints_urdf, point_numbers_urdf, read_urdf, save_urdf, training_ranges_urdf
 
 
 def _is_urdf(path) -> bool:
@@ -40,6 +40,12 @@ def calibrated_chain(path) -> tuple[str, str | None] | None:
     """``(base link, tip link)`` of the chain a calibrated URDF was written for (its
     ``jaxcal_measurement_frame`` and ``jaxcal_tool`` links); ``None`` for any other file."""
     return _urdf_chain(path) if _is_urdf(path) and Path(path).exists() else None
+
+
+def read_movable_joints(path) -> dict[str, str]:
+    """Every movable joint of a URDF, in the chain or not (name -> ``"R"`` or ``"P"``); empty
+    for other files, whose joints are all the chain's."""
+    return movable_joints_urdf(path) if _is_urdf(path) and Path(path).exists() else {}
 
 
 def read_training_ranges(path) -> dict | None:

@@ -369,6 +369,12 @@ def _m(T) -> np.ndarray:
     return T
 
 
+def movable_joints_urdf(path) -> dict[str, str]:
+    """Every movable joint of the file, chain or not: name -> ``"R"`` or ``"P"``."""
+    doc = _parse(Path(path))
+    return {j.name: MOVABLE[j.type] for j in doc.joints if j.type in MOVABLE}
+
+
 def training_ranges_urdf(path) -> dict | None:
     """The ``<jaxcal_training_range>`` elements of a calibrated file (joint name -> ``(lowest,
     highest)``, mm and rad), or ``None``."""

@@ -197,3 +197,32 @@ def test_a_chain_error_names_both_link_options_as_flags(monkeypatch, capsys):
     code, _, err = run_cli(monkeypatch, capsys, "info", URDF, "--base-link", "arm_4_link", "--tip-link", "arm_2_link")
     err = " ".join(err.split())
     assert code == 2 and "'arm_2_link' (--tip-link) is not below 'arm_4_link' (--base-link)" in err, err
+
+
+def test_a_joint_outside_the_chain_that_moves_is_named(tmp_path, monkeypatch, capsys):
+    """The TIAGo data with the chain cut below the torso (``--base-link torso_lift_link``): the
+    torso column is not the chain's, yet it moves 335 mm over the rows, which the model cannot
+    follow. It is named, with how far it moves, whatever becomes of the fit; held still, it is
+    only an ignored column."""
+    from jaxcal.measurements import joints_left_out
+    from jaxcal.robot import load_robot, read_movable_joints
+
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", URDF, CSV, "--base-link", "torso_lift_link", "--params", "frames",
+        "--folds", "2", "--compliance", "no", "--nested-max-poses", "0", "--json", tmp_path / "rep.json",
+    )  # fmt: skip
+    out, err = " ".join(out.split()), " ".join(err.split())  # as rich wrapped them
+    assert "note: column 'torso_lift_joint' is a joint of the robot file outside the chain" in out
+    assert "(by 335.3 mm)" in out
+    # 56 mm RMS: refused, the moving joint given as the likely cause
+    assert code == 3 and "likely: torso_lift_joint moved but is not in the chain" in err, err
+    # the same file with the torso still: nothing to say
+    arm = load_robot(URDF, base_link="torso_lift_link")
+    header, *rows = CSV.read_text().splitlines()
+    i = header.split(",").index("torso_lift_joint")
+    still = [",".join(v if k != i else "0.2" for k, v in enumerate(r.split(","))) for r in rows]
+    (tmp_path / "still.csv").write_text("\n".join([header, *still]) + "\n")
+    meas = read_measurements(tmp_path / "still.csv", arm)
+    assert "torso_lift_joint" in meas.ignored and meas.ignored_ranges["torso_lift_joint"] == (0.2, 0.2)
+    assert joints_left_out(meas, arm, read_movable_joints(URDF)) == []
+    assert joints_left_out(read_measurements(CSV, arm), arm, read_movable_joints(URDF))  # moving: named
