@@ -57,13 +57,16 @@ MIXED_ANGLE_FACTOR = 3.0
 turn; readings running on over several turns stay closer."""
 _JOINT_RE = re.compile(r"q([1-9][0-9]*)")
 _MEASUREMENT_RE = re.compile(r"[xyz]([1-9][0-9]*)?|q[wxyz]")
-_ORIENTATION_RE = re.compile(r"(?i)r[1-3][1-3]|roll|pitch|yaw|r[xyz]|rot.*|euler.*|quat.*|[abcwpr]")
+_ORIENTATION_RE = re.compile(
+    r"(?i)r[1-3][1-3]|roll|pitch|yaw|r[xyz]|rot.*|euler.*|quat.*|q_?[wxyz]|o[wxyz]|.*orient.*|[abcwpr]"
+)
 
 
 def orientation_like(names) -> list[str]:
     """The column names among ``names`` that look like an orientation jaxcal does not read
     (a rotation matrix r11..r33, roll/pitch/yaw, a rotation vector rx, ry, rz, KUKA's A, B, C,
-    Fanuc's W, P, R): only quaternions qw, qx, qy, qz are read as orientations."""
+    Fanuc's W, P, R, a quaternion under other names: QW, q_w, ow, ROS's orientation.w): only
+    quaternions qw, qx, qy, qz are read as orientations."""
     return [c for c in names if _ORIENTATION_RE.fullmatch(c.strip())]
 
 

@@ -197,6 +197,9 @@ def test_joint_columns_by_name_and_other_columns_listed(tmp_path, panda):
     # orientations in forms jaxcal does not read are named (calibrate then warns: positions alone)
     names = ["stamp", "r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R", "note", "A1", "x2"]
     assert orientation_like(names) == ["r11", "R23", "roll", "Yaw", "rx", "rot_w", "A", "B", "C", "W", "P", "R"]
+    # a quaternion under names jaxcal does not read (its own are qw, qx, qy, qz, exactly)
+    quats = ["QW", "QX", "q_w", "q_z", "ow", "oz", "orientation.w", "pose.orientation.x", "q1", "q12", "z"]
+    assert orientation_like(quats) == quats[:-3]
 
 
 def test_joint_names_that_look_numbered_are_names(tmp_path, panda):
