@@ -17,11 +17,12 @@ A fit whose residual or parameters are not finite (a diverged solve) is never pl
 Most such fits come from a mistake in the data file, and the likely ones can be tested: the data
 are read again as they would be without that mistake (:data:`MISTAKES`: two position columns
 swapped, a mirrored axis, a quaternion written x, y, z, w under names w, x, y, z or the reverse,
-two joint columns swapped, the joint order reversed, degrees read as radians or the reverse,
-metres read as millimetres or the reverse), and the frames-only fit (nominal DH, base and tool
-estimated, all in one batch) is repeated on each; a DH table is also read in the other
-convention (standard or modified DH). A mistake whose correction brings that residual down to a
-calibration's size is named, with the residual before and after (:func:`diagnose`).
+a quaternion of the inverse rotation (conjugated), two joint columns swapped, the joint order
+reversed, degrees read as radians or the reverse, metres read as millimetres or the reverse),
+and the frames-only fit (nominal DH, base and tool estimated, all in one batch) is repeated on
+each; a DH table is also read in the other convention (standard or modified DH). A mistake
+whose correction brings that residual down to a calibration's size is named, with the residual
+before and after (:func:`diagnose`).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ MISTAKES = (
     "mirrored z",
     "quaternion written x, y, z, w",
     "quaternion written w, x, y, z under names x, y, z, w",
+    "quaternion of the inverse rotation",
     "joints reversed",
     "degrees read as radians",
     "radians read as degrees",
@@ -199,6 +201,9 @@ def variants(robot: Robot, q, target, n_points: int):
             t = np.array(target, copy=True)
             t[:, :3, :3] = Rotation.from_quat(xyzw_read[:, order]).as_matrix()
             out[name] = (q, t)
+        t = np.array(target, copy=True)  # a conjugated quaternion (JPL's convention, or the frame's inverse)
+        t[:, :3, :3] = np.swapaxes(target[:, :3, :3], -1, -2)
+        out["quaternion of the inverse rotation"] = (q, t)
     n = q.shape[1]
     for j in range(n - 1):
         perm = list(range(n))

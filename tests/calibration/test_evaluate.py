@@ -168,6 +168,10 @@ def test_a_misread_file_is_refused_or_named():
     wxyz[:, :3, :3] = Rotation.from_quat(Rotation.from_matrix(T[:, :3, :3]).as_quat()[:, [3, 0, 1, 2]]).as_matrix()
     (w,) = evaluate(true, Measurements(q, wxyz))["warnings"]
     assert "quaternion written w, x, y, z under names x, y, z, w" in w
+    conj = T.copy()  # the inverse rotation's quaternion (JPL's convention, or conjugated)
+    conj[:, :3, :3] = np.swapaxes(T[:, :3, :3], -1, -2)
+    (w,) = evaluate(true, Measurements(q, conj))["warnings"]
+    assert "quaternion of the inverse rotation" in w
     moved = T.copy()  # the tracker moved since the calibration: no mistake explains it
     moved[:, :3, 3] += [300.0, 0.0, 0.0]
     (w,) = evaluate(true, Measurements(q, moved))["warnings"]
