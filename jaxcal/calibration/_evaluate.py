@@ -112,8 +112,8 @@ def _stand_out(pos: Float[np.ndarray, "K M"], rot: Float[np.ndarray, " K"] | Non
     return det.flags[0], det.sigmas[0]
 
 
-def _stand_out_note(rows, sigmas, pos) -> str:
-    """The warning naming the poses that stand out, with the RMS of the others (mm)."""
+def _stand_out_note(rows, sigmas, pos, rot=None) -> str:
+    """The warning naming the poses that stand out, with the RMS of the others (mm; deg)."""
     listed = ", ".join(f"{int(r)} ({u:.3g})" for r, u in list(zip(rows, sigmas))[:10])
     more = f" and {len(rows) - 10} more" if len(rows) > 10 else ""
     return (
@@ -121,6 +121,7 @@ def _stand_out_note(rows, sigmas, pos) -> str:
         f"the {OUTLIER_SIGMAS:g}-sigma rule calibrate leaves poses out by): a measurement gone wrong (a swapped "
         f"marker label, a knock), postures the model predicts badly, or the rows its calibration left out as "
         f"outliers; the figures include them; without them the position RMS is {_stats(pos)['rms_mm']:.4g} mm"
+        + ("" if rot is None else f" and the rotation RMS {_stats(rot)['rms_mm']:.4g} deg")
     )
 
 
@@ -298,14 +299,23 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     out["warnings"] = _zeros(meas) + few + far
     flags, sigmas = _stand_out(pos, rot)
     order = np.argsort(-np.where(flags, sigmas, -np.inf))[: int(flags.sum())]  # the worst first
-    out["outliers"] = [{"row": int(meas.rows[k]), "sigmas": float(sigmas[k])} for k in order]
+    pose_mm = np.sqrt(np.nanmean(pos**2, -1))  # a pose's RMS over its points, as calibrate lists it
+    out["outliers"] = [
+        {"row": int(meas.rows[k]), "sigmas": float(sigmas[k]), "position_mm": float(pose_mm[k])}
+        | ({} if rot is None else {"rotation_deg": float(rot[k])})
+        for k in order
+    ]
     if flags.any() and not flags.all():
         kept = {f"position_{k}": v for k, v in _stats(pos[~flags]).items()}
         if rot is not None:
             kept |= {f"rotation_{k.replace('_mm', '_deg')}": v for k, v in _stats(rot[~flags]).items()}
         out["without_outliers"] = {"poses": int((~flags).sum())} | kept
         if not few:  # else named as rows far beyond a calibration's
-            out["warnings"].append(_stand_out_note(np.asarray(meas.rows)[order], sigmas[order], pos[~flags]))
+            out["warnings"].append(
+                _stand_out_note(
+                    np.asarray(meas.rows)[order], sigmas[order], pos[~flags], None if rot is None else rot[~flags]
+                )
+            )
     if ranges is not None:
         away = outside(model.robot, meas.q, ranges)
         share = float(away.mean()) if len(away) else 0.0

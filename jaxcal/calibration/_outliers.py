@@ -215,16 +215,18 @@ def judged(fit: dict, target, n_points: int, opts, excluded=None) -> Detection:
     )  # fmt: skip
 
 
-def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5) -> str:
+def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5, rotation_deg=None) -> str:
     """Empty when at most ``limit`` (a fraction) of the poses are outliers; else what a refusal
-    says: how many, the limit, and the ``worst`` rows (file row, position error mm, sigmas)."""
+    says: how many, the limit, and the ``worst`` rows (file row, position error mm, rotation
+    error deg where given, sigmas)."""
     flags = np.asarray(flags, bool)
     n, K = int(flags.sum()), flags.size
     if n <= limit * K:
         return ""
     idx = np.flatnonzero(flags)
     idx = idx[np.argsort(-np.asarray(sigmas)[idx])][:worst]
-    listed = ", ".join(f"{int(rows[k])} ({position_mm[k]:.3g} mm, {sigmas[k]:.3g} sigma)" for k in idx)
+    deg = (lambda k: "") if rotation_deg is None else (lambda k: f", {rotation_deg[k]:.3g} deg")  # noqa: E731
+    listed = ", ".join(f"{int(rows[k])} ({position_mm[k]:.3g} mm{deg(k)}, {sigmas[k]:.3g} sigma)" for k in idx)
     return (
         f"{n} of {K} poses ({100 * n / K:.0f} %) are outliers, more than max_outlier_fraction "
         f"{100 * limit:.0f} %: not a few bad measurements but data the model does not fit; worst rows: {listed}"

@@ -385,7 +385,10 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
     if named is not None:
         last = dataclasses.replace(last, flags=np.asarray(named, bool)[None])
     pos_mm = outliers.pose_position_mm(fin["pos_err"][0])
-    many = outliers.too_many(last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction)
+    rot_deg = np.degrees(np.asarray(fin["rot_err"][0])) if p.n_points == 0 else None
+    many = outliers.too_many(
+        last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction, rotation_deg=rot_deg
+    )
     swap = ""
     if many:
         many += outliers.zeros_note(p.target, p.n_points, last.flags[0])

@@ -488,7 +488,10 @@ def calibrate(
     x = core.relative_x(robot, layout, model)
     after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
-    many = outliers.too_many(flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction)
+    rot_deg = np.degrees(np.asarray(b["rot_err"][0])) if n_points == 0 else None
+    many = outliers.too_many(
+        flags, det.sigmas[0], pos_mm, np.arange(K), opts.max_outlier_fraction, rotation_deg=rot_deg
+    )
     few = few_distinct(q, core.same_pose(robot), layout.rows, needed)
     swap = ""
     if many and n_points > 1:

@@ -316,3 +316,8 @@ def test_a_pose_that_stands_out_in_rotation_alone_is_named():
     assert [o["row"] for o in rep["outliers"]] == [13]
     assert rep["outliers"][0]["sigmas"] == pytest.approx(u[12], rel=1e-6)
     assert rep["without_outliers"]["rotation_max_deg"] < 0.08 < rep["rotation_max_deg"]
+    # the pose's own errors, and the others' rotation RMS in the warning: its fault is a turn
+    assert rep["outliers"][0]["rotation_deg"] == pytest.approx(np.degrees(r[12]), rel=1e-6)
+    assert rep["outliers"][0]["position_mm"] == pytest.approx(e[12], rel=1e-6)
+    others = np.degrees(np.sqrt(np.mean(np.delete(r, 12) ** 2)))
+    assert f"the rotation RMS {others:.4g} deg" in rep["warnings"][-1]

@@ -75,6 +75,9 @@ def test_too_many_names_the_worst_rows():
     assert "3 of 10 poses (30 %) are outliers" in msg and "max_outlier_fraction 20 %" in msg
     assert msg.index("103 (3 mm, 30 sigma)") < msg.index("104 (1.2 mm") < msg.index("101 (0.9 mm")
     assert outliers.too_many(flags, u, pos, rows, 0.3) == ""
+    # pose data: each row's rotation error too (an orientation outlier's fault is in degrees)
+    msg = outliers.too_many(flags, u, pos, rows, 0.2, rotation_deg=u / 4)
+    assert "103 (3 mm, 7.5 deg, 30 sigma)" in msg and "101 (0.9 mm, 2.25 deg, 9 sigma)" in msg
     # flagged poses whose second marker reads exactly 0, 0, 0: named as lost markers written as zeros
     points = np.ones((10, 3, 3))
     points[[0, 2, 5], 1] = 0.0  # row 106 is not flagged
