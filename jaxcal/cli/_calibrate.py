@@ -292,18 +292,28 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> Non
 
     if out_ur_kinematics is not None:
         robot = res.robot.replace(name=f"{res.nominal.name}-calibrated")
+        compliance = res.model.robot.compliance
+        bent = compliance is not None and np.any(np.asarray(compliance) != 0)  # the controller's model is rigid
+        if bent:
+            rigid = eqx.tree_at(lambda r: r.compliance, res.model.robot, None, is_leaf=lambda v: v is None)
+            m = res.model
+            with_c = evaluate(m, meas)["position_rms_mm"]
+            without = evaluate(Model(rigid, m.points, m.camera_params, camera=m.camera), meas)["position_rms_mm"]
+            # the file's own figure: its rigid geometry's, not the held-out error of the model with compliances
+            comment = dict(comment)  # the other files' comment stays as it is
+            held = comment.pop("heldout_rms_mm", None)
+            comment = comment | {
+                "compliance": "estimated, not in this file (rigid geometry only)",
+                "rigid_geometry_rms_mm_on_the_data": without,
+                "heldout_rms_mm_with_compliance": held,
+            }
         base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment)
         console.print(f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):")
         for what, T in (("base (measurement frame -> base)", base), ("tool (tool0 -> TCP)", tool)):
             xyz = ", ".join(f"{v:.4f}" for v in T[:3, 3])
             rpy = ", ".join(f"{v + 0.0:.6f}" for v in np.asarray(matrix_to_rpy(np.asarray(T)[:3, :3])))
             console.print(f"  {what}: xyz {xyz} mm, rpy {rpy} rad", highlight=False)
-        compliance = res.model.robot.compliance
-        if compliance is not None and np.any(np.asarray(compliance) != 0):  # the controller's model is rigid
-            rigid = eqx.tree_at(lambda r: r.compliance, res.model.robot, None, is_leaf=lambda v: v is None)
-            m = res.model
-            with_c = evaluate(m, meas)["position_rms_mm"]
-            without = evaluate(Model(rigid, m.points, m.camera_params, camera=m.camera), meas)["position_rms_mm"]
+        if bent:
             console.print(
                 f"[yellow]warning:[/yellow] the model has joint compliances, which a UR kinematics file cannot hold: "
                 f"the file's rigid geometry errs {without:.3g} mm RMS on the data, the model with them {with_c:.3g} mm "

@@ -161,3 +161,34 @@ def test_an_output_named_as_another_format_refused_before_fitting(
     err = " ".join(err.split())
     assert code == 2 and err.startswith(f"error: {flag}") and msg in err, err
     assert not (tmp_path / name).exists()
+
+
+def test_a_compliant_models_ur_file_gives_its_rigid_geometrys_error(tmp_path, monkeypatch, capsys):
+    """A UR5 with compliant joints: the UR kinematics file holds the rigid geometry alone, so its
+    header gives that geometry's error on the data (checked by composing the file's chain with
+    NumPy), not the held-out error of the model with compliances, which it is named as."""
+    rng = np.random.default_rng(21)
+    ur5 = jaxcal.preset("ur5")
+    tool = np.eye(4)
+    tool[:3, 3] = [0.0, 0.0, 150.0]
+    true = ur5.replace(compliance=np.r_[0.0, 3e-5, 2e-5, 1e-5, 0.0, 0.0], tool=tool)
+    q = rng.uniform(-np.pi, np.pi, (40, 6))
+    points = np.asarray(jaxcal.fk(true, q))[:, :3, 3] + rng.normal(0.0, 0.02, (40, 3))
+    data = tmp_path / "bent.csv"
+    rows = "".join(",".join(repr(float(v)) for v in (*a, *b)) + "\n" for a, b in zip(q, points))
+    data.write_text("q1,q2,q3,q4,q5,q6,x,y,z\n" + rows)
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", "ur5", data, "--params", "all", "--compliance", "yes", "--folds", "3",
+        "--nested-max-poses", "0", "--out-robot", tmp_path / "cal.toml", "--out-ur-kinematics", tmp_path / "cal.yaml",
+    )  # fmt: skip
+    assert code in (0, None), err
+    text = (tmp_path / "cal.yaml").read_text()
+    head = dict(line[2:].split(": ", 1) for line in text.splitlines() if line.startswith("# ") and ": " in line)
+    assert "heldout_rms_mm" not in head and "not in this file" in head["compliance"]
+    cal = jaxcal.load_robot(tmp_path / "cal.toml")
+    chain = ur_yaml_fk(yaml.safe_load(text), q)
+    chain[:, :3, 3] *= 1000.0  # m -> mm
+    ends = np.asarray(cal.base) @ chain @ np.asarray(cal.tool)
+    rigid = float(np.sqrt(np.mean(np.sum((ends[:, :3, 3] - points) ** 2, -1))))
+    assert float(head["rigid_geometry_rms_mm_on_the_data"]) == pytest.approx(rigid, rel=1e-4)
+    assert rigid > 5 * float(head["heldout_rms_mm_with_compliance"])  # what the file alone does not reach
