@@ -365,6 +365,7 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
             "noise_rot_deg": float(np.degrees(last.scale[0, 1] * fr.sig[-1, 1])) if rot else None,
             "max_outlier_fraction": opts.max_outlier_fraction,
             "heldout_rms_mm_all_poses": _rms(h["pe"]),  # the flagged poses too: what leaving them out hides
+            "heldout_rot_rms_deg_all_poses": _rms(h["re"]) if rot else None,
             # flagged by the detection, then predicted by the calibrated model (the second look)
             "taken_back_rows": [int(r) for r in p.rows[det.flags[0] & p.valid]] if not opts.keep_outliers else [],
         },

@@ -477,7 +477,9 @@ def show_outliers(rep: dict) -> None:
     if d["excluded"]:
         console.print(
             f"outliers: {rule}; left out of the fit and of the held-out figures (held-out RMS with them "
-            f"scored too: {d['heldout_rms_mm_all_poses']:.3f} mm; --keep-outliers fits them)"
+            f"scored too: {d['heldout_rms_mm_all_poses']:.3f} mm"
+            + (f", {d['heldout_rot_rms_deg_all_poses']:.3g} deg" if d.get("heldout_rot_rms_deg_all_poses") else "")
+            + "; --keep-outliers fits them)"
         )
     else:
         console.print(f"outliers: {rule}; kept in the fit (--keep-outliers)")

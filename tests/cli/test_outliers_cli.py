@@ -65,6 +65,9 @@ def test_five_percent_outliers_named_and_left_out(tmp_path, monkeypatch, capsys,
     assert e_bad <= 2 * e_clean, (e_clean, e_bad)
     # the held-out figures leave the flagged poses out; the report says what they would add
     assert rep["heldout_rms_mm"] < 0.1 < rep["outlier_detection"]["heldout_rms_mm_all_poses"]
+    # poses: the rotation's too (a pose may stand out in its orientation alone)
+    all_rot = rep["outlier_detection"]["heldout_rot_rms_deg_all_poses"]
+    assert 0 < all_rot < 1 and f"{all_rot:.3g} deg; --keep-outliers" in " ".join(out.split())
     # clean data: nothing flagged, and the same model as without detection
     crep = json.loads(clean_out["json"].read_text())
     assert crep["outliers"] == [] and "outliers: none" in clean_text
@@ -93,7 +96,7 @@ def test_thirty_percent_outliers_refused_nothing_written(tmp_path, monkeypatch, 
         "18 of 60 poses (30 %) are outliers, more than max_outlier_fraction 20 %" in msg
         and "nothing was written" in msg
     )
-    listed = re.findall(r"(\d+) \([\d.]+ mm, [\d.]+ sigma\)", msg.split("worst rows: ")[1])
+    listed = re.findall(r"(\d+) \([\d.]+ mm, [\d.]+ deg, [\d.]+ sigma\)", msg.split("worst rows: ")[1])  # poses
     assert len(listed) == 5 and {int(r) - 1 for r in listed} <= set(np.flatnonzero(bad.outlier_mask[0]))
     # --keep-outliers does not hide them, and a looser limit lets the fit through
     code, _, err, out, _ = _calibrate(tmp_path, monkeypatch, capsys, bad, "loose", "--max-outlier-fraction", "0.35")
