@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import equinox as eqx
 import numpy as np
 
 from .._io import json_text
@@ -261,6 +262,11 @@ def _final(p, fr, final, fits) -> _Final:
     if cand.camera != layout.camera:  # the chosen camera model is a prefix of the largest
         cam = np.asarray(full.camera_params)[: camera_size(cand.camera)]
         model = Model(full.robot, full.points, cam, camera=cand.camera)
+    comp = model.robot.compliance
+    if comp is not None and p.robot.compliance is None and not np.any(np.asarray(comp) != 0):
+        # every compliance held at zero: a rigid arm, and its files say so (no zero per joint)
+        rigid = eqx.tree_at(lambda r: r.compliance, model.robot, None, is_leaf=lambda v: v is None)
+        model = Model(rigid, model.points, model.camera_params, camera=model.camera)
     w = core.weights_of(layout, fr.sig[[-1]])[0]
     J_fin = core.analyse(core.member(fits["model"], O), layout, p.q)[0]
     st = core.fit_statistics(

@@ -127,9 +127,13 @@ def test_selection_keeps_the_perturbed_parameters_of_a_sparse_truth(rng):
         ident = identify(r, meas.q, n_points=1)
         base = {names[i] for i in ident.base if i < len(names)}
         assert set(wrong) <= base
-        rep = calibrate_data(r, meas).report
+        res = calibrate_data(r, meas)
+        rep = res.report
         kept = set(rep["selection"]["kept"])
         assert set(wrong) <= kept and not rep["compliance"]
+        # a rigid model, not one of zero compliances: its files hold none (a candidate had them)
+        assert any(c["name"].endswith("compliance") or "+ compliance" in c["name"] for c in rep["cv"])
+        assert res.robot.compliance is None and res.model.robot.compliance is None
         exact += kept == set(wrong)
         for k in base - kept:
             why = rep["not_estimated"][k]
