@@ -384,6 +384,27 @@ def same_pose(robot: Robot) -> np.ndarray:
     return np.where(np.array([t == "R" for t in robot.joint_types]), 1e-4, 0.1)
 
 
+def posture_ids(q, grid) -> np.ndarray:
+    """``(K,)`` one label per posture: poses whose joint values all lie within one ``grid`` step
+    (:func:`same_pose`) of each other's, directly or through others, share one (a repeated
+    measurement of a posture)."""
+    u = np.asarray(q, float) / grid
+    K = len(u)
+    label = np.arange(K)
+
+    def root(i):
+        while label[i] != i:
+            label[i] = label[label[i]]
+            i = label[i]
+        return i
+
+    for i in range(K - 1):  # rows at a time: memory K x n, not K x K x n
+        for j in np.flatnonzero(np.all(np.abs(u[i + 1 :] - u[i]) <= 1.0, axis=-1)) + i + 1:
+            a, b = root(i), root(int(j))
+            label[max(a, b)] = min(a, b)
+    return np.array([root(i) for i in range(K)])
+
+
 def distinct_poses(q, grid) -> np.ndarray:
     """Number of distinct postures among the poses ``q (..., K, n)``: rows that round alike on
     ``grid`` (:func:`same_pose`) repeat one posture, and add no equation a fit can use."""

@@ -154,21 +154,42 @@ def lever(J, n_points: int) -> Float[np.ndarray, " m"]:
 # -- folds ------------------------------------------------------------------------------------------
 
 
-def kfold_held(valid, k: int, seed: int) -> Bool[np.ndarray, "k K"]:
+def grouped_folds(order, groups, k: int) -> np.ndarray:
+    """Fold (0..k-1) of each pose, taken in ``order``: a pose joins its group's fold, or, the
+    first of its group, the fold with the fewest poses so far (the lowest of equals). Repeats of a
+    posture (``groups``, :func:`._core.posture_ids`) are then held out together: a twin left in
+    the training set would score its own noise. Without repeats, pose ``order[j]`` is in fold
+    ``j % k``."""
+    groups = np.asarray(groups)
+    fold = np.full(len(groups), -1, np.int64)
+    size = np.zeros(k, np.int64)
+    of_group: dict = {}
+    for i in order:
+        g = int(groups[i])
+        if g not in of_group:
+            of_group[g] = int(np.argmin(size))
+        fold[i] = of_group[g]
+        size[fold[i]] += 1
+    return fold
+
+
+def kfold_held(valid, k: int, seed: int, groups=None) -> Bool[np.ndarray, "k K"]:
     """``k`` held-out sets of a seeded permutation of the ``valid`` poses cut into nearly equal
-    parts."""
+    parts, the repeats of a posture (``groups``) in one (:func:`grouped_folds`)."""
     idx = np.flatnonzero(valid)
     k = min(k, len(idx))
-    out = np.zeros((k, len(valid)), bool)
     perm = np.random.default_rng(seed).permutation(len(idx))
-    for i, j in enumerate(perm):
-        out[i % k, idx[j]] = True
+    g = np.arange(len(idx)) if groups is None else np.asarray(groups)[idx]
+    fold = grouped_folds(perm, g, k)
+    out = np.zeros((k, len(valid)), bool)
+    out[fold, idx] = True
     return out
 
 
-def range_end_held(q, valid, fraction: float = END_FRACTION) -> Bool[np.ndarray, "E K"]:
+def range_end_held(q, valid, fraction: float = END_FRACTION, groups=None) -> Bool[np.ndarray, "E K"]:
     """For every joint that moves over the ``valid`` poses, the poses among its lowest and among its
-    highest ``fraction`` of values (at least one each), held out together."""
+    highest ``fraction`` of values (at least one each), held out together, with the other
+    repeats of their postures (``groups``)."""
     q = np.asarray(q, float)
     idx = np.flatnonzero(valid)
     n_end = max(1, int(round(fraction * len(idx))))
@@ -181,6 +202,8 @@ def range_end_held(q, valid, fraction: float = END_FRACTION) -> Bool[np.ndarray,
         for end in (order[:n_end], order[-n_end:]):
             m = np.zeros(len(valid), bool)
             m[idx[end]] = True
+            if groups is not None:
+                m |= np.isin(groups, np.asarray(groups)[m]) & np.asarray(valid, bool)
             out.append(m)
     return np.array(out, bool).reshape(-1, len(valid))
 
@@ -201,9 +224,10 @@ class Rule:
     b_all: Float[np.ndarray, " m"]
 
     @classmethod
-    def of(cls, lin: "Linear", q, valid, k: int, seed: int) -> "Rule":
+    def of(cls, lin: "Linear", q, valid, k: int, seed: int, groups=None) -> "Rule":
         valid = np.asarray(valid, bool)
-        held = np.concatenate([kfold_held(valid, k, seed), range_end_held(q, valid)]) & valid[None]
+        held = np.concatenate([kfold_held(valid, k, seed, groups), range_end_held(q, valid, groups=groups)])
+        held &= valid[None]
         A, b = sums(lin, np.concatenate([valid[None] & ~held, valid[None]]).astype(float))
         return cls(held, int(min(k, valid.sum())), valid, A[:-1], b[:-1], A[-1], b[-1])
 

@@ -68,13 +68,14 @@ DETECTION_PRIOR_MM = 1.0
 """The prior of the flexible model that outliers are found with (all parameters)."""
 
 
-def fold_ids(n_poses: int, k: int, seed: int) -> np.ndarray:
-    """Fold index (0..k-1) of each pose: a seeded permutation cut into k nearly equal parts."""
+def fold_ids(n_poses: int, k: int, seed: int, groups=None) -> np.ndarray:
+    """Fold index (0..k-1) of each pose: a seeded permutation cut into k nearly equal parts, the
+    repeats of a posture (``groups``, one label per posture) in one fold
+    (:func:`._selection.grouped_folds`)."""
     if not 2 <= k <= n_poses:
         raise DataError(f"folds must be between 2 and the number of poses ({n_poses}), got {k}", option="folds")
-    out = np.empty(n_poses, dtype=np.int64)
-    out[np.random.default_rng(seed).permutation(n_poses)] = np.arange(n_poses) % k
-    return out
+    g = np.arange(n_poses) if groups is None else np.asarray(groups)
+    return selection.grouped_folds(np.random.default_rng(seed).permutation(n_poses), g, k)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -102,6 +103,8 @@ class _Problem:
     valid: np.ndarray
     """``(K,)`` the poses not found outliers."""
     nested: bool
+    groups: np.ndarray
+    """``(K,)`` one label per posture (:func:`._core.posture_ids`): repeats share a fold."""
     notes: tuple[str, ...] = ()
     """What the report should say about how the fit was made (:func:`_fitted`)."""
 
@@ -177,9 +180,11 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     if "quadratic" in cameras:
         check_target_in_front(target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows)
     K, F = len(q), opts.folds
-    fid = fold_ids(K, F, opts.seed)
+    groups = core.posture_ids(q, core.same_pose(robot))
+    fid = fold_ids(K, F, opts.seed, groups)
     everything = np.ones(K, bool)
-    held = np.concatenate([np.stack([fid == o for o in range(F)]), selection.range_end_held(q, everything)])
+    ends = selection.range_end_held(q, everything, groups=groups)
+    held = np.concatenate([np.stack([fid == o for o in range(F)]), ends])
     union = set().union(*(c.dh for c in candidates))
     n_train = K - int(np.bincount(fid).max())
     wanted = lambda lay: list(lay.frames) + list(lay.cameras) + sorted(union)  # noqa: E731
@@ -210,7 +215,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     nested = (len(candidates) > 1 or opts.params.strip() == "auto") and K <= opts.nested_max_poses
     return _Problem(
         robot, opts, data, q, target, n_points, rows, layout, candidates, detector,
-        core.identify(J0, layout, robot), cfg, run, held, F, everything, nested,
+        core.identify(J0, layout, robot), cfg, run, held, F, everything, nested, groups,
     )  # fmt: skip
 
 
@@ -337,7 +342,7 @@ def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selecte
     penalised = np.zeros(p.layout.size, bool)
     penalised[: p.layout.n_kin] = True
     penalised[list(p.layout.compliances)] = True
-    rule = selection.Rule.of(lin, p.q, train, p.opts.folds, seed)
+    rule = selection.Rule.of(lin, p.q, train, p.opts.folds, seed, p.groups)
     # a point these poses never see (a marker seen at a few poses, all held out) moves nothing
     # here: held, not a singular column that fails every candidate
     free &= (np.diag(rule.A_all) > 0)[None]
