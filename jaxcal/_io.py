@@ -22,6 +22,10 @@ def check_writable(path, what: str = "output") -> Path:
     path = Path(path)
     if path.is_dir():
         raise DataError(f"{what} {path}: is a directory", option=what)
+    if path.exists() and not Path(os.path.realpath(path)).is_file():
+        # a device, pipe or socket (/dev/stdout, /dev/null): a file is written beside it and renamed
+        # over it, which would replace the special file, or fail after all the work
+        raise DataError(f"{what} {path}: not a regular file (a device or a pipe); write to a file", option=what)
     parent = path.parent
     for p in (parent, *parent.parents):
         if p.exists():
@@ -107,6 +111,7 @@ def write_figure(fig, path, **kwargs) -> None:
 
 
 def _write_now(path, data: str | bytes) -> None:
+    check_writable(path)
     # a link (a package's file linked into a workspace) keeps pointing where it did: its target is
     # the file replaced, not the link
     path = Path(os.path.realpath(path))

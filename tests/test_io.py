@@ -95,3 +95,26 @@ def test_all_or_nothing_checks_where_a_link_points(tmp_path):
         write_atomic(tmp_path / "b.txt", "new")
     assert (tmp_path / "a.txt").read_text() == "old"
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_a_directory_or_a_special_file_is_refused_and_left_as_it_is(tmp_path):
+    """A file is written beside the path and renamed over it: over a directory that fails late,
+    over a pipe or a device it replaces it. Both are refused before anything is written, naming
+    the path, for the API's writers (here the one they share) as for the CLI's checks."""
+    import pytest
+
+    from jaxcal import DataError
+    from jaxcal._io import check_writable
+
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    for path, said in ((tmp_path, "is a directory"), (pipe, "not a regular file")):
+        with pytest.raises(DataError, match=said):
+            write_atomic(path, "x")
+        with pytest.raises(DataError, match=said):
+            check_writable(path, "out")
+    assert stat.S_ISFIFO(pipe.stat().st_mode) and sorted(p.name for p in tmp_path.iterdir()) == ["pipe"]
+    link = tmp_path / "to-pipe"
+    link.symlink_to(pipe)
+    with pytest.raises(DataError, match="not a regular file"):
+        write_atomic(link, "x")
