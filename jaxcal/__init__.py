@@ -15,6 +15,7 @@ from .calibration import calibrate_data as calibrate_data
 from .calibration import evaluate as evaluate
 from .compensation import Compensation as Compensation
 from .compensation import compensate as compensate
+from .errors import CalibrationWarning as CalibrationWarning
 from .errors import DataError as DataError
 from .errors import ImplausibleFitError as ImplausibleFitError
 from .errors import JaxcalError as JaxcalError

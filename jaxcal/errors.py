@@ -29,3 +29,20 @@ class ImplausibleFitError(JaxcalError, ValueError):
     """A fit converged but is not a calibration: its residuals or parameter changes are
     implausible for the robot, usually because of a mistake in the input (units, column
     order, quaternion order). The message names the evidence and the likely causes."""
+
+
+class CalibrationWarning(UserWarning):
+    """A calibration was returned that is not one to use: implausible (``strict`` off) or not
+    converged. Its ``plausible``/``converged`` say so too; saving it is the caller's choice."""
+
+
+def warn_unusable(converged: bool, implausible: str, what: str = "calibration") -> None:
+    """Warn (:class:`CalibrationWarning`) when a returned fit did not converge or is implausible:
+    a script that saves the result without looking would otherwise write it silently."""
+    import warnings
+
+    said = ([] if converged else ["did not converge (converged is False)"]) + (
+        [f"is not plausible: {implausible}"] if implausible else []
+    )
+    if said:
+        warnings.warn(f"this {what} is not one to use: it {'; it '.join(said)}", CalibrationWarning, stacklevel=3)

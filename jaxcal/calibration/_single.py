@@ -18,7 +18,7 @@ from jaxtyping import Bool
 
 from .._config import as_f64
 from ..camera import n_params as camera_size
-from ..errors import DataError, ImplausibleFitError
+from ..errors import DataError, ImplausibleFitError, warn_unusable
 from ..identifiability import Identifiability
 from ..kinematics import check_q
 from ..model import Layout, Model, measured_robot, observed, predict
@@ -511,7 +511,7 @@ def calibrate(
         se=se,
         cause=swap,
     )
-    return CalibrationResult(
+    res = CalibrationResult(
         model=model,
         nominal=robot,
         layout=layout,
@@ -540,6 +540,8 @@ def calibrate(
         + limit_notes(robot, q[fitted], poses=np.flatnonzero(fitted))  # the poses fitted, indexed as outliers
         + ((reidentified,) if again is not None else ()),
     )
+    warn_unusable(res.converged, res.implausible)
+    return res
 
 
 def calibrate_batch(

@@ -43,7 +43,7 @@ import numpy as np
 
 from .._config import jit
 from ..camera import CAMERA_MODELS, check_target_in_front
-from ..errors import DataError
+from ..errors import DataError, warn_unusable
 from ..kinematics import gravity_moments
 from ..model import Layout, Model, errors
 from ..robot import Robot
@@ -428,14 +428,18 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     p = _prepare(robot, data, opts, progress)
     fr = _frames(p)
     if not opts.keep_outliers:
-        return report_of(*_left_out(p, fr))
-    # named as without the option (its detection and second look), then every pose fitted
-    plain = _left_out(dataclasses.replace(p, opts=dataclasses.replace(opts, keep_outliers=False)), fr)
-    named = ~plain[0].valid
-    if not named.any():  # nothing left out: its fits are every pose's
-        return report_of(dataclasses.replace(plain[0], opts=opts), *plain[1:], named=named)
-    fr, p, lin, final, per_fold, fits = _weighed_fits(p, fr)
-    return report_of(p, fr, plain[2], lin, final, per_fold, fits, named=named)
+        res = report_of(*_left_out(p, fr))
+    else:
+        # named as without the option (its detection and second look), then every pose fitted
+        plain = _left_out(dataclasses.replace(p, opts=dataclasses.replace(opts, keep_outliers=False)), fr)
+        named = ~plain[0].valid
+        if not named.any():  # nothing left out: its fits are every pose's
+            res = report_of(dataclasses.replace(plain[0], opts=opts), *plain[1:], named=named)
+        else:
+            fr, p, lin, final, per_fold, fits = _weighed_fits(p, fr)
+            res = report_of(p, fr, plain[2], lin, final, per_fold, fits, named=named)
+    warn_unusable(res.report["converged"], res.report["implausible"])
+    return res
 
 
 def _left_out(p: _Problem, fr: _Frames):

@@ -120,11 +120,13 @@ def calibrate(
     tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
 ):
     """Calibrate from measured data with K-fold held-out validation (base and tool estimated)."""
+    import warnings
+
     import numpy as np
 
     from .._io import all_or_nothing, write_atomic
     from ..calibration import GAUGE, JOINT_GAUGE, calibrate_data
-    from ..errors import DataError, ImplausibleFitError
+    from ..errors import CalibrationWarning, DataError, ImplausibleFitError
     from ..export import check_dh, check_ur
     from ..measurements import joints_left_out, read_measurements
     from ..model import Model, save_model
@@ -189,7 +191,9 @@ def calibrate(
         max_camera_change=max_camera_change,
     )
     with progress("calibrating") as bar:
-        res = calibrate_data(nominal, meas, opts, progress=bar)
+        with warnings.catch_warnings():  # an unusable fit is refused below, in the command's words
+            warnings.simplefilter("ignore", CalibrationWarning)
+            res = calibrate_data(nominal, meas, opts, progress=bar)
     rep = res.report
     left_out = joints_left_out(meas, nominal, read_movable_joints(robot))
     rep["notes"] = left_out + rep["notes"]

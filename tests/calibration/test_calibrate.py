@@ -122,6 +122,27 @@ def test_not_converged_is_reported():
     assert np.all(res.num_steps == 1)
 
 
+def test_a_fit_not_to_use_is_returned_with_a_warning():
+    """``calibrate`` and ``calibrate_data`` return an unconverged or implausible fit (``strict``
+    off) marked, and warn (:class:`jaxcal.CalibrationWarning`): a script that saves the result
+    without looking is told. A good fit gives no warning."""
+    import warnings
+
+    robot = jaxcal.preset("paper-6r")
+    sim = simulate(robot, n_poses=30, seed=4, scales=error_scales(robot) * 20)
+    q, T = np.asarray(sim.q[0]), np.asarray(sim.measured[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert calibrate(robot, q, T).converged
+    with pytest.warns(jaxcal.CalibrationWarning, match="did not converge"):
+        assert not calibrate(robot, q, T, method="gn", max_steps=1).converged
+    swapped = T.copy()
+    swapped[:, :3, 3] = T[:, :3, 3][:, [1, 0, 2]]
+    with pytest.warns(jaxcal.CalibrationWarning, match="is not plausible.*swapped x, y"):
+        data = jaxcal.Measurements(q, swapped)
+        assert not jaxcal.calibrate_data(robot, data, params="frames", folds=3, compliance="no").report["plausible"]
+
+
 def test_rank_deficient_design_reports_not_garbage():
     """All poses with joints 4..6 at zero and few poses: the report names what is missing, the
     estimates are finite, fixed parameters are exactly zero."""
