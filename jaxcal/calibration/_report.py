@@ -462,6 +462,12 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h)
+    if rep["cv_fits_converged"] < rep["cv_fits"]:  # the held-out figures come from these fits
+        rep["notes"].append(
+            f"{rep['cv_fits'] - rep['cv_fits_converged']} of the {rep['cv_fits']} cross-validation fits did not "
+            f"converge (after Levenberg-Marquardt too): the held-out figures include where they stopped; raise "
+            f"max_steps (--max-steps, {opts.max_steps})"
+        )
     if back := rep["outlier_detection"]["taken_back_rows"]:
         rep["notes"].append(
             f"taken back: row(s) {', '.join(map(str, back))}, flagged by the outlier detection, are predicted "

@@ -75,3 +75,23 @@ def test_a_marker_seen_in_few_rows_is_not_blamed_for_its_held_out_error():
     notes = calibrate_data(robot, Measurements(q=m.q, measured=p), **kw).report["notes"]
     assert any(n.startswith("point 4 is seen in only 3 rows") and "--points 1,2,3" in n for n in notes), notes
     assert not any("moved" in n or "mislabelled" in n for n in notes), notes
+
+
+def test_cross_validation_fits_that_did_not_converge_are_noted():
+    """Two steps are too few for most fits: the held-out figures come from where they stopped,
+    and the report's notes say how many (the JSON's counts agree), not only a summary count."""
+    import warnings
+
+    rng = np.random.default_rng(44)
+    ur5 = preset("ur5")
+    dh = np.asarray(ur5.dh) + rng.normal(0.0, [1e-3, 0.3, 0.3, 1e-3], (6, 4))
+    q = rng.uniform(-np.pi, np.pi, (30, 6))
+    p = dh_fk(dh, q, base=random_transform(rng, 1000.0))[:, :3, 3] + rng.normal(0, 0.05, (30, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the final fit's own warning is not the point
+        rep = calibrate_data(
+            ur5, Measurements(q, p[:, None]), params="all", max_steps=2, compliance="no", nested_max_poses=0
+        ).report
+    missed = rep["cv_fits"] - rep["cv_fits_converged"]
+    said = [n for n in rep["notes"] if "cross-validation fits did not converge" in n]
+    assert missed > 0 and len(said) == 1 and said[0].startswith(f"{missed} of the {rep['cv_fits']} ")
