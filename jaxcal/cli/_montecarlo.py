@@ -11,7 +11,7 @@ import typer
 from rich.table import Table
 
 from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, check_outputs, console, err_console, load_robot_arg, progress
-from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, read_poses_for, region_arg, view_arg
+from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, numbers, read_poses_for, region_arg, view_arg
 
 
 @contextlib.contextmanager
@@ -82,8 +82,13 @@ def montecarlo(
     outliers: float = typer.Option(0.0, "--outliers", help="share of each robot's poses given a gross position error"),
     outlier_mm: str = typer.Option("3,6", "--outlier-mm", help="A,B: the gross errors' length, uniform in [A, B] mm"),
     keep_outliers: bool = typer.Option(False, "--keep-outliers", help="fit the outlier poses (default: left out)"),
+    point: str = typer.Option(
+        None, "--point", help="X,Y,Z: the measured point on the tool (mm, tool frame), as `design --point` took it"
+    ),
 ):
     """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
+    import numpy as np
+
     from .._io import check_writable, json_text, write_atomic
     from ..errors import DataError
     from ..experiments import run_montecarlo
@@ -97,6 +102,13 @@ def montecarlo(
             raise DataError(f"json_out {json_out}: is one of the study's own files in --out; write it elsewhere",
                             option="json_out")  # fmt: skip
     r = load_robot_arg(robot, base_link, tip_link)
+    if point is not None:  # the study measures the tool origin: put it at the point
+        if not position_only:
+            raise DataError("--point: a measured point is measured by position alone; add --position-only",
+                            option="point")  # fmt: skip
+        at = np.eye(4)
+        at[:3, 3] = numbers(point, 3, "point")
+        r = r.replace(tool=np.asarray(r.tool) @ at)
     q = read_poses_for(poses_file, r, "poses_file")
     poses = poses if q is None else len(q)
     q_val = read_poses_for(validation, r, "validation")

@@ -161,6 +161,13 @@ def test_montecarlo_judges_a_design_in_its_conditions(monkeypatch, capsys, tmp_p
     c = json.loads(js.read_text())["conditions"]
     assert c["calibration_poses"] == "given" and c["given_poses_meet_conditions"]
     assert c["calibration_poses_file"] == str(poses)
+    # --point: the study measures that point (as design --point), and judges the poses there
+    far = ("--point", "0,0,3000", "--position-only")
+    code, _, err = run_cli(monkeypatch, capsys, "montecarlo", "paper-6r", "--poses-file", poses, *common, *far)
+    assert code in (0, None), err
+    assert json.loads(js.read_text())["conditions"]["given_poses_meet_conditions"] is False
+    code, _, err = run_cli(monkeypatch, capsys, "montecarlo", "paper-6r", "--point", "0,0,30", "--robots", "3")
+    assert code == 2 and "--position-only" in err
 
 
 def test_pose_file_beyond_the_limits_and_a_spread_no_pose_set_meets(monkeypatch, capsys, tmp_path):
