@@ -27,7 +27,9 @@ def compensate(
     ),
 ):
     """Joint commands that make the calibrated model reach the targets (damped Newton IK), on
-    the branch of the nominal commands and checked against the joint limits."""
+    the branch of the nominal commands and checked against the joint limits. Targets without
+    joint columns start from the middle of the joint limits: give commands near them where
+    several branches can reach them."""
     import numpy as np
 
     from .._io import write_atomic
@@ -101,9 +103,16 @@ def compensate(
         write_atomic(out, "\n".join(lines) + "\n")
         console.print(f"compensated commands written to {out} (rows to send: reached, within_limits and on_branch = 1)")
     if bad.size:
+        hint = (
+            "; without joint columns every solve starts at the middle of the joint limits: give the nominal "
+            "commands (or any near each target) as joint columns beside the targets"
+            if tg.q is None
+            else ""
+        )
         console.print(
             f"[yellow]warning:[/yellow] {bad.size} target(s) not reached, outside the joint limits or off the "
-            "starting commands' branch"
+            f"starting commands' branch{hint}",
+            highlight=False,
         )
         raise typer.Exit(1)
 

@@ -180,6 +180,13 @@ def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys)
     # position targets: no rotation was asked for, so none is reported (not a residual of 0)
     assert "rot_residual_deg" not in rows[0] and "rotation residual" not in out and rows[0][6] == "pos_residual_mm"
     assert all(len(ln) == len(rows[0]) for ln in rows)
+    # without joint columns the solves start at the middle of the limits: the warning says to give them
+    assert "without joint columns" not in out
+    t.write_text("x,y,z\n" + "".join(",".join(repr(float(v)) for v in pk) + "\n" for pk in p))
+    code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "cal.toml", t)
+    assert code == 1 and "without joint columns every solve starts at the middle of the joint limits" in " ".join(
+        out.split()
+    )
 
 
 def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
