@@ -284,14 +284,32 @@ def orientation_note(n_points: int, targets: Targets, name: str) -> str:
     )
 
 
+OTHER_TOOL_MM, OTHER_TOOL_DEG = 5.0, 2.0
+"""A calibrated tool further than this from the nominal one is taken for another frame
+(:func:`tool_note`): calibration corrects a tool by a few millimetres and a degree or so."""
+
+
 def tool_note(n_points: int, calibrated: Robot, nominal: Robot | None, name: str, *, commands_only: bool) -> str:
     """A warning for joint commands alone (targets where the ``nominal`` robot puts its tool)
     given to a model calibrated from measured points (``n_points`` > 0, the model file ``name``):
     no tool centre point was measured, and the commands bring the model's tool frame to the
-    targets, at its distance from the nominal tool on the flange. Empty otherwise."""
-    if not n_points or nominal is None or not commands_only:
+    targets, at its distance from the nominal tool on the flange; or to a pose model whose tool
+    is beyond :data:`OTHER_TOOL_MM` / :data:`OTHER_TOOL_DEG` from the nominal one. Empty
+    otherwise."""
+    if nominal is None or not commands_only:
         return ""
     d = float(np.linalg.norm(np.asarray(calibrated.tool)[:3, 3] - np.asarray(nominal.tool)[:3, 3]))
+    if not n_points:
+        dR = np.asarray(calibrated.tool)[:3, :3].T @ np.asarray(nominal.tool)[:3, :3]
+        turn = float(np.degrees(np.arccos(np.clip((np.trace(dR) - 1.0) / 2.0, -1.0, 1.0))))
+        if d <= OTHER_TOOL_MM and turn <= OTHER_TOOL_DEG:  # a calibration's correction of the same tool
+            return ""
+        return (
+            f"{name}'s tool is {d:.4g} mm and {turn:.3g} deg from the nominal robot's: more than a calibration "
+            f"corrects ({OTHER_TOOL_MM:g} mm, {OTHER_TOOL_DEG:g} deg), so probably another frame (the measured "
+            f"body, not the tool the commands were taught with). The commands bring the calibrated tool to "
+            f"where the nominal one was; give the targets as poses of the calibrated tool where that is wrong"
+        )
     return (
         f"{name} was calibrated from measured points, not a tool centre point: the commands' targets are where "
         f"the nominal robot puts its tool, and the compensated commands bring the model's tool frame there, "

@@ -262,3 +262,22 @@ def test_targets_without_commands_have_no_branch_to_leave(tmp_path):
     f.write_text("x,y,z\n" + "".join(",".join(repr(float(v)) for v in pk) + "\n" for pk in p))
     _, res = compensate_targets(r, read_targets(f, r))
     assert res.converged.all() and res.on_branch.all() and res.ok.all()
+
+
+def test_commands_for_a_pose_model_whose_tool_is_another_frame_warn():
+    """Joint commands alone for a model calibrated from poses: its tool a calibration's correction
+    away from the nominal one says nothing; 121 mm and 20 degrees away (the measured body, not the
+    taught tool) is named, with both distances, computed here with scipy."""
+    from scipy.spatial.transform import Rotation
+
+    from jaxcal.compensation import tool_note
+
+    ur5 = preset("ur5")
+    near, far = np.array(ur5.tool), np.array(ur5.tool)
+    near[:3, 3] += [1.0, -2.0, 0.5]
+    far[:3, :3] = far[:3, :3] @ Rotation.from_euler("x", 20.0, degrees=True).as_matrix()
+    far[:3, 3] += [0.0, 0.0, 121.0]
+    assert tool_note(0, ur5.replace(tool=near), ur5, "cal.toml", commands_only=True) == ""
+    note = tool_note(0, ur5.replace(tool=far), ur5, "cal.toml", commands_only=True)
+    assert "cal.toml's tool is 121 mm and 20 deg from the nominal robot's" in note
+    assert tool_note(0, ur5.replace(tool=far), ur5, "cal.toml", commands_only=False) == ""  # pose targets
