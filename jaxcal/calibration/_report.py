@@ -27,8 +27,9 @@ RULE = (
     f"lowest score, the RMS of the K-fold and range-end held-out errors (linearised); the simplest set within "
     f"one standard error of it (at least {100 * selection.SIMPLER_TOLERANCE:g} %) wins; then its parameters "
     f"pruned, least significant first, as far as held-out folds that order the parameters on their own "
-    f"training poses support: the sparsest within {selection.PRUNE_SE:g} standard error(s) and "
-    f"{100 * selection.PRUNE_TOLERANCE:g} % of the best"
+    f"training poses support: the sparsest "
+    + (f"within {selection.PRUNE_SE:g} standard error(s) and " if selection.PRUNE_SE else "whose score is within ")
+    + f"{100 * selection.PRUNE_TOLERANCE:g} % of the best"
 )
 
 

@@ -51,6 +51,17 @@ def accuracy_map(result, q, *, workspace_poses: int = 400, seed: int = 0) -> dic
     }
 
 
+OUTLIER_HEADS = {
+    "position_mm": "position error (mm)",
+    "rotation_deg": "rotation error (deg)",
+    "worst_point_mm": "worst point: error (mm)",
+    "threshold_sigmas": "threshold (sigmas)",
+    "excluded": "left out of the fit",
+}
+"""The outlier table's column headings, in the command's words (other keys: spaces for
+underscores)."""
+
+
 def _png(fig) -> str:
     import matplotlib.pyplot as plt
 
@@ -242,7 +253,8 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
     outliers = rep.get("outliers")
     if outliers:
         cols = list(dict.fromkeys(k for o in outliers for k in o))
-        parts.append(_table("outliers", cols, [[o.get(c) for c in cols] for o in outliers]))
+        heads = [OUTLIER_HEADS.get(c, c.replace("_", " ")) for c in cols]
+        parts.append(_table("outliers", heads, [[o.get(c) for c in cols] for o in outliers]))
     else:
         parts.append(
             "<p>No outlier poses reported.</p>"

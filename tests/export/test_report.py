@@ -64,7 +64,10 @@ class Page(HTMLParser):
 def page():
     """The report of the UR5 tracker calibration, with two outlier poses reported."""
     _, _, data, res = ur5_tracker()
-    rep = dict(res.report, outliers=[{"row": 7, "residual_mm": 0.61}, {"row": 19, "residual_mm": 0.4, "z": 4.2}])
+    rep = dict(
+        res.report,
+        outliers=[{"row": 7, "residual_mm": 0.61, "position_mm": 0.6}, {"row": 19, "residual_mm": 0.4, "z": 4.2}],
+    )
     res = dataclasses.replace(res, report=rep)
     return Page(report_html(res, data, workspace_poses=150)), res
 
@@ -88,7 +91,9 @@ def test_tables(page):
     assert float(a2[3]) == pytest.approx(float(np.asarray(res.robot.dh)[1, 2]), rel=1e-5)
     assert float(a2[5]) == pytest.approx(res.deltas["a2"][1], rel=1e-5)  # its standard error
     outliers = p.tables["outliers"]
-    assert outliers["head"] == ["row", "residual_mm", "z"] and outliers["rows"][0][:2] == ["7", "0.61"]
+    # headed in words: the command's for the keys it prints, spaces for underscores otherwise
+    assert outliers["head"] == ["row", "residual mm", "position error (mm)", "z"]
+    assert outliers["rows"][0][:3] == ["7", "0.61", "0.6"]
     assert "Accuracy map" in p.headings and "Outliers" in p.headings
 
 
