@@ -56,19 +56,24 @@ def test_repeats_of_a_posture_are_held_out_together():
 
 
 def test_a_held_out_figure_is_not_lowered_by_listing_each_pose_twice():
-    """A file of 24 poses, and the same file with every row listed twice: the same information,
-    so the same held-out RMS (folds differ: within 15 %), not the 20-30 % lower one a pose's copy
-    left in the training set gives."""
+    """A file of 24 poses of a point on the tool, and the same file with every row listed twice:
+    the same information, so about the same held-out RMS (the folds differ), not the 23-29 %
+    lower one a pose's copy left in the training set gives. Both fits are plausible."""
+    import warnings
+
     rng = np.random.default_rng(16)
     ur5 = preset("ur5")
     dh = np.asarray(ur5.dh) + rng.normal(0.0, [1e-3, 0.3, 0.3, 1e-3], (6, 4))
     q = rng.uniform(-np.pi, np.pi, (24, 6))
-    tip = dh_fk(dh, q)[:, :3, 3]
+    T = dh_fk(dh, q)
+    tip = np.einsum("kij,j->ki", T[:, :3, :3], [20.0, -30.0, 80.0]) + T[:, :3, 3]
     kw = dict(params="all", folds=4, nested_max_poses=0, compliance="no")
     measured = tip + rng.normal(0, 0.05, tip.shape)
-    once = calibrate_data(ur5, Measurements(q, measured[:, None]), **kw).report["heldout_rms_mm"]
-    twice = calibrate_data(ur5, Measurements(np.tile(q, (2, 1)), np.tile(measured, (2, 1))[:, None]), **kw)
-    assert twice.report["heldout_rms_mm"] == pytest.approx(once, rel=0.15)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an implausible fit would warn
+        once = calibrate_data(ur5, Measurements(q, measured[:, None]), **kw).report["heldout_rms_mm"]
+        twice = calibrate_data(ur5, Measurements(np.tile(q, (2, 1)), np.tile(measured, (2, 1))[:, None]), **kw)
+    assert 0.9 < twice.report["heldout_rms_mm"] / once < 1.3
 
 
 @pytest.mark.parametrize("position_only", [False, True])
