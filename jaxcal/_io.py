@@ -96,6 +96,8 @@ def write_atomic(path, data: str | bytes, *, now: bool = False) -> None:
     (or a crash, or Ctrl-C) never leaves half a file, and an existing file is kept until the new
     one is complete. Inside :func:`all_or_nothing`, held until its block ends, unless ``now`` (a
     cache, not an output)."""
+    if not now:  # an output: refused before anything is written (a cache write may just fail)
+        check_writable(os.path.realpath(path))
     staged = _STAGED.get()
     if staged is not None and not now:
         staged.append((Path(path), data))
@@ -111,7 +113,6 @@ def write_figure(fig, path, **kwargs) -> None:
 
 
 def _write_now(path, data: str | bytes) -> None:
-    check_writable(path)
     # a link (a package's file linked into a workspace) keeps pointing where it did: its target is
     # the file replaced, not the link
     path = Path(os.path.realpath(path))

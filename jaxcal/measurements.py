@@ -535,10 +535,10 @@ names it: beyond a reading's jitter, as :func:`jaxcal.evaluate` tells a repeated
 
 
 def joints_left_out(meas: Measurements, robot: Robot, movable: dict[str, str]) -> list[str]:
-    """Warnings for the file's columns named after a movable joint of the robot file
-    (``movable``: name -> ``"R"``/``"P"``, :func:`jaxcal.robot.read_movable_joints`) that is not in
-    the chain and moves over the rows: the model holds it where the chain's base is, so what it
-    moves is fitted into the other parameters, or refused."""
+    """Warnings for the file's columns named after a movable joint of the robot file above the
+    chain's base (``movable``: name -> ``"R"``/``"P"``, :func:`jaxcal.robot.read_movable_joints`)
+    that moves over the rows: the model holds the base still, so that motion is fitted into the
+    other parameters, or refused."""
     lu, au = LENGTH_UNITS[meas.units[0]], ANGLE_UNITS[meas.units[1]]
     out = []
     for name, (lo, hi) in meas.ignored_ranges.items():
@@ -548,7 +548,7 @@ def joints_left_out(meas: Measurements, robot: Robot, movable: dict[str, str]) -
         span, unit = ((hi - lo) * lu, "mm") if kind == "P" else ((hi - lo) * au, "rad")
         if span > (MOVED_MM if kind == "P" else MOVED_RAD):
             out.append(
-                f"column {name!r} is a joint of the robot file outside the chain calibrated "
+                f"column {name!r} is a joint of the robot file above the chain calibrated "
                 f"({', '.join(robot.joint_names)}), and it moves over the rows (by {span:.4g} {unit}): the model "
                 f"takes it as fixed, so its motion is fitted into the other parameters; include it in the chain "
                 f"(--base-link above it) or use rows where it stands still"

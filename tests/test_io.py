@@ -118,3 +118,16 @@ def test_a_directory_or_a_special_file_is_refused_and_left_as_it_is(tmp_path):
     link.symlink_to(pipe)
     with pytest.raises(DataError, match="not a regular file"):
         write_atomic(link, "x")
+
+
+def test_a_cache_write_that_cannot_be_made_fails_as_an_os_error(tmp_path):
+    """A cache write (``now``) is not an output: where it cannot be made it fails as the OS says,
+    which the program cache skips, not with the outputs' DataError that would stop a run."""
+    import pytest
+
+    from jaxcal import DataError
+
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(OSError) as e:
+        write_atomic(tmp_path / "afile" / "sub" / "k.bin", b"x", now=True)
+    assert not isinstance(e.value, DataError)

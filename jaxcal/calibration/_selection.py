@@ -177,9 +177,9 @@ def kfold_held(valid, k: int, seed: int, groups=None) -> Bool[np.ndarray, "k K"]
     """``k`` held-out sets of a seeded permutation of the ``valid`` poses cut into nearly equal
     parts, the repeats of a posture (``groups``) in one (:func:`grouped_folds`)."""
     idx = np.flatnonzero(valid)
-    k = min(k, len(idx))
-    perm = np.random.default_rng(seed).permutation(len(idx))
     g = np.arange(len(idx)) if groups is None else np.asarray(groups)[idx]
+    k = min(k, len(np.unique(g)))  # no fold without a posture
+    perm = np.random.default_rng(seed).permutation(len(idx))
     fold = grouped_folds(perm, g, k)
     out = np.zeros((k, len(valid)), bool)
     out[fold, idx] = True
@@ -226,10 +226,10 @@ class Rule:
     @classmethod
     def of(cls, lin: "Linear", q, valid, k: int, seed: int, groups=None) -> "Rule":
         valid = np.asarray(valid, bool)
-        held = np.concatenate([kfold_held(valid, k, seed, groups), range_end_held(q, valid, groups=groups)])
-        held &= valid[None]
+        kfold = kfold_held(valid, k, seed, groups)
+        held = np.concatenate([kfold, range_end_held(q, valid, groups=groups)]) & valid[None]
         A, b = sums(lin, np.concatenate([valid[None] & ~held, valid[None]]).astype(float))
-        return cls(held, int(min(k, valid.sum())), valid, A[:-1], b[:-1], A[-1], b[-1])
+        return cls(held, len(kfold), valid, A[:-1], b[:-1], A[-1], b[-1])
 
 
 # -- fits and scores ----------------------------------------------------------------------------------

@@ -75,6 +75,12 @@ def fold_ids(n_poses: int, k: int, seed: int, groups=None) -> np.ndarray:
     if not 2 <= k <= n_poses:
         raise DataError(f"folds must be between 2 and the number of poses ({n_poses}), got {k}", option="folds")
     g = np.arange(n_poses) if groups is None else np.asarray(groups)
+    if len(np.unique(g)) < k:  # a fold would hold no posture: it trains on all and scores nothing
+        raise DataError(
+            f"folds ({k}) more than the distinct postures ({len(np.unique(g))}; rows repeating a posture are "
+            f"one): use fewer folds, or measure more postures",
+            option="folds",
+        )
     return selection.grouped_folds(np.random.default_rng(seed).permutation(n_poses), g, k)
 
 

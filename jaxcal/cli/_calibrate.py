@@ -130,7 +130,7 @@ def calibrate(
     from ..export import check_dh, check_ur
     from ..measurements import joints_left_out, read_measurements
     from ..model import Model, save_model
-    from ..robot import read_movable_joints, save_robot
+    from ..robot import calibrated_chain, read_movable_joints, save_robot
 
     outputs = {"json_out": json_out, "out_robot": out_robot, "out_model": out_model, "plots": plots}
     outputs |= {"out_ur_kinematics": out_ur_kinematics, "out_dh": out_dh, "report": report}
@@ -195,7 +195,8 @@ def calibrate(
             warnings.simplefilter("ignore", CalibrationWarning)
             res = calibrate_data(nominal, meas, opts, progress=bar)
     rep = res.report
-    left_out = joints_left_out(meas, nominal, read_movable_joints(robot))
+    above = base_link or (calibrated_chain(robot) or (None,))[0]  # the chain's base link (None: the root)
+    left_out = joints_left_out(meas, nominal, read_movable_joints(robot, above))
     rep["notes"] = left_out + rep["notes"]
     show(rep, meas)
     # a fit that stopped short is judged where it stopped: refused as implausible only where an

@@ -43,7 +43,14 @@ def evaluate(
     from ..model import Model, load_model, model_points
 
     check_outputs({"json_out": json_out}, {"model": model, "data": data, "--training": training})
-    from ..robot import PRESETS, preset, read_movable_joints, read_point_numbers, read_training_ranges
+    from ..robot import (
+        PRESETS,
+        calibrated_chain,
+        preset,
+        read_movable_joints,
+        read_point_numbers,
+        read_training_ranges,
+    )
 
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
     m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
@@ -70,7 +77,9 @@ def evaluate(
         same = chosen if chosen is not None and max(chosen) <= have else None
         train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same)
     rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
-    rep["warnings"] += [] if nominal else joints_left_out(meas, m.robot, read_movable_joints(model))
+    if not nominal:  # the joints above the chain's base link, which move the whole chain
+        above = base_link or (calibrated_chain(model) or (None,))[0]
+        rep["warnings"] += joints_left_out(meas, m.robot, read_movable_joints(model, above))
     if not nominal and model.suffix.lower() in (".yaml", ".yml"):  # UR's format: the arm alone
         rep["warnings"].append(
             f"{model.name} is a UR kinematics file, which holds no base or tool frame: the data are predicted "

@@ -42,10 +42,11 @@ def calibrated_chain(path) -> tuple[str, str | None] | None:
     return _urdf_chain(path) if _is_urdf(path) and Path(path).exists() else None
 
 
-def read_movable_joints(path) -> dict[str, str]:
-    """Every movable joint of a URDF, in the chain or not (name -> ``"R"`` or ``"P"``); empty
-    for other files, whose joints are all the chain's."""
-    return movable_joints_urdf(path) if _is_urdf(path) and Path(path).exists() else {}
+def read_movable_joints(path, above: str | None) -> dict[str, str]:
+    """The movable joints of a URDF above the link ``above`` (a chain's base link), which move
+    the whole chain (name -> ``"R"`` or ``"P"``); empty for other files, whose joints are all
+    the chain's, or for the root."""
+    return movable_joints_urdf(path, above) if _is_urdf(path) and Path(path).exists() else {}
 
 
 def read_training_ranges(path) -> dict | None:

@@ -369,10 +369,18 @@ def _m(T) -> np.ndarray:
     return T
 
 
-def movable_joints_urdf(path) -> dict[str, str]:
-    """Every movable joint of the file, chain or not: name -> ``"R"`` or ``"P"``."""
-    doc = _parse(Path(path))
-    return {j.name: MOVABLE[j.type] for j in doc.joints if j.type in MOVABLE}
+def movable_joints_urdf(path, above: str | None = None) -> dict[str, str]:
+    """The movable joints of the file between its root and the link ``above`` (the chain's base
+    link: what moves it moves the whole chain): name -> ``"R"`` or ``"P"``; none for the root."""
+    path = Path(path)
+    doc = _parse(path)
+    by_child, out, link = _tree(doc, str(path)), {}, above
+    while link in by_child and len(out) <= len(doc.joints):
+        j = by_child[link]
+        if j.type in MOVABLE:
+            out[j.name] = MOVABLE[j.type]
+        link = j.parent
+    return out
 
 
 def training_ranges_urdf(path) -> dict | None:

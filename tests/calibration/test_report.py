@@ -23,9 +23,9 @@ def _four_markers(slip_mm: float, noise3_mm: float = 0.1):
 
 
 def test_the_noise_is_the_measurements_not_the_residuals():
-    """30 poses of one point and 26 parameters: the residuals are about ``sqrt(1 - 26/90)``, 0.84,
+    """30 poses of one point and 25 parameters: the residuals are about ``sqrt(1 - 25/90)``, 0.85,
     of the simulated noise (the fit absorbs the rest); ``noise_pos_mm`` is the noise itself, on
-    average over six robots (each estimate spreads about 7 %)."""
+    average over twelve robots (each estimate spreads about 7 %)."""
     rng = np.random.default_rng(41)
     ur5, sigma = preset("ur5"), 0.05
     ratios = []

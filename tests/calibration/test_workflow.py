@@ -53,6 +53,13 @@ def test_repeats_of_a_posture_are_held_out_together():
     assert np.bincount(f).max() - np.bincount(f).min() <= 3
     for m in range_end_held(q, np.ones(len(q), bool), groups=groups):
         assert all(m[groups == g].all() or not m[groups == g].any() for g in set(groups.tolist()))
+    # fewer postures than folds: a fold would hold none (train on all, score nothing): refused
+    few = np.repeat(np.arange(3), 4)
+    with pytest.raises(DataError, match=r"folds \(5\) more than the distinct postures \(3"):
+        fold_ids(12, 5, seed=0, groups=few)
+    from jaxcal.calibration._selection import kfold_held
+
+    assert len(kfold_held(np.ones(12, bool), 5, 0, few)) == 3
 
 
 def test_a_held_out_figure_is_not_lowered_by_listing_each_pose_twice():

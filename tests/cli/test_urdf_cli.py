@@ -212,7 +212,7 @@ def test_a_joint_outside_the_chain_that_moves_is_named(tmp_path, monkeypatch, ca
         "--folds", "2", "--compliance", "no", "--nested-max-poses", "0", "--json", tmp_path / "rep.json",
     )  # fmt: skip
     out, err = " ".join(out.split()), " ".join(err.split())  # as rich wrapped them
-    assert "note: column 'torso_lift_joint' is a joint of the robot file outside the chain" in out
+    assert "note: column 'torso_lift_joint' is a joint of the robot file above the chain calibrated" in out
     assert "(by 335.3 mm)" in out
     # 56 mm RMS: refused, the moving joint given as the likely cause
     assert code == 3 and "likely: torso_lift_joint moved but is not in the chain" in err, err
@@ -224,5 +224,8 @@ def test_a_joint_outside_the_chain_that_moves_is_named(tmp_path, monkeypatch, ca
     (tmp_path / "still.csv").write_text("\n".join([header, *still]) + "\n")
     meas = read_measurements(tmp_path / "still.csv", arm)
     assert "torso_lift_joint" in meas.ignored and meas.ignored_ranges["torso_lift_joint"] == (0.2, 0.2)
-    assert joints_left_out(meas, arm, read_movable_joints(URDF)) == []
-    assert joints_left_out(read_measurements(CSV, arm), arm, read_movable_joints(URDF))  # moving: named
+    above = read_movable_joints(URDF, "torso_lift_link")
+    assert above == {"torso_lift_joint": "P"} and joints_left_out(meas, arm, above) == []
+    assert joints_left_out(read_measurements(CSV, arm), arm, above)  # moving: named
+    # joints elsewhere in the tree (below the tip, a sibling branch) move nothing of the chain
+    assert read_movable_joints(URDF, None) == {} and read_movable_joints(URDF, "base_link") == {}
