@@ -75,12 +75,6 @@ def fold_ids(n_poses: int, k: int, seed: int, groups=None) -> np.ndarray:
     if not 2 <= k <= n_poses:
         raise DataError(f"folds must be between 2 and the number of poses ({n_poses}), got {k}", option="folds")
     g = np.arange(n_poses) if groups is None else np.asarray(groups)
-    if len(np.unique(g)) < k:  # a fold would hold no posture: it trains on all and scores nothing
-        raise DataError(
-            f"folds ({k}) more than the distinct postures ({len(np.unique(g))}; rows repeating a posture are "
-            f"one): use fewer folds, or measure more postures",
-            option="folds",
-        )
     return selection.grouped_folds(np.random.default_rng(seed).permutation(n_poses), g, k)
 
 
@@ -206,6 +200,12 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted(layout))
     check_enough_poses(int(core.distinct_poses(q, core.same_pose(robot))), layout, needed, K)
+    if len(np.unique(groups)) < F:  # a fold would hold no posture: it trains on all and scores nothing
+        raise DataError(
+            f"folds ({F}) more than the distinct postures ({len(np.unique(groups))}; rows repeating a posture "
+            f"are one): use fewer folds, or measure more postures",
+            option="folds",
+        )
     if n_train * layout.rows < needed:
         raise DataError(
             f"too few poses for {F}-fold cross-validation: training sets of {n_train} poses x "

@@ -53,13 +53,16 @@ def test_repeats_of_a_posture_are_held_out_together():
     assert np.bincount(f).max() - np.bincount(f).min() <= 3
     for m in range_end_held(q, np.ones(len(q), bool), groups=groups):
         assert all(m[groups == g].all() or not m[groups == g].any() for g in set(groups.tolist()))
-    # fewer postures than folds: a fold would hold none (train on all, score nothing): refused
-    few = np.repeat(np.arange(3), 4)
-    with pytest.raises(DataError, match=r"folds \(5\) more than the distinct postures \(3"):
-        fold_ids(12, 5, seed=0, groups=few)
+    # fewer postures than folds: the inner folds are as many as the postures (none empty); the
+    # outer ones are refused by calibrate_data, once the pose count's own check has spoken
     from jaxcal.calibration._selection import kfold_held
 
+    few = np.repeat(np.arange(3), 4)
     assert len(kfold_held(np.ones(12, bool), 5, 0, few)) == 3
+    twelve = np.repeat(q[:4], 3, axis=0) + rng.normal(0, 1e-6, (12, 6))
+    full = np.asarray(fk(ur5, twelve))  # four postures of full poses: enough equations for the frames
+    with pytest.raises(DataError, match=r"folds \(5\) more than the distinct postures \(4"):
+        calibrate_data(ur5, Measurements(twelve, full), params="frames", compliance="no", folds=5)
 
 
 def test_a_held_out_figure_is_not_lowered_by_listing_each_pose_twice():
