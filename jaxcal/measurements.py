@@ -534,20 +534,20 @@ MOVED_RAD, MOVED_MM = 1e-2, 1.0
 names it: beyond a reading's jitter, as :func:`jaxcal.evaluate` tells a repeated posture."""
 
 
-def joints_left_out(meas: Measurements, robot: Robot, movable: dict[str, str]) -> list[str]:
+def joints_left_out(meas: Measurements, robot: Robot, movable: dict[str, str]) -> dict[str, str]:
     """Warnings for the file's columns named after a movable joint of the robot file above the
     chain's base (``movable``: name -> ``"R"``/``"P"``, :func:`jaxcal.robot.read_movable_joints`)
-    that moves over the rows: the model holds the base still, so that motion is fitted into the
-    other parameters, or refused."""
+    that moves over the rows, by joint name: the model holds the base still, so that motion is
+    fitted into the other parameters, or refused."""
     lu, au = LENGTH_UNITS[meas.units[0]], ANGLE_UNITS[meas.units[1]]
-    out = []
+    out = {}
     for name, (lo, hi) in meas.ignored_ranges.items():
         kind = movable.get(name)
         if kind is None or name in robot.joint_names:
             continue
         span, unit = ((hi - lo) * lu, "mm") if kind == "P" else ((hi - lo) * au, "rad")
         if span > (MOVED_MM if kind == "P" else MOVED_RAD):
-            out.append(
+            out[name] = (
                 f"column {name!r} is a joint of the robot file above the chain calibrated "
                 f"({', '.join(robot.joint_names)}), and it moves over the rows (by {span:.4g} {unit}): the model "
                 f"takes it as fixed, so its motion is fitted into the other parameters; include it in the chain "

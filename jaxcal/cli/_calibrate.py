@@ -197,7 +197,7 @@ def calibrate(
     rep = res.report
     above = base_link or (calibrated_chain(robot) or (None,))[0]  # the chain's base link (None: the root)
     left_out = joints_left_out(meas, nominal, read_movable_joints(robot, above))
-    rep["notes"] = left_out + rep["notes"]
+    rep["notes"] = list(left_out.values()) + rep["notes"]
     show(rep, meas)
     # a fit that stopped short is judged where it stopped: refused as implausible only where an
     # input mistake the check names explains it (reversed joints, units, swapped axes), else said
@@ -211,8 +211,7 @@ def calibrate(
         )
         raise typer.Exit(1)
     if not rep["plausible"]:
-        moving = [n.split("'")[1] for n in left_out]  # the cause a robot file's other joints name
-        cause = f"; likely: {', '.join(moving)} moved but is not in the chain (note above)" if moving else ""
+        cause = f"; likely: {', '.join(left_out)} moved but is not in the chain (note above)" if left_out else ""
         raise ImplausibleFitError(rep["implausible"] + cause + "; nothing was written")
     # every output or none: one that fails late (a plot, an export) leaves no others behind; what
     # the block says ("written to ...") is said once the files are

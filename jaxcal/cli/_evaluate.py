@@ -79,7 +79,7 @@ def evaluate(
     rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
     if not nominal:  # the joints above the chain's base link, which move the whole chain
         above = base_link or (calibrated_chain(model) or (None,))[0]
-        rep["warnings"] += joints_left_out(meas, m.robot, read_movable_joints(model, above))
+        rep["warnings"] += list(joints_left_out(meas, m.robot, read_movable_joints(model, above)).values())
     if not nominal and model.suffix.lower() in (".yaml", ".yml"):  # UR's format: the arm alone
         rep["warnings"].append(
             f"{model.name} is a UR kinematics file, which holds no base or tool frame: the data are predicted "

@@ -225,7 +225,7 @@ def test_a_joint_outside_the_chain_that_moves_is_named(tmp_path, monkeypatch, ca
     meas = read_measurements(tmp_path / "still.csv", arm)
     assert "torso_lift_joint" in meas.ignored and meas.ignored_ranges["torso_lift_joint"] == (0.2, 0.2)
     above = read_movable_joints(URDF, "torso_lift_link")
-    assert above == {"torso_lift_joint": "P"} and joints_left_out(meas, arm, above) == []
-    assert joints_left_out(read_measurements(CSV, arm), arm, above)  # moving: named
+    assert above == {"torso_lift_joint": "P"} and joints_left_out(meas, arm, above) == {}
+    assert list(joints_left_out(read_measurements(CSV, arm), arm, above)) == ["torso_lift_joint"]  # moving
     # joints elsewhere in the tree (below the tip, a sibling branch) move nothing of the chain
     assert read_movable_joints(URDF, None) == {} and read_movable_joints(URDF, "base_link") == {}
