@@ -15,6 +15,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._chain import chain, link_inputs
+from ._config import ensure_x64
 from ._joints import joint_chain, joint_fk, joint_frames_after
 from .errors import DataError, RobotFileError
 from .lie import compose, make_transform
@@ -61,6 +62,7 @@ LINKS = {"sdh": sdh_link, "mdh": mdh_link}
 def check_q(robot: Robot, q) -> Float[Array, "..."]:
     """Validate joint values (real numbers, one per joint along the last axis) before they enter
     jit: :class:`jaxcal.DataError` naming the problem otherwise. Tracers pass through unchanged."""
+    ensure_x64()  # float32 traced into a float64 chain fails inside jit with XLA's words
     if not hasattr(q, "dtype"):
         q = np.asarray(q)
     if q.dtype.kind not in "biuf":

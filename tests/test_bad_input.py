@@ -132,12 +132,12 @@ PY = {
     "calibrate q nan": (
         lambda: calibrate(ROBOT, _with(Q, (4, 2), np.nan), M),
         DataError,
-        r"q: non-finite value at index \(4, 2\)",
+        r"q: non-finite value \(nan\) at pose index 4, joint 'q3'",
     ),
     "calibrate measured inf": (
         lambda: calibrate(ROBOT, Q, _with(M, (7, 1, 3), np.inf)),
         DataError,
-        r"measured: non-finite value at index \(7, 1, 3\)",
+        r"measured: non-finite value \(inf\) at pose index 7, matrix element \[1\]\[3\]",
     ),
     "calibrate q complex": (lambda: calibrate(ROBOT, Q.astype(complex), M), DataError, "complex"),
     "calibrate q 1-D": (lambda: calibrate(ROBOT, Q[0], M[0]), DataError, r"q must have shape \(K, n\)"),
@@ -147,6 +147,11 @@ PY = {
         lambda: calibrate(ROBOT, Q, _with(M, (3, 0, 0), 2.0)),
         DataError,
         r"measured\[3\]: rotation is not a proper rotation",
+    ),
+    "calibrate reflection": (
+        lambda: calibrate(ROBOT, Q, M @ np.diag([1.0, 1.0, -1.0, 1.0])),
+        DataError,
+        r"measured\[0\]: rotation is not a proper rotation matrix \(its determinant is -1, a reflection",
     ),
     "calibrate bottom row": (
         lambda: calibrate(ROBOT, Q, _with(M, (5, 3, 0), 1.0)),
@@ -175,7 +180,7 @@ PY = {
     "batch q nan": (
         lambda: calibrate_batch(ROBOT, _with(SIM.q, (1, 3, 0), np.nan), SIM.measured),
         DataError,
-        r"q: non-finite value at index \(1, 3, 0\)",
+        r"q: non-finite value \(nan\) at data set 1, pose index 3, joint 'q1'",
     ),
     "batch too few poses": (
         lambda: calibrate_batch(ROBOT, SIM.q[:, :2], SIM.measured[:, :2]),
@@ -253,6 +258,11 @@ PY = {
         lambda: jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(np.tile(Q[:1], (20, 1)), np.tile(M[:1], (20, 1, 1)))),
         DataError,
         r"no joint moves over the 20 poses: every row is the same posture \(rows 1\.\.20\)",
+    ),
+    "calibrate_data arrays as a tuple": (
+        lambda: jaxcal.calibrate_data(ROBOT, (Q, M)),
+        DataError,
+        r"data must be a jaxcal.Measurements .* got tuple",
     ),
 }
 

@@ -25,6 +25,8 @@ def test_refuses_when_x64_switched_off():
     try:
         with pytest.raises(jaxcal.PrecisionError, match="float32"):
             as_f64(np.zeros(3))
+        with pytest.raises(jaxcal.PrecisionError, match="float32"):  # not XLA's dtype error from inside jit
+            jaxcal.fk(jaxcal.preset("ur5"), np.zeros(6))
     finally:
         jax.config.update("jax_enable_x64", True)
 

@@ -68,7 +68,12 @@ def as_target(
         if bad.any():
             idx = tuple(int(i) for i in np.argwhere(bad)[0])
             what = "; a point not measured is NaN in all three coordinates" if kind != "poses" and name != "q" else ""
-            raise DataError(f"{name}: non-finite value at index {idx}{what}", option=name)
+            value = arr[idx]
+            raise DataError(
+                f"{name}: non-finite value ({value}) at {_place(robot, name, kind, idx, rows, batched)}{what}; "
+                f"{int(bad.sum())} non-finite value(s) in all",
+                option=name,
+            )
     # a marker never measured makes every fit singular; in a batch, only one never measured in any
     # data set (a data set missing it, or with a pose of no point, is calibrate_batch's to handle)
     never = unseen.all(0) if batched else unseen
@@ -100,14 +105,33 @@ def as_target(
         bad_rot = (err > 1e-6) | (np.linalg.det(R) < 0)
         if bad_rot.any():
             idx = tuple(int(i) for i in np.argwhere(bad_rot)[0])
+            why = (
+                f"|R R^T - I| = {err[idx]:.3g}"
+                if err[idx] > 1e-6
+                else "its determinant is -1, a reflection: a left-handed frame, or one axis flipped"
+            )
             raise DataError(
-                f"measured{list(idx)}: rotation is not a proper rotation matrix (|R R^T - I| = "
-                f"{err[idx]:.3g}); {int(bad_rot.sum())} such pose(s); use position_only=True if "
-                "only positions were measured",
+                f"measured{list(idx)}: rotation is not a proper rotation matrix ({why}); "
+                f"{int(bad_rot.sum())} such pose(s); use position_only=True if only positions were measured",
                 option="measured",
             )
         return q, measured, 0
     return q, measured, measured.shape[-2]
+
+
+def _place(robot: Robot, name: str, kind: str, idx: tuple[int, ...], rows, batched: bool) -> str:
+    """Where a value sits, in the user's words: the data set, the pose (its file row when known),
+    the joint, the point and the coordinate."""
+    lead = [f"data set {idx[0]}"] if batched else []
+    pose = idx[len(lead)]
+    lead.append(f"row {np.asarray(rows)[pose]}" if rows is not None and not batched else f"pose index {pose}")
+    rest = idx[len(lead) :]
+    if name == "q":
+        return ", ".join(lead + [f"joint {robot.joint_names[rest[0]]!r}"])
+    if kind == "poses":
+        return ", ".join(lead + [f"matrix element [{rest[0]}][{rest[1]}]"])
+    point = [f"point {rest[0] + 1}"] if kind == "points" else []
+    return ", ".join(lead + point + ["xyz"[rest[-1]]])
 
 
 def lost_points(target: Float[np.ndarray, "*R K M 3"]) -> tuple[Bool[np.ndarray, "*R K"], Bool[np.ndarray, "*R M"]]:

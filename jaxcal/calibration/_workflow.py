@@ -164,6 +164,12 @@ def _solve(robot: Robot, layout: Layout, opts: Options, q, target, n_sets: int) 
 
 def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     """Stage 1 (module docstring)."""
+    if not (hasattr(data, "q") and hasattr(data, "measured")):  # a tuple of arrays, a file name
+        raise DataError(
+            f"data must be a jaxcal.Measurements (jaxcal.read_measurements(path, robot), or "
+            f"jaxcal.Measurements(q, measured) from arrays), got {type(data).__name__}",
+            option="data",
+        )
     given = getattr(data, "rows", None)
     rows = np.arange(1, len(data.q) + 1) if given is None else np.asarray(given)
     q, target, n_points = as_target(robot, data.q, data.measured, batched=False, rows=rows)

@@ -170,7 +170,8 @@ def test_inputs_are_checked_and_not_mutated():
         calibrate(robot, q[:3], meas[:3])
     bad = meas.copy()
     bad[7, 0, 3] = np.nan
-    with pytest.raises(jaxcal.DataError, match=r"measured: non-finite value at index \(7, 0, 3\)"):
+    where = r"measured: non-finite value \(nan\) at pose index 7, matrix element \[0\]\[3\]"
+    with pytest.raises(jaxcal.DataError, match=where):
         calibrate(robot, q, bad)
 
 

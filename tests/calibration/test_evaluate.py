@@ -226,9 +226,9 @@ def test_a_swapped_pair_of_markers_is_named_by_both_points():
 @pytest.mark.parametrize(
     "edit, msg",
     [
-        (lambda q, P: q.__setitem__((3, 2), np.nan), r"q: non-finite value at index \(3, 2\)"),
-        (lambda q, P: P.__setitem__((4, 0, 1), np.nan), r"measured: non-finite value at index \(4, 0, 1\)"),
-        (lambda q, P: P.__setitem__((4, 0), np.inf), r"measured: non-finite value at index \(4, 0, 0\)"),
+        (lambda q, P: q.__setitem__((3, 2), np.nan), r"q: non-finite value \(nan\) at row 4, joint 'q3'"),
+        (lambda q, P: P.__setitem__((4, 0, 1), np.nan), r"measured: non-finite value \(nan\) at row 5, point 1, y"),
+        (lambda q, P: P.__setitem__((4, 0), np.inf), r"measured: non-finite value \(inf\) at row 5, point 1, x"),
     ],
 )
 def test_non_finite_data_refused_as_calibrate_refuses_it(edit, msg):
@@ -253,7 +253,7 @@ def test_a_non_finite_pose_refused_not_a_solver_traceback():
     q = rng.uniform(-np.pi, np.pi, (20, 6))
     T = dh_fk(dh, q)
     T[2, 0, 1] = np.nan
-    with pytest.raises(DataError, match=r"measured: non-finite value at index \(2, 0, 1\)"):
+    with pytest.raises(DataError, match=r"measured: non-finite value \(nan\) at row 3, matrix element \[0\]\[1\]"):
         evaluate(Model(ur5), Measurements(q, T))
 
 
