@@ -37,6 +37,7 @@ the closed-form guess of each training set
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import jax
 import numpy as np
@@ -187,7 +188,8 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
         check_target_in_front(target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows)
     K, F = len(q), opts.folds
     groups = core.posture_ids(q, core.same_pose(robot))
-    fid = fold_ids(K, F, opts.seed, groups)
+    # more folds than poses is refused below, after whether the poses are enough at all
+    fid = fold_ids(K, max(2, min(F, K)), opts.seed, groups)
     everything = np.ones(K, bool)
     ends = selection.range_end_held(q, everything, groups=groups)
     held = np.concatenate([np.stack([fid == o for o in range(F)]), ends])
@@ -206,17 +208,22 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted(layout))
     check_enough_poses(int(core.distinct_poses(q, core.same_pose(robot))), layout, needed, K)
-    if len(np.unique(groups)) < F:  # a fold would hold no posture: it trains on all and scores nothing
+    m = -(-needed // layout.rows)  # the poses a training set needs, and so the data with F folds
+    least = next(k for k in itertools.count(m + 1) if k - -(-k // F) >= m)
+    postures = len(np.unique(groups))
+    if postures < F:  # a fold would hold no posture: it trains on all and scores nothing
+        enough = f"; {F}-fold cross-validation of {needed} parameters needs at least {least}"
+        enough = enough if postures < least else ""
         raise DataError(
-            f"folds ({F}) more than the distinct postures ({len(np.unique(groups))}; rows repeating a posture "
-            f"are one): use fewer folds, or measure more postures",
+            f"folds ({F}) more than the distinct postures ({postures}; rows repeating a posture are one): use "
+            f"fewer folds, or measure more postures{enough}",
             option="folds",
         )
     if n_train * layout.rows < needed:
         raise DataError(
             f"too few poses for {F}-fold cross-validation: training sets of {n_train} poses x "
             f"{layout.rows} rows = {n_train * layout.rows} equations for {needed} parameters; use fewer "
-            f"folds or more poses",
+            f"folds or more poses (at least {least} with {F} folds)",
             option="folds",
         )
     ref = core.start_models(robot.stripped(), layout, q, target, everything[None], shared=True)
