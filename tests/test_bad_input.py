@@ -259,6 +259,11 @@ PY = {
         DataError,
         r"no joint moves over the 20 poses: every row is the same posture \(rows 1\.\.20\)",
     ),
+    "calibrate_data fewer poses than folds": (  # the poses' count first: fewer folds would not help
+        lambda: jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(Q[:4], M[:4])),
+        DataError,
+        r"too few poses: 4 poses x 6 rows = 24 equations for \d+ parameters",
+    ),
     "calibrate_data arrays as a tuple": (
         lambda: jaxcal.calibrate_data(ROBOT, (Q, M)),
         DataError,
