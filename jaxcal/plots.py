@@ -32,22 +32,27 @@ LABEL = {
 }
 
 
-def axis_deviation(path, axis: str, deviations: dict, *, title: str) -> None:
+def axis_deviation(path, axis: str, deviations: dict, *, title: str, not_converged=()) -> None:
     """Per-pose deviation of the end position along ``axis`` (paper Figs. 3-5): one panel with
-    every model, one zoomed on the calibrated models (their errors are orders smaller)."""
+    every model, one zoomed on the calibrated models (their errors are orders smaller). The
+    models in ``not_converged`` are labelled so; one with no finite deviation is named, not drawn."""
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
     limit = 10.0 * max(float(np.abs(deviations.get("nominal", np.ones(1))).max()), 1e-9)
     notes = []
     for name, dev in deviations.items():
         idx = np.arange(1, len(dev) + 1)
-        worst = float(np.nanmax(np.abs(dev))) if np.isfinite(dev).any() else float("inf")
-        if not np.isfinite(worst) or worst > limit:  # a diverged model: say so instead of plotting
-            notes.append(f"{LABEL.get(name, name)}: off scale (max |deviation| = {worst:.3g} mm)")
+        label = LABEL.get(name, name) + (" (NOT converged)" if name in not_converged else "")
+        if not np.isfinite(dev).any():
+            notes.append(f"{label}: no estimate (the solver gave non-finite values)")
+            continue
+        worst = float(np.nanmax(np.abs(dev)))
+        if worst > limit:  # a diverged model: say so instead of plotting
+            notes.append(f"{label}: off scale (max |deviation| = {worst:.3g} mm)")
             continue
         kw = dict(STYLE.get(name, {}), markersize=4, linewidth=1)
-        top.plot(idx, dev, label=LABEL.get(name, name), **kw)
+        top.plot(idx, dev, label=label, **kw)
         if name != "nominal":
-            bottom.plot(idx, dev, label=LABEL.get(name, name), **kw)
+            bottom.plot(idx, dev, label=label, **kw)
     top.set_ylabel(f"{axis} deviation (mm)")
     top.set_title(title, fontsize=10)
     if notes:

@@ -87,7 +87,8 @@ class Options:
       the paper's ``elimination`` and ``elimination-literal`` (an elimination pose design, full
       poses, known frames).
     - ``max_steps`` (50), ``rtol`` (1e-8), ``atol`` (1e-8): optimistix's limits and tolerances, on
-      parameters scaled to comparable size and on residuals in units of sigma.
+      parameters scaled to comparable size and on residuals in units of sigma (for the elimination
+      methods: at most ``max_steps`` sweeps, until no parameter moves more than ``atol`` mm/rad).
 
     **Cross-validation** (:func:`calibrate_data`)
 

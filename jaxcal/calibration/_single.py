@@ -823,6 +823,34 @@ def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_pos
     return tuple(out)
 
 
+MORE_PAIRS = "(n_pairs of jaxcal.solvers.design_poses; --pairs of jaxcal reproduce)"
+PAIRS_LOSE = "the elimination's pose pairs hold"
+
+
+def _pairs_problems(plan, ident, ok) -> tuple[str, ...]:
+    """Where the robust elimination's pairs lose what the poses tell a least-squares fit (its
+    base set, ``ident``): a plan that identifies fewer parameters (a pair whose poses barely
+    differ in its joint; no result then), or, where the sweeps did not settle, a step that holds
+    at 0 a column another step estimates (one pair per step on the paper's arm)."""
+    gn_fixed = set(ident.fixed_names)
+    if len(plan.identified) < ident.rank:
+        held = [plan.names[j] for j in plan.fixed if plan.names[j] not in gn_fixed]
+        return (
+            f"{PAIRS_LOSE} {', '.join(held or [plan.names[j] for j in plan.fixed])} at 0, which these poses "
+            f"identify ({len(plan.identified)} parameters by the pairs, {ident.rank} by method 'gn'): a pair "
+            f"whose poses barely differ in its joint, or too few pairs per step; use method='gn', or a design "
+            f"with more pairs {MORE_PAIRS}",
+        ) * len(ok)
+    lost = lambda st: [plan.names[j] for j in st.columns if j not in st.free and plan.names[j] not in gn_fixed]  # noqa: E731
+    mixed = [f"step {st.joint} holds {', '.join(lost(st))}" for st in plan.steps if lost(st)]
+    why = (
+        f"not converged where {'; '.join(mixed)} at 0 for want of pose pairs, although these poses identify "
+        f"it: the sweeps then need not settle; use a design with more pairs per step {MORE_PAIRS}, or "
+        "method='gn'"
+    )
+    return tuple("" if k or not mixed else why for k in ok)
+
+
 def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
     if n_points or layout.base or layout.tool or layout.camera != "none":
         raise DataError(
@@ -841,6 +869,11 @@ def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
     ok[nonfinite] = False
     ident = core.identify(core.analyse(Model(robot.stripped()), layout, q[0])[0], layout, robot)
     R, K = q.shape[:2]
+    if opts.method == "elimination":  # the literal variant solves each block whole: singular ones fail
+        problems = _pairs_problems(plan, ident, ok)
+        ok &= ~np.array([w.startswith(PAIRS_LOSE) for w in problems])
+    else:
+        problems = ("",) * R
     return BatchResult(
         x=x,
         converged=ok,
@@ -853,5 +886,5 @@ def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
         degraded=np.zeros(R, bool),
         nonfinite=nonfinite,
         devices=tuple(describe(select_devices(None))),  # the elimination design solve is not sharded
-        problems=("",) * R,
+        problems=problems,
     )

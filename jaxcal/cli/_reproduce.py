@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import typer
@@ -57,8 +58,10 @@ def reproduce(
     for mth in METHODS:
         s2.add_row(
             mth,
-            f"{s['inspection_rms_mm'][mth]:.3g}",
-            f"{s['max_param_error'][mth]:.3g}",
+            *(
+                f"{v:.3g}" if math.isfinite(v) else "no estimate"
+                for v in (s["inspection_rms_mm"][mth], s["max_param_error"][mth])
+            ),
             f"{s['time_s'][mth] * 1e3:.3f}",
             f"{s['compile_s'][mth]:.2f}",
             f"{s['num_steps'][mth]}"
@@ -69,6 +72,8 @@ def reproduce(
             ),
         )
     console.print(s2)
+    for mth, why in s["problems"].items():
+        console.print(f"[bold]{mth}[/bold]: {why}")
     console.print(
         f"* identifiable combination; fixed parameters are not identifiable (rank "
         f"{s['identifiable']['rank']}/{s['identifiable']['of']}). Wrote {out}/: table2.csv, "

@@ -337,6 +337,7 @@ def run_montecarlo(
                 f"method ({', '.join(METHODS)})",
                 option="method",
             )
+        asked = n_poses
         design = (max(1, (n_poses - 2) // (2 * (robot.n_joints - 1))), 2)
         n_poses = 2 * (robot.n_joints - 1) * design[0] + design[1]
     elif q is not None:
@@ -348,6 +349,11 @@ def run_montecarlo(
     if sampler is not None and design is not None:
         raise DataError(
             "region, view and min_spread need random poses, not the elimination's pair design", option="method"
+        )
+    if design is not None:
+        conditions["calibration_poses"] = (
+            f"the elimination's pair design, random per robot: {design[0]} pair(s) per joint and {design[1]} "
+            f"undifferenced = {n_poses} poses" + (f" (of the {asked} asked)" if asked != n_poses else "")
         )
     n_val = n_val if q_val is None else len(q_val)
     definition = {

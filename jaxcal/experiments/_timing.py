@@ -30,9 +30,10 @@ def cpu_model() -> str:
     """Model name, family/model and vector ISA from /proc/cpuinfo (hosts of the same name differ)."""
     try:
         info = {}
-        for line in open("/proc/cpuinfo"):
-            k, _, v = line.partition(":")
-            info.setdefault(k.strip(), v.strip())
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                k, _, v = line.partition(":")
+                info.setdefault(k.strip(), v.strip())
     except OSError:
         return platform.processor() or platform.machine()
     flags = info.get("flags", "").split()

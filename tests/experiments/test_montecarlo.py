@@ -128,6 +128,8 @@ def test_montecarlo_elimination_uses_its_pair_design():
         repeats=1,
     )
     assert out["n_poses"] == 2 * 5 * 2 + 2  # 2 pairs per step x 5 steps + 2 absolute poses
+    assert "pair design" in out["conditions"]["calibration_poses"]  # not "random"
+    assert out["conditions"]["calibration_poses"].endswith("= 22 poses")  # as asked: no "(of the ... asked)"
     assert out["converged_fraction"] == 1.0
     assert out["validation_pos_rms_mm"] < 1e-4  # only the d3 truth error's second-order trace
 

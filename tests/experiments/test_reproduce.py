@@ -55,3 +55,23 @@ def test_noisy_run_is_at_noise_level(tmp_path):
     assert s["noise"] == {"sigma_pos_mm": 0.02, "sigma_rot_rad": 2e-5}
     assert s["inspection_rms_mm"]["gn"] < 0.05
     assert np.isfinite(s["inspection_rms_mm"]["elimination"])
+
+
+def test_a_design_the_elimination_cannot_use_gives_no_estimate_under_its_name(noise_free, tmp_path):
+    """One pair per step: step 3 cannot separate a2, the robust elimination does not settle. Its
+    estimate is not the nominal model under its name, the summary says why, and position noise
+    alone is a valid setting (its rotation rows weighted at 1 mm : 1 mrad)."""
+    s = run_reproduce(tmp_path, seed=0, n_pairs=1, repeats=1, n_inspect=5, sigma_pos=0.02, sigma_rot=0.0)
+    assert not s["converged"]["elimination"] and "step 3 holds a2" in s["problems"]["elimination"]
+    # its solve gave non-finite values (seed 0): no estimate, where the nominal model stood in
+    assert s["problems"]["elimination"].startswith("the solver gave non-finite values")
+    assert np.isnan(s["inspection_rms_mm"]["elimination"])
+    rows = list(csv.DictReader((tmp_path / "table2.csv").read_text().splitlines()))
+    assert all(np.isnan(float(r["elimination"])) for r in rows)
+    assert s["converged"]["gn"] and s["inspection_rms_mm"]["gn"] < 0.1
+    # the combination's unit is its base parameter's (d2 + d3: mm)
+    out, _ = noise_free
+    (combo,) = [
+        r for r in csv.DictReader((out / "table2.csv").read_text().splitlines()) if r["identifiable"] == "combination"
+    ]
+    assert combo["parameter"].startswith("d2") and combo["unit"] == "mm"
