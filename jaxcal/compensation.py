@@ -8,7 +8,9 @@ $$|W\,e(q)|^2 + \lambda\,|q - q_0|^2,\qquad e = \text{pose\_error}(T_{target}, T
 with the analytic joint Jacobian (the joint columns of eq. 10), ``W`` weighting rotation rows by
 ``rot_weight_mm`` mm per rad (a lever arm), and a light pull ``lambda`` (``damping``) toward the
 starting command ``q_0``, which keeps a redundant arm, or a position-only target, near the
-nominal command instead of anywhere on its self-motion, and keeps every step well posed.
+nominal command instead of anywhere on its self-motion, and keeps every step well posed. A
+prismatic joint's millimetres are scaled by the revolute joints' mean lever (the tool's distance
+from their axes), so that the least step weighs a lift and a turn by how far they move the tool.
 
 A command is then put on the branch of its starting command (revolute joints within pi of it:
 no whole-turn jumps), a joint beyond limits of its own there turned by whole turns into them
@@ -119,27 +121,40 @@ def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight, damping, max
     sd = jnp.sqrt(damping)
     rigid = eqx.tree_at(lambda r: r.compliance, robot, None, is_leaf=lambda x: x is None)
 
-    def rj(q, args):
-        T_target, q_start, sd = args
+    prismatic = jnp.asarray([t == "P" for t in robot.joint_types])
+
+    def columns(q):
         # a compliant arm reaches its deflected values: the columns there (the moments' own
         # derivative is second order, as in the identification Jacobian)
         P, W, T = point_jacobian(rigid, deflected(robot, q[None]), jnp.zeros((1, 3)))
-        e = pose_error(T_target, T[0])
-        Jp, Jw = P[0, 0][:, cols], W[0][:, cols]
+        return P[0, 0][:, cols], W[0][:, cols], T[0]
+
+    def rj(y, args):
+        # solved in y = q / scale: a step of 1 is a radian or the millimetres that move the tool
+        # about as far, so the least step does not leave a prismatic joint still (mm and rad mixed)
+        T_target, y_start, sd, scale = args
+        Jp, Jw, T = columns(y * scale)
+        e = pose_error(T_target, T)
         rot = so3_right_jacobian_inv(e[3:]) @ Jw
-        J = -jnp.concatenate([Jp, rot])[:rows] * w[:, None]
-        r = jnp.concatenate([e[:rows] * w, sd * (q - q_start)])
+        J = -jnp.concatenate([Jp, rot])[:rows] * w[:, None] * scale
+        r = jnp.concatenate([e[:rows] * w, sd * (y - y_start)])
         return r, jnp.concatenate([J, sd * jnp.eye(n)])
 
     def one(T, q_start):
-        q, _, steps = least_squares(
-            rj, q_start, (T, q_start, sd), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10
+        # the lever of a revolute joint: its position column's norm, the tool's distance from its axis
+        lever = jnp.linalg.norm(columns(q_start)[0], axis=0)
+        n_rev = jnp.maximum(jnp.sum(~prismatic), 1)
+        reach = jnp.maximum(jnp.sum(jnp.where(prismatic, 0.0, lever)) / n_rev, 1.0)
+        scale = jnp.where(prismatic, reach, 1.0)
+        y0 = q_start / scale
+        y, _, steps = least_squares(
+            rj, y0, (T, y0, sd, scale), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10
         )
         # the pull leaves a residual of about damping x the move (mm for a prismatic joint's tens
         # of mm): once more, pulled toward that solution instead (the bias is then damping x the
         # last small move; a redundant arm stays where the first solve put it)
-        q, ok, more = least_squares(rj, q, (T, q, sd), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10)
-        steps = steps + more
+        y, ok, more = least_squares(rj, y, (T, y, sd, scale), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10)
+        q, steps = y * scale, steps + more
         rev = jnp.asarray([t == "R" for t in robot.joint_types])
         q = jnp.where(rev, q_start + _wrap(q - q_start), q)  # the branch of the starting command
         e = pose_error(T, fk(robot, q))

@@ -281,3 +281,38 @@ def test_commands_for_a_pose_model_whose_tool_is_another_frame_warn():
     note = tool_note(0, ur5.replace(tool=far), ur5, "cal.toml", commands_only=True)
     assert "cal.toml's tool is 121 mm and 20 deg from the nominal robot's" in note
     assert tool_note(0, ur5.replace(tool=far), ur5, "cal.toml", commands_only=False) == ""  # pose targets
+
+
+def test_a_lift_under_an_arm_is_used_where_the_target_needs_it(tmp_path):
+    """A prismatic lift under a UR5-like arm (7 joints, pose targets): solved in mm and rad as
+    they are, the least step moved the revolute joints (a radian moves the tool hundreds of mm)
+    and left the lift still, and one target drove the elbow 12 degrees into a point 0.3 mm off.
+    Scaled by the arm's lever, every target is reached with small moves of all joints."""
+    rows = [
+        ("P", 0.0, 100.0, 0.0, 0.0, 0.0, 500.0),
+        ("R", 0.0, 89.159, 0.0, np.pi / 2, -2.9, 2.9),
+        ("R", -np.pi / 2, 0.0, 425.0, 0.0, -2.9, 2.9),
+        ("R", 0.0, 0.0, 392.25, 0.0, -2.9, 2.9),
+        ("R", np.pi / 2, 109.15, 0.0, np.pi / 2, -2.9, 2.9),
+        ("R", 0.0, 94.65, 0.0, -np.pi / 2, -2.9, 2.9),
+        ("R", 0.0, 82.3, 0.0, 0.0, -6.0, 6.0),
+    ]
+    (tmp_path / "lift.toml").write_text(
+        'name = "lift"\nconvention = "sdh"\n'
+        + "".join(
+            f'[[joints]]\ntype = "{t}"\ntheta = {th}\nd = {d}\na = {a}\nalpha = {al}\nlimits = [{lo}, {hi}]\n'
+            for t, th, d, a, al, lo, hi in rows
+        )
+    )
+    nominal = load_robot(tmp_path / "lift.toml")
+    rng = np.random.default_rng(6)
+    dh = np.array([r[1:5] for r in rows]) + rng.normal(scale=[0.002, 0.5, 0.5, 0.002], size=(7, 4))
+    q = np.c_[rng.uniform(100, 400, 20), rng.uniform(-2, 2, (20, 6))]
+    types = [r[0] for r in rows]
+    targets = dh_fk(np.array([r[1:5] for r in rows]), q, joint_types=types)  # where the nominal puts the tool
+    res = compensate(nominal.replace(dh=dh), targets, q)
+    assert res.converged.all()
+    reached = dh_fk(dh, res.q, joint_types=types)  # the calibrated arm at the commands, in NumPy
+    assert np.linalg.norm(reached[:, :3, 3] - targets[:, :3, 3], axis=1).max() < 1e-6
+    moved = res.q - q
+    assert np.abs(moved[:, 0]).max() < 10.0 and np.degrees(np.abs(moved[:, 1:]).max()) < 5.0

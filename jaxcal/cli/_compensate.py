@@ -15,7 +15,9 @@ def compensate(
     calibrated: str = typer.Argument(..., help="calibrated robot file (e.g. from calibrate --out-robot)"),
     targets: Path = typer.Argument(..., help="CSV with x, y, z [, qw, qx, qy, qz] and/or the joint columns"),
     nominal: str = typer.Option(
-        None, help="nominal robot (file or preset): targets = where it puts the tool at the file's joint values"
+        None,
+        help="nominal robot (file or preset): targets = where it puts the tool at the file's joint values, "
+        "relative to its base (they move with the calibrated base frame)",
     ),
     out: Path = typer.Option(None, help="write the compensated joint commands here (CSV)"),
     length_unit: str = typer.Option(None, help="m | mm (default: the robot file's)"),
