@@ -259,6 +259,12 @@ PY = {
         DataError,
         r"no joint moves over the 20 poses: every row is the same posture \(rows 1\.\.20\)",
     ),
+    "calibrate robot file in another unit": (  # not only the data's unit: the robot's, as written, is no arm
+        lambda: calibrate(ROBOT.replace(dh=np.asarray(ROBOT.dh) * [1, 1000, 1000, 1]), Q, M),
+        DataError,
+        r"read the data with length_unit=\"m\"; or the robot file's lengths are not in mm: as written, its arm "
+        r"moves the tool over",
+    ),
     "calibrate_data fewer poses than folds": (  # the poses' count first: fewer folds would not help
         lambda: jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(Q[:4], M[:4])),
         DataError,
@@ -316,6 +322,10 @@ TOML = {
     "wrong type bool": (GOOD_TOML.replace("d = 100.0", "d = true"), "joint 1 d: expected a number"),
     "wrong type joints": (GOOD_TOML.split("[[joints]]")[0] + "joints = 'RR'\n", "needs at least one [[joints]]"),
     "non-finite": (GOOD_TOML.replace("a = 200.0", "a = inf"), "joint 1 a: not finite"),
+    "degrees under rad": (
+        GOOD_TOML.replace("alpha = 1.5707963267948966", "alpha = 90.0"),
+        "alpha = 90 rad, beyond a whole turn: are the file's angles degrees?",
+    ),
     "bad joint type": (GOOD_TOML.replace("alpha = 0.0", "alpha = 0.0\ntype = 'S'"), "joint 2: type must be 'R' or 'P'"),
     "limits wrong length": (
         GOOD_TOML.replace("limits = [-2.0, 2.0]", "limits = [-2.0, 0.0, 2.0]"),

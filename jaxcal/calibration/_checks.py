@@ -152,6 +152,9 @@ PRISMATIC_UNIT_FACTOR = 100.0
 another length unit (a factor of 1000 between mm and m)."""
 
 
+ARM_SPREAD_MM = (5.0, 2e4)
+"""A nominal model whose tool positions spread outside this range (mm) is no arm in the unit
+its file names: a unit refusal then names the robot file's unit too."""
 BEYOND_LIMIT = 1e-6
 """A reading beyond its joint's limit by more than this share of the limit (in the robot file's
 unit, at least one of it) lies outside them; less is the limit written with rounding."""
@@ -336,9 +339,15 @@ def check_units(
                 if ratio > 100
                 else ("a unit or scale that is not the robot's", " the unit they were written in")
             )
+            # no arm moves its tool over 20 m or under 5 mm: the robot file's unit is as likely
+            arm = (
+                f"; or the robot file's lengths are not in {lu}: as written, its arm moves the tool over {a:.4g} mm"
+                if not ARM_SPREAD_MM[0] <= a <= ARM_SPREAD_MM[1]
+                else ""
+            )
             raise DataError(
                 f"{what}{where}: positions spread {b:.4g} mm {around}, {model}'s "
                 f"{a:.4g} mm at the same joint values ({ratio:.3g}x): lengths look like {guess}"
-                f"; the robot's lengths are in {lu}; read the data with{fix}",
+                f"; the robot's lengths are in {lu}; read the data with{fix}{arm}",
                 option="length_unit",
             )

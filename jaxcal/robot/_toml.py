@@ -115,6 +115,13 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
                 _num(j["alpha"], f"joint {i} alpha") * au,
             ]
         )
+        turn = 2 * np.pi * 1.01  # a twist or an offset beyond a whole turn is an angle in another unit
+        for key, v in (("theta", dh[-1][0]), ("alpha", dh[-1][3])):
+            if au_name == "rad" and abs(v) > turn:
+                raise RobotFileError(
+                    f"{source}: joint {i} ({jname}) {key} = {v:g} rad, beyond a whole turn: are the file's "
+                    f'angles degrees? Then write angle_unit = "deg"'
+                )
         types.append(jt)
         compliance.append(_num(j["compliance"], f"joint {i} compliance") * au / lu if "compliance" in j else None)
         lim = j.get("limits", None)
