@@ -62,3 +62,19 @@ def mdh_omega_combined(theta, d, a, alpha, dth, dd, da, dal):
         ],
         float,
     )
+
+
+def eq13_w6(F, a, dth, dd, da, dal):
+    """Eq. (13), W_6 = T_6 Omega_6 T_6^{-1} for alpha_6 = 0 in the entries f_ij of T_6, the
+    simplified (second) line of each entry as printed; the lower triangle by eq. (12)."""
+    f = lambda i, j: F[i - 1][j - 1]  # noqa: E731
+    w12 = -f(3, 3) * dth - f(3, 1) * dal
+    w13 = f(2, 3) * dth + f(2, 1) * dal
+    w23 = -f(1, 3) * dth - f(1, 1) * dal
+    w14 = (f(2, 4) * f(3, 3) + f(3, 4) * f(2, 3) + f(1, 2) * a) * dth + (f(2, 4) * f(3, 1) - f(3, 4) * f(2, 1)) * dal
+    w14 += f(1, 3) * dd + f(1, 1) * da
+    w24 = (-f(1, 4) * f(3, 3) + f(3, 4) * f(1, 3) + f(2, 2) * a) * dth + (-f(1, 4) * f(3, 1) - f(3, 4) * f(1, 1)) * dal
+    w24 += f(2, 3) * dd + f(2, 1) * da
+    w34 = (f(1, 4) * f(2, 3) - f(2, 4) * f(1, 3) + f(3, 2) * a) * dth + (f(1, 4) * f(2, 1) + f(2, 4) * f(1, 1)) * dal
+    w34 += f(3, 3) * dd + f(3, 1) * da
+    return np.array([[0, w12, w13, w14], [-w12, 0, w23, w24], [-w13, -w23, 0, w34], [0, 0, 0, 0]], float)

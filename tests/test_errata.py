@@ -87,3 +87,27 @@ def test_eq10_intermediate_step_erratum():
     lhs = dT_prev @ A_n @ np.asarray(inv_transform(jnp.asarray(T_n)))
     assert_allclose(lhs, dT_prev @ np.linalg.inv(T_prev), atol=1e-12)
     assert np.abs(lhs - dT_prev @ np.linalg.inv(T_n)).max() > 1e-3
+
+
+def test_eq13_w6_translation_erratum():
+    """Erratum E6: eq. (13)'s simplified translation entries of W_6 = T_6 Omega_6 T_6^{-1}
+    (alpha_6 = 0) carry three sign slips: in (1,4) the Delta theta coefficient's f34 f23, in
+    (2,4) and (3,4) the Delta alpha coefficients' f34 f11 and f24 f11. The rotation entries are
+    right. Truth: jaxcal's operator (checked against autodiff above) conjugated by T_6."""
+    q = np.array([0.4, -1.1, 0.7, 1.9, -0.6, 0.8])
+    dh = np.array([[0, 0, 160, -np.pi / 2], [-np.pi / 2, 0, 580, 0], [0, 0, 200, -np.pi / 2]])
+    dh = np.r_[dh, [[0, 640, 0, np.pi / 2], [0, 228, 0, -np.pi / 2], [0, 50, 37.0, 0]]]  # a_6, d_6 != 0
+    F = np.eye(4)
+    for (th, d, a, al), qi in zip(dh, q):
+        F = F @ np.asarray(K.sdh_link(th + qi, d, a, al))
+    dth, dd, da, dal = DELTA
+    omega = np.einsum("kij,k->ij", np.asarray(D.sdh_omegas(dh[5, 0] + q[5], *dh[5, 1:])), DELTA)
+    truth = F @ omega @ np.linalg.inv(F)
+    printed = PP.eq13_w6(F, dh[5, 2], dth, dd, da, dal)
+    assert _wrong_entries(printed, truth) == {(1, 4), (2, 4), (3, 4)}
+    f = lambda i, j: F[i - 1, j - 1]  # noqa: E731
+    fixed = printed.copy()  # the three coefficients with their sign corrected
+    fixed[0, 3] -= 2 * f(3, 4) * f(2, 3) * dth
+    fixed[1, 3] += 2 * f(3, 4) * f(1, 1) * dal
+    fixed[2, 3] -= 2 * f(2, 4) * f(1, 1) * dal
+    assert_allclose(fixed, truth, atol=1e-12)
