@@ -23,5 +23,5 @@ def verify(points: int = typer.Option(2000, help="random parameter points per ch
         ok_all &= ok
         table.add_row(what, f"{err:.2e}", f"{tol:.0e}", "yes" if ok else "[red]NO[/red]")
     console.print(table)
-    console.print("Paper errata: see docs/errata.md")
+    console.print("These are jaxcal's matrices; where the paper's printed ones differ from them: docs/errata.md")
     raise typer.Exit(0 if ok_all else 1)
