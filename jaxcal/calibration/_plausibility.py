@@ -208,7 +208,8 @@ def variants(robot: Robot, q, target, n_points: int):
     for j in range(n - 1):
         perm = list(range(n))
         perm[j], perm[j + 1] = j + 1, j
-        out[f"joints {j + 1} and {j + 2} swapped"] = (q[:, perm], target)
+        pair = f"{robot.joint_names[j]!r}, {robot.joint_names[j + 1]!r}"  # the columns as the file names them
+        out[f"joints {j + 1} and {j + 2} swapped ({pair})"] = (q[:, perm], target)
     out["joints reversed"] = (q[:, ::-1], target)
     rev = np.array([t == "R" for t in robot.joint_types])
     out["degrees read as radians"] = (np.where(rev, np.radians(q), q), target)

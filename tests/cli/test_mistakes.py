@@ -64,7 +64,10 @@ def _mirrored_y(poses):
 
 MISTAKES = {
     "x and y swapped": (lambda t: _relabel(_csv(t), {"x": "y", "y": "x"}), "swapped x, y"),
-    "joints 2 and 3 swapped": (lambda t: _relabel(_csv(t), {"q2": "q3", "q3": "q2"}), "joints 2 and 3 swapped"),
+    "joints 2 and 3 swapped": (
+        lambda t: _relabel(_csv(t), {"q2": "q3", "q3": "q2"}),
+        "joints 2 and 3 swapped ('q2', 'q3')",
+    ),
     "joint names reversed": (
         lambda t: _relabel(_csv(t), {f"q{i}": f"q{7 - i}" for i in range(1, 7)}),
         "joints reversed",
