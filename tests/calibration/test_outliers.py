@@ -183,7 +183,8 @@ def test_lost_points_weigh_nothing():
         calibrate(robot, sim.q[0], np.where(np.arange(40)[:, None, None] == 2, np.nan, pts), **kw)
     partial = pts.copy()
     partial[5, 1, 0] = np.nan
-    with pytest.raises(jaxcal.DataError, match=r"index \(5, 1, 0\); a point not measured is NaN in all three"):
+    where = r"\(nan\) at pose index 5, point 2, x; a point not measured is NaN in all three"
+    with pytest.raises(jaxcal.DataError, match=where):
         calibrate(robot, sim.q[0], partial, **kw)
 
 

@@ -82,7 +82,7 @@ def test_calibrate_bad_input(tmp_path, monkeypatch, capsys, panda_data, case):
     [
         (["--method", "newton"], "--method must be one of gn, lm, linear"),
         (["--params", "theta,beta"], "unknown parameter or set 'beta'"),
-        (["--folds", "40"], "--folds must be between 2 and the number of poses (12)"),
+        (["--folds", "40"], "--folds (40) more than the distinct postures (12"),
         (["--length-unit", "inch"], "--length-unit must be one of 'mm', 'm', got 'inch'"),
         (["--ridge", "-1", "--params", "all"], "--ridge-mm must be a finite positive number"),
     ],
