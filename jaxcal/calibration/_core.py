@@ -237,6 +237,18 @@ def _chunk_args(cfg: Config, models, q, target, pose_w, weights, prior, ls, n0, 
     return (m_, np.asarray(q_), np.asarray(t_), pw, w, p, l_, n_, s_)
 
 
+def _shares(args, mesh, cfg: Config):
+    """``(device, its members' arguments)`` for each device of ``mesh``, in order: the member
+    arrays cut into equal consecutive parts, the data whole to each where members share it."""
+    devices = list(mesh.devices.flat)
+    n = len(args[3]) // len(devices)
+    for i, dev in enumerate(devices):
+        part = lambda a: jax.tree.map(lambda x: x[i * n : (i + 1) * n], a)  # noqa: E731
+        m_, q_, t_, *rest = args
+        q_, t_ = (q_, t_) if cfg.shared_data else (part(q_), part(t_))
+        yield dev, (part(m_), q_, t_, *part(rest))
+
+
 def run_members(
     cfg: Config,
     models: Model,
@@ -282,6 +294,14 @@ def run_members(
         args = _chunk_args(cfg, models, *padded, np.minimum(np.arange(start, start + c), B - 1))
         if mesh is None:
             outs.append(jax.tree.map(np.asarray, _members(cfg, *args, quick=quick)))
+        elif jax.process_count() == 1:
+            # one solve per device on its own members: over a sharded member axis, the vmapped
+            # solve's test for its slowest member is a collective every step, which XLA's CPU
+            # devices deadlock on; the kept programs (exported) deadlock too when run at once on
+            # several CPU devices, so these are jitted here
+            solve = _members.quick if quick and jax.default_backend() == "cpu" else _members.full
+            calls = [solve(cfg, *jax.device_put(share, dev)) for dev, share in _shares(args, mesh, cfg)]
+            outs.append(jax.tree.map(lambda *a: np.concatenate([np.asarray(x) for x in a]), *calls))
         else:  # every member array split over the devices; data shared by all members on each
             m_, q_, t_, *rest = args
             q_, t_ = distribute((q_, t_), mesh, split=not cfg.shared_data)

@@ -105,3 +105,23 @@ def test_too_many_devices_is_a_clear_error():
     for bad in ("two", 0, -1, 1.5):
         with pytest.raises(DataError, match="devices must be 'all' or a positive integer"):
             select_devices(bad)
+
+
+ONE_PROCESS = """
+import json, jax, numpy as np, jaxcal
+jax.config.update("jax_num_cpu_devices", 2)
+robot = jaxcal.preset("paper-6r")
+sim = jaxcal.simulate(robot, n_robots=32, n_poses=30, seed=3, sigma_pos=0.02, sigma_rot=2e-5)
+two = jaxcal.calibrate_batch(robot, sim.q, sim.measured, devices="all")  # base and tool estimated
+one = jaxcal.calibrate_batch(robot, sim.q, sim.measured, devices=None)
+print(json.dumps({"devices": list(two.devices), "diff": float(np.abs(two.x - one.x).max())}))
+"""
+
+
+def test_two_cpu_devices_of_one_process_finish_where_a_sharded_solve_deadlocked():
+    """32 robots with base and tool estimated over two CPU devices of one process: the sharded
+    solve (and the kept programs run on both devices at once) hung for good; each device now
+    solves its own members in turn."""
+    flags = " ".join(f for f in os.environ.get("XLA_FLAGS", "").split() if "device_count" not in f)
+    r = _result(_run(ONE_PROCESS, env={"XLA_FLAGS": flags}), timeout=150)
+    assert len(r["devices"]) == 2 and r["diff"] < 1e-12
