@@ -26,7 +26,9 @@ def design(
         "validation", help="validation (expected position RMS from the CRLB) | d (log det) | a (trace of covariance)"
     ),
     pool: Path = typer.Option(None, "--pool", help="candidate pose file: choose the best --poses of its rows"),
-    position_only: bool = typer.Option(False, "--position-only/--full-pose", help="measure the tool point only"),
+    position_only: bool = typer.Option(
+        None, "--position-only/--full-pose", help="measure the tool point only (implied by --point)"
+    ),
     point: list[str] = typer.Option(
         None, "--point", help="a measured point X,Y,Z on the tool (mm, tool frame); repeat for several"
     ),
@@ -87,7 +89,9 @@ def design(
     r = load_robot_arg(robot, base_link, tip_link)
     box, cone = region_arg(region), view_arg(view)
     points = [numbers(p, 3, "point") for p in point] if point else None
-    n_points = len(points) if points else int(position_only)
+    if points and position_only is False:  # a point is measured by its position alone
+        raise DataError("--point designs for measured points (positions alone): drop --full-pose", option="point")
+    n_points = len(points) if points else int(bool(position_only))
     candidates = read_poses_for(pool, r, "pool")
     q_val = read_poses_for(validation, r, "validation")
     given = _given(params_from is None, estimate_base=estimate_base, estimate_tool=estimate_tool, params=params)

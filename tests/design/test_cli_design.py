@@ -61,6 +61,13 @@ def test_design_bad_region_names_the_flag(monkeypatch, capsys, tmp_path):
     assert code == 2 and "--region" in err and not (tmp_path / "p.csv").exists()
 
 
+def test_design_for_a_point_with_full_poses_asked_is_refused(monkeypatch, capsys, tmp_path):
+    """--point designs for positions alone; --full-pose beside it was ignored without a word."""
+    args = ("design", "paper-6r", "--poses", "8", "--out", tmp_path / "p.csv", "--point", "0,0,1", "--full-pose")
+    code, _, err = run_cli(monkeypatch, capsys, *args)
+    assert code == 2 and "drop --full-pose" in err and not (tmp_path / "p.csv").exists()
+
+
 @pytest.mark.parametrize(
     "args,said", [(("--poses", "4"), "--poses: 4 poses"), (("--poses", "8", "--noise-mm", "0"), "--noise-mm must be")]
 )
