@@ -155,8 +155,7 @@ def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight, damping, max
         # last small move; a redundant arm stays where the first solve put it)
         y, ok, more = least_squares(rj, y, (T, y, sd, scale), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10)
         q, steps = y * scale, steps + more
-        rev = jnp.asarray([t == "R" for t in robot.joint_types])
-        q = jnp.where(rev, q_start + _wrap(q - q_start), q)  # the branch of the starting command
+        q = jnp.where(prismatic, q, q_start + _wrap(q - q_start))  # the branch of the starting command
         e = pose_error(T, fk(robot, q))
         return q, jnp.linalg.norm(e[:3]), jnp.linalg.norm(e[3:]), ok, steps
 

@@ -295,13 +295,16 @@ def run_members(
         if mesh is None:
             outs.append(jax.tree.map(np.asarray, _members(cfg, *args, quick=quick)))
         elif jax.process_count() == 1:
-            # one solve per device on its own members: over a sharded member axis, the vmapped
-            # solve's test for its slowest member is a collective every step, which XLA's CPU
-            # devices deadlock on; the kept programs (exported) deadlock too when run at once on
-            # several CPU devices, so these are jitted here
+            # each device solves its own members, one device after another (each result waited
+            # for): a solve sharded over the member axis tests for its slowest member with a
+            # collective every step, and solves run at once on several CPU devices, both of which
+            # deadlocked in XLA's CPU runtime; jitted here, since the kept (exported) programs
+            # deadlocked on a second device too
             solve = _members.quick if quick and jax.default_backend() == "cpu" else _members.full
-            calls = [solve(cfg, *jax.device_put(share, dev)) for dev, share in _shares(args, mesh, cfg)]
-            outs.append(jax.tree.map(lambda *a: np.concatenate([np.asarray(x) for x in a]), *calls))
+            calls = [
+                jax.tree.map(np.asarray, solve(cfg, *jax.device_put(s, dev))) for dev, s in _shares(args, mesh, cfg)
+            ]
+            outs.append(jax.tree.map(lambda *a: np.concatenate(a), *calls))
         else:  # every member array split over the devices; data shared by all members on each
             m_, q_, t_, *rest = args
             q_, t_ = distribute((q_, t_), mesh, split=not cfg.shared_data)
