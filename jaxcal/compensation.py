@@ -179,7 +179,8 @@ def compensate(
     **Arguments**: ``targets`` ``(K, 4, 4)`` in the calibrated model's frame (mm; only the
     position is used with ``position_only``); ``q_start`` ``(K, n)``, e.g. the nominal
     commands; ``rot_weight_mm`` mm per rad of rotation error; ``damping`` the pull toward
-    ``q_start`` (mm^2 per rad^2); a target counts as reached when its position residual is below
+    ``q_start`` (mm^2 per rad^2, a prismatic joint's move counted in the revolute joints' mean
+    lever: its pull is that lever squared weaker per mm); a target counts as reached when its position residual is below
     ``tol_mm`` and its rotation residual below ``tol_mm / rot_weight_mm``; ``branch``: ``q_start``
     are the commands meant, whose branch a command must keep (``on_branch``; False: a start only).
 

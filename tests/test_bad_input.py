@@ -262,8 +262,8 @@ PY = {
     "calibrate robot file in another unit": (  # not only the data's unit: the robot's, as written, is no arm
         lambda: calibrate(ROBOT.replace(dh=np.asarray(ROBOT.dh) * [1, 1000, 1000, 1]), Q, M),
         DataError,
-        r"read the data with length_unit=\"m\"; or the robot file's lengths are not in mm: as written, its arm "
-        r"moves the tool over",
+        r"read the data with length_unit=\"m\"; or the robot file's lengths are not in mm: as written, the arm "
+        r"reaches",
     ),
     "calibrate_data fewer poses than folds": (  # the poses' count first: fewer folds would not help
         lambda: jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(Q[:4], M[:4])),

@@ -152,9 +152,9 @@ PRISMATIC_UNIT_FACTOR = 100.0
 another length unit (a factor of 1000 between mm and m)."""
 
 
-ARM_SPREAD_MM = (5.0, 2e4)
-"""A nominal model whose tool positions spread outside this range (mm) is no arm in the unit
-its file names: a unit refusal then names the robot file's unit too."""
+ARM_REACH_MM = (5.0, 2e4)
+"""A robot whose reach (:meth:`jaxcal.Robot.reach`) lies outside this range (mm) is no arm in the
+unit its file names: a unit refusal then names the robot file's unit too."""
 BEYOND_LIMIT = 1e-6
 """A reading beyond its joint's limit by more than this share of the limit (in the robot file's
 unit, at least one of it) lies outside them; less is the limit written with rounding."""
@@ -339,10 +339,11 @@ def check_units(
                 if ratio > 100
                 else ("a unit or scale that is not the robot's", " the unit they were written in")
             )
-            # no arm moves its tool over 20 m or under 5 mm: the robot file's unit is as likely
+            # no arm reaches over 20 m or under 5 mm: the robot file's unit is as likely
+            size = robot.reach()
             arm = (
-                f"; or the robot file's lengths are not in {lu}: as written, its arm moves the tool over {a:.4g} mm"
-                if not ARM_SPREAD_MM[0] <= a <= ARM_SPREAD_MM[1]
+                f"; or the robot file's lengths are not in {lu}: as written, the arm reaches {size:.4g} mm"
+                if not ARM_REACH_MM[0] <= size <= ARM_REACH_MM[1]
                 else ""
             )
             raise DataError(

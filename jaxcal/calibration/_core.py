@@ -294,8 +294,8 @@ def run_members(
         args = _chunk_args(cfg, models, *padded, np.minimum(np.arange(start, start + c), B - 1))
         if mesh is None:
             outs.append(jax.tree.map(np.asarray, _members(cfg, *args, quick=quick)))
-        elif jax.process_count() == 1:
-            # each device solves its own members, one device after another (each result waited
+        elif jax.process_count() == 1 and all(d.platform == "cpu" for d in mesh.devices.flat):
+            # each CPU device solves its own members, one device after another (each result waited
             # for): a solve sharded over the member axis tests for its slowest member with a
             # collective every step, and solves run at once on several CPU devices, both of which
             # deadlocked in XLA's CPU runtime; jitted here, since the kept (exported) programs

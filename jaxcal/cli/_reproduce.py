@@ -59,7 +59,7 @@ def reproduce(
         s2.add_row(
             mth,
             *(
-                f"{v:.3g}" if math.isfinite(v) else "no estimate"
+                "no estimate" if math.isnan(v) else f"{v:.3g}"
                 for v in (s["inspection_rms_mm"][mth], s["max_param_error"][mth])
             ),
             f"{s['time_s'][mth] * 1e3:.3f}",

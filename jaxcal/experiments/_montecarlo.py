@@ -352,7 +352,7 @@ def run_montecarlo(
         )
     if design is not None:
         conditions["calibration_poses"] = (
-            f"the elimination's pair design, random per robot: {design[0]} pair(s) per joint and {design[1]} "
+            f"the elimination's pair design, random per robot: {design[0]} pair(s) per step and {design[1]} "
             f"undifferenced = {n_poses} poses" + (f" (of the {asked} asked)" if asked != n_poses else "")
         )
     n_val = n_val if q_val is None else len(q_val)
