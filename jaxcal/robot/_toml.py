@@ -224,7 +224,12 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None, poi
         raise RobotFileError("a joint-frame robot is written as URDF (a path ending in .urdf)")
     lu_name, au_name = robot.units
     lu, au = LENGTH[lu_name], ANGLE[au_name]
-    dh = np.asarray(robot.dh) / np.array([au, lu, lu, au])
+    dh = np.array(robot.dh)
+    # a twist or offset beyond a whole turn is written within one (the same frames): the reader
+    # takes one beyond a turn in radians for degrees
+    turns = np.abs(dh[:, [0, 3]]) > 2 * np.pi
+    dh[:, [0, 3]] = np.where(turns, dh[:, [0, 3]] - 2 * np.pi * np.round(dh[:, [0, 3]] / (2 * np.pi)), dh[:, [0, 3]])
+    dh = dh / np.array([au, lu, lu, au])
     lim = np.asarray(robot.q_limits) / robot.joint_scale()[:, None]
     given = robot.limits_given()
     doc = {

@@ -240,3 +240,16 @@ def test_save_robot_refuses_what_it_cannot_write_or_load_back(tmp_path):
     with pytest.raises(jaxcal.DataError, match="is a directory"):
         save_robot(r, tmp_path)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_angle_beyond_a_whole_turn_is_written_so_that_it_reads_back(tmp_path, rng):
+    """The reader refuses a twist or offset beyond a whole turn in radians (likely degrees); one
+    that a robot holds is written within a turn, the same frames, and the file reads back."""
+    dh = np.asarray(preset("ur5").dh).copy()
+    dh[0, 0], dh[2, 3] = 7.0, -20.0
+    r = preset("ur5").replace(dh=dh)
+    save_robot(r, tmp_path / "r.toml")
+    back = load_robot(tmp_path / "r.toml")
+    q = rng.uniform(-2, 2, (5, 6))
+    assert_allclose(np.asarray(fk(back, q)), np.asarray(fk(r, q)), atol=1e-9)
+    assert np.abs(np.asarray(back.dh)[:, [0, 3]]).max() <= np.pi + 1e-12
