@@ -233,6 +233,61 @@ def too_many(flags, sigmas, position_mm, rows, limit: float, *, worst: int = 5, 
     )
 
 
+REGION_CHANCE = 0.002
+"""Outliers that lie together at one end of a joint's range (or at both ends) are taken as a
+region of the arm's motion where it errs (a sag, a cable, a joint stop; or a measurement fault
+there, such as the tracker's line of sight) when scattered gross errors would lie so with at most
+this probability (Bonferroni over every joint and end; the cut-offs scanned add a little)."""
+REGION_MIN = 3
+"""Fewest outliers that make a region: two together at an end are chance too often."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Region:
+    """Outliers together in one part of a joint's range (:func:`region`)."""
+
+    joint: int
+    end: str
+    """``"high"``: ``q >= bound``; ``"low"``: ``q <= bound``; ``"both"``: ``|q - centre| >= bound``."""
+    bound: float
+    centre: float
+    flags: Bool[np.ndarray, " K"]
+    """The outliers in the region."""
+    poses: int
+    """Poses of the data in the region, outliers or not."""
+    chance: float
+    """Probability that scattered outliers lie so (Bonferroni over joints and ends)."""
+
+
+def region(q: Float[np.ndarray, "K n"], flags: Bool[np.ndarray, " K"]) -> Region | None:
+    """The part of one joint's range (one end, or both ends about its middle) where outliers lie
+    together beyond chance (:data:`REGION_CHANCE`), or ``None``. Each joint's poses are ranked by
+    how far they lie towards an end; the chance that at least ``f`` of the ``n`` outliers fall
+    among the ``m`` poses farthest out, were they ``n`` poses drawn at random, is hypergeometric.
+    Every outlier's place sets a cut-off ``m``; the least chance wins."""
+    q, flags = np.asarray(q, float), np.asarray(flags, bool)
+    K, n = len(flags), int(flags.sum())
+    if n < REGION_MIN:
+        return None
+    from scipy.stats import hypergeom  # only where outliers were found: no import cost otherwise
+
+    tests = 3 * q.shape[1]
+    best = None
+    for j in range(q.shape[1]):
+        centre = 0.5 * (q[:, j].min() + q[:, j].max())
+        for end, s in (("high", q[:, j]), ("low", -q[:, j]), ("both", np.abs(q[:, j] - centre))):
+            for cut in np.unique(s[flags]):
+                inside = s >= cut
+                f = int((inside & flags).sum())
+                if f < REGION_MIN:
+                    continue
+                chance = min(1.0, tests * float(hypergeom.sf(f - 1, K, n, int(inside.sum()))))
+                if best is None or chance < best.chance:
+                    bound = float(-cut if end == "low" else cut)
+                    best = Region(j, end, bound, float(centre), inside & flags, int(inside.sum()), chance)
+    return best if best is not None and best.chance <= REGION_CHANCE else None
+
+
 SWAP_FIT = 5.0
 """A flagged pose fits once its points are relabelled when its RMS point error drops to this
 many times the noise, and to a fifth of what it was, or less."""

@@ -129,9 +129,10 @@ def training_ranges(robot, q, valid, *, file_units: bool = False) -> dict:
     return {name: [float(q[:, j].min()), float(q[:, j].max())] for j, name in enumerate(robot.joint_names)}
 
 
-def _heldout(fits, fr, p):
+def _heldout(fits, fr, p, scored):
     """Held-out position errors (mm) of the nested fits and of the frames-only fits: ``(K, M)`` on
-    the K-fold sets (each pose held out once), and the range-end sets' errors pooled."""
+    the K-fold sets (each pose held out once), and the range-end sets' errors pooled over the
+    poses ``scored``."""
     O, F = len(p.held), p.n_kfold
     pe, fo = np.asarray(fits["pos_err"]), np.asarray(fr.fit["pos_err"])
     re, fre = np.degrees(np.asarray(fits["rot_err"])), np.degrees(np.asarray(fr.fit["rot_err"]))
@@ -141,7 +142,7 @@ def _heldout(fits, fr, p):
     for o in range(F):
         h = p.held[o]
         out["pe"][h], out["fo"][h], out["re"][h], out["fre"][h] = pe[o][h], fo[o][h], re[o][h], fre[o][h]
-    ends = [p.held[o] & p.valid for o in range(F, O)]
+    ends = [p.held[o] & scored for o in range(F, O)]
     out["ends"] = np.concatenate([pe[F + i][h] for i, h in enumerate(ends)]) if ends else np.zeros((0,) + pe.shape[2:])
     out["fo_ends"] = np.concatenate([fo[F + i][h] for i, h in enumerate(ends)]) if ends else out["ends"]
     return out
@@ -284,10 +285,11 @@ def _final(p, fr, final, fits) -> _Final:
     return _Final(model, fin, x, deltas, cov, st["normal"], active, cam_names, lev)
 
 
-def _figures(p, fr, fits, fin: dict, h: dict) -> dict:
-    """Training, held-out (new postures, beyond the ranges) and frames-only figures (mm, deg)."""
+def _figures(p, fr, fits, fin: dict, h: dict, scored) -> dict:
+    """Training figures over the poses fitted; held-out (new postures, beyond the ranges) and
+    frames-only figures (mm, deg) over the poses ``scored``."""
     rot, kept = p.n_points == 0, p.valid
-    ho, fo = h["pe"][kept], h["fo"][kept]
+    ho, fo = h["pe"][scored], h["fo"][scored]
     tr_pe, tr_re = fin["pos_err"][0][kept], np.degrees(fin["rot_err"][0])[kept]
     a_pe, a_re = np.asarray(fr.fit["pos_err"])[-1][kept], np.degrees(np.asarray(fr.fit["rot_err"])[-1])[kept]
     return {
@@ -297,7 +299,7 @@ def _figures(p, fr, fits, fin: dict, h: dict) -> dict:
         "heldout_rms_mm": _rms(ho),
         "heldout_max_mm": _max(ho),
         "heldout_median_mm": _median_pose(ho),
-        "heldout_rot_rms_deg": _rms(h["re"][kept]) if rot else None,
+        "heldout_rot_rms_deg": _rms(h["re"][scored]) if rot else None,
         "extrapolation_rms_mm": _rms(h["ends"]),
         "extrapolation_max_mm": _max(h["ends"]),
         "expected_error_mm": {"new_postures": _rms(ho), "beyond_training_ranges": _rms(h["ends"])},
@@ -307,7 +309,7 @@ def _figures(p, fr, fits, fin: dict, h: dict) -> dict:
         "frames_only_heldout_rms_mm": _rms(fo),
         "frames_only_heldout_max_mm": _max(fo),
         "frames_only_heldout_median_mm": _median_pose(fo),
-        "frames_only_heldout_rot_rms_deg": _rms(h["fre"][kept]) if rot else None,
+        "frames_only_heldout_rot_rms_deg": _rms(h["fre"][scored]) if rot else None,
         "frames_only_extrapolation_rms_mm": _rms(h["fo_ends"]),
         "cv_fits_converged": int(np.sum(fits["converged"][: len(p.held)]) + np.sum(fr.fit["converged"])),
         "cv_fits": int(len(p.held) + len(fr.sig)),
@@ -349,8 +351,55 @@ def _choice(p, final, per_fold, names) -> dict:
     }
 
 
-def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
-    """The outliers found and how (docs/conventions.md#outliers)."""
+def _region_doc(p, reg, without: float) -> dict | None:
+    """JSON of a :class:`._outliers.Region` in the robot file's units, or ``None``; ``without``: the
+    held-out RMS (mm) over the poses fitted alone, the figure that scattered gross errors would get."""
+    if reg is None:
+        return None
+    j, scale = reg.joint, float(p.robot.joint_scale()[reg.joint])
+    return {
+        "joint": p.robot.joint_names[j],
+        "end": reg.end,
+        "bound": reg.bound / scale,
+        "centre": reg.centre / scale if reg.end == "both" else None,
+        "unit": p.robot.units[1] if p.robot.joint_types[j] == "R" else p.robot.units[0],
+        "rows": [int(r) for r in p.rows[reg.flags]],
+        "poses_in_region": reg.poses,
+        "chance": reg.chance,
+        "heldout_rms_mm_without_them": without,
+    }
+
+
+def _region_note(p, doc: dict, kept: bool) -> str:
+    """What the report says of outliers that lie together in one part of a joint's range."""
+    j = p.robot.joint_names.index(doc["joint"])
+    b, u, name = doc["bound"], doc["unit"], f"joint {j + 1} ({doc['joint']})"
+    if doc["end"] == "both":
+        lo, hi = doc["centre"] - b, doc["centre"] + b
+        where = f"at both ends of the range of {name}, {lo:.4g} {u} and below or {hi:.4g} {u} and above"
+    else:
+        side = "above" if doc["end"] == "high" else "below"
+        where = f"at the {doc['end']} end of the range of {name}, {b:.4g} {u} and {side}"
+    rows, n = doc["rows"], len(doc["rows"])
+    listed = ", ".join(map(str, rows[:8])) + (f" and {n - 8} more" if n > 8 else "")
+    how = (
+        "they are fitted (--keep-outliers)"
+        if kept
+        else "they stay out of the fit, but the held-out figures count them: there, the model errs as they "
+        "say, and leaving them out of the figures would hide it (held-out RMS without them "
+        f"{doc['heldout_rms_mm_without_them']:.3g} mm). Check that part of the range; --keep-outliers fits "
+        "them; if their measurements are faulty, remove the rows"
+    )
+    return (
+        f"outliers together: rows {listed} ({n} of the {doc['poses_in_region']} poses there) lie {where}, "
+        f"where scattered gross errors would fall with probability {doc['chance']:.1g}: more likely the arm's "
+        "own error in that part of its range (a sag, a cable, a joint stop) or a measurement fault there "
+        f"(the tracker's line of sight) than bad rows; {how}"
+    )
+
+
+def _outlier_section(p, fr, det, last, fin: dict, h: dict, reg) -> dict:
+    """The outliers found and how (docs/conventions.md#outliers); ``reg`` where they lie together."""
     opts, rot = p.opts, p.n_points == 0
     return {
         "outliers": outliers.describe(
@@ -375,6 +424,8 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict) -> dict:
             "heldout_rot_rms_deg_all_poses": _rms(h["re"]) if rot else None,
             # flagged by the detection, then predicted by the calibrated model (the second look)
             "taken_back_rows": [int(r) for r in p.rows[det.flags[0] & p.valid]] if not opts.keep_outliers else [],
+            # outliers together in one part of a joint's range: scored in the held-out figures
+            "region": _region_doc(p, reg, _rms(h["pe"][p.valid])),
         },
         "lost_points": [{"row": r, "point": j} for r, j in getattr(p.data, "lost_points", [])],
         "dropped_rows": [int(r) for r in getattr(p.data, "dropped_rows", ())],
@@ -407,7 +458,9 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
             )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
-    h = _heldout(fits, fr, p)
+    reg = outliers.region(q, last.flags[0])
+    scored = p.valid | (reg.flags if reg is not None else False)
+    h = _heldout(fits, fr, p, scored)
     noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]), f.leverage)
     rep = {
         "robot": robot.name,
@@ -425,7 +478,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         "estimate_base": opts.estimate_base,
         "estimate_tool": opts.estimate_tool,
     }
-    rep |= _choice(p, final, per_fold, names) | _figures(p, fr, fits, fin, h)
+    rep |= _choice(p, final, per_fold, names) | _figures(p, fr, fits, fin, h, scored)
     rep |= {
         "camera_model": final.candidate.camera,
         "camera_model_option": opts.camera,
@@ -462,7 +515,9 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         + list(p.notes)
         + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
     }
-    rep |= _outlier_section(p, fr, det, last, fin, h)
+    rep |= _outlier_section(p, fr, det, last, fin, h, reg)
+    if region := rep["outlier_detection"]["region"]:
+        rep["notes"].append(_region_note(p, region, kept=opts.keep_outliers))
     if rep["cv_fits_converged"] < rep["cv_fits"]:  # the held-out figures come from these fits
         rep["notes"].append(
             f"{rep['cv_fits'] - rep['cv_fits_converged']} of the {rep['cv_fits']} cross-validation fits did not "
@@ -476,7 +531,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         )
     if p.n_points:
         rep["points_mm"] = np.asarray(f.model.points).tolist()
-        rep["heldout_points_rms_mm"] = [float(v) for v in core.nan_rms(h["pe"][p.valid], 0)]
+        rep["heldout_points_rms_mm"] = [float(v) for v in core.nan_rms(h["pe"][scored], 0)]
     per_pose = {
         "rows": p.rows,
         "frames_only_heldout": _squeeze(h["fo"]),

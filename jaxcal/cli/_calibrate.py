@@ -478,7 +478,12 @@ def show_outliers(rep: dict) -> None:
         cells += [f"{o['worst_point']}: {o['worst_point_mm']:.3f}"] if worst else []
         t.add_row(*cells, f"{o['sigmas']:.1f}")
     console.print(t)
-    if d["excluded"]:
+    if d["excluded"] and d.get("region"):
+        console.print(
+            f"outliers: {rule}; left out of the fit; rows {', '.join(map(str, d['region']['rows']))} lie together "
+            "in one part of a joint's range (see the notes) and are counted in the held-out figures"
+        )
+    elif d["excluded"]:
         console.print(
             f"outliers: {rule}; left out of the fit and of the held-out figures (held-out RMS with them "
             f"scored too: {d['heldout_rms_mm_all_poses']:.3f} mm"
