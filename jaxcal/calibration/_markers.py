@@ -1,5 +1,6 @@
-"""A measured point that moved on the tool partway through the data: a marker knocked or stuck
-on again during the session.
+"""What moved during the session: a measured point on the tool partway through the data (a
+marker knocked or stuck on again), or the measurement frame along it (:func:`drift`: the
+tracker's stand, the base, warming).
 
 One fixed position per point spreads such a move over every pose, so no single pose stands out
 as an outlier and the point's error, half the move on each side, can stay under the odd-point
@@ -66,3 +67,40 @@ def moved_point(
         if share[k] > MOVED_SHARE and stat[k] > MOVED_CHI2 and (best is None or np.sqrt(stat[k]) > best[4]):
             best = (j if M > 2 else -1, int(ok[s[k] - 1]), int(ok[s[k]]), step[k], float(np.sqrt(stat[k])))
     return best
+
+
+DRIFT_CHI2 = 30.0
+"""The trend's slope, squared, in units of its own noise (3 degrees of freedom) above which the
+measurements are said to drift along the file: chi-square's tail there is 1e-6."""
+DRIFT_SPAN = 3.0
+"""And the drift over the rows fitted is at least this many times the residual's noise per
+coordinate: a trend too small to matter next to the noise is not named."""
+
+
+def drift(
+    rows: Float[np.ndarray, " K"],
+    residual: Float[np.ndarray, "K M 3"],
+    valid: Bool[np.ndarray, " K"],
+) -> tuple[np.ndarray, float, float] | None:
+    """``(the drift over the rows fitted (mm, 3-vector, measured minus predicted), its size in
+    units of its noise, the residual's noise per coordinate (mm))`` where the measurements'
+    residual, averaged over the points, trends linearly with the file's row order, else None.
+    One fixed base frame averages a tracker or base that moved along the session: no pose stands
+    out, but every point's residual follows the row. The noise is the residual's own about the
+    trend (the model's misfit in it too), per coordinate."""
+    with np.errstate(invalid="ignore"):
+        r = np.nanmean(np.asarray(residual, float), 1)
+    ok = np.asarray(valid, bool) & np.isfinite(r).all(-1)
+    if ok.sum() < 8:
+        return None
+    t = np.asarray(rows, float)[ok]
+    t = t - t.mean()
+    A = np.stack([np.ones_like(t), t], 1)
+    coef = np.linalg.lstsq(A, r[ok], rcond=None)[0]
+    var = np.sum((r[ok] - A @ coef) ** 2, 0) / (ok.sum() - 2)  # per coordinate
+    stat = float(np.sum(coef[1] ** 2 * np.sum(t**2) / np.maximum(var, 1e-300)))
+    span = coef[1] * (t.max() - t.min())
+    noise = float(np.sqrt(np.mean(var)))
+    if stat > DRIFT_CHI2 and np.linalg.norm(span) > DRIFT_SPAN * noise:
+        return span, float(np.sqrt(stat)), noise
+    return None

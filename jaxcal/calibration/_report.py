@@ -19,7 +19,7 @@ from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
 from ._checks import limit_notes
-from ._markers import moved_point
+from ._markers import drift, moved_point
 from ._param_sets import Candidate
 from ._single import estimated, judge, still_joint_notes
 
@@ -185,6 +185,39 @@ def _odd_point(p, pe) -> str:
         f"point {nums[j]} errs {v[j]:.3g} mm RMS on held-out poses, {v[j] / m:.1f} times the other points' "
         f"median ({m:.3g} mm): a marker that moved on the tool during the session, or a noisy or mislabelled "
         f"one? Calibrate without it (--points {keep}) and compare the held-out figures"
+    )
+
+
+def _drift_doc(p, model: Model) -> dict | None:
+    """The measurements' drift along the file's rows (:func:`._markers.drift`) as JSON, or None."""
+    target = np.asarray(p.target)
+    pred = np.asarray(predict(model, p.q))
+    res = (target - pred)[:, None, :3, 3] if target.shape[-2:] == (4, 4) else target - pred
+    found = drift(p.rows, res, p.valid)
+    if found is None:
+        return None
+    span, sigmas, noise = found
+    fitted = p.rows[p.valid]
+    return {
+        "mm": float(np.linalg.norm(span)),
+        "direction": (span / np.linalg.norm(span)).tolist(),
+        "sigmas": sigmas,
+        "noise_mm": noise,
+        "from_row": int(fitted.min()),
+        "to_row": int(fitted.max()),
+    }
+
+
+def _drift_note(d: dict) -> str:
+    """What the report says of measurements that drift along the file."""
+    x, y, z = d["direction"]
+    return (
+        f"the measurements drift along the file: the residual moves by {d['mm']:.3g} mm from row {d['from_row']} to "
+        f"row {d['to_row']}, along ({x:.2f}, {y:.2f}, {z:.2f}) in the measurement frame ({d['sigmas']:.0f} "
+        "standard deviations of its noise): the tracker, the base or the arm's temperature changing during "
+        "the session, or postures that change steadily along the file where the model misses something. "
+        "One base frame averages it. Measure a reference posture at the start and the end, or calibrate "
+        "parts of the session apart"
     )
 
 
@@ -516,6 +549,9 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h, reg)
+    if moved := _drift_doc(p, f.model):
+        rep["notes"].append(_drift_note(moved))
+    rep["drift"] = moved
     if region := rep["outlier_detection"]["region"]:
         rep["notes"].append(_region_note(p, region, kept=opts.keep_outliers))
     if rep["cv_fits_converged"] < rep["cv_fits"]:  # the held-out figures come from these fits

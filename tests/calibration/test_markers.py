@@ -1,12 +1,13 @@
-"""A point that moved on the tool partway through the data (``jaxcal/calibration/_markers.py``),
-on residuals made here: random tool rotations, noise, and a step in one point's tool-frame
-position."""
+"""What moved during the session (``jaxcal/calibration/_markers.py``): a point on the tool partway
+through the data, on residuals made here (random tool rotations, noise, and a step in one point's
+tool-frame position); the measurement frame drifting along the file, on residuals made here and
+through a calibration of a simulated arm (NumPy FK)."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from jaxcal.calibration._markers import moved_point
+from jaxcal.calibration._markers import drift, moved_point
 
 K, M, SIGMA = 40, 4, 0.3
 
@@ -65,3 +66,49 @@ def test_lost_points_and_left_out_poses_are_skipped(lost):
         r[[7, 25], 3] = np.nan
     j, last, first, _, _ = moved_point(R, r, valid, SIGMA)
     assert (j, last, first) == ((1, 16, 20) if lost else (1, 17, 19))
+
+
+def test_a_drift_along_the_rows_is_found_and_noise_or_a_small_one_is_not():
+    """Residuals made here: a linear drift of (0.3, 0, 0.2) mm from the first row to the last,
+    0.02 mm noise, rows with gaps, a pose left out: the drift found is the one made; noise alone,
+    or a drift under three times the noise, is not named."""
+    rng = np.random.default_rng(5)
+    rows = np.cumsum(rng.integers(1, 3, 60))
+    made = np.array([0.3, 0.0, 0.2])
+    trend = (rows - rows[0])[:, None] / (rows[-1] - rows[0]) * made
+    r = trend[:, None] + rng.normal(0, 0.02, (60, 2, 3))
+    r[7, 1] = np.nan  # a point not seen
+    valid = np.ones(60, bool)
+    valid[30] = False
+    span, sigmas, noise = drift(rows, r, valid)
+    np.testing.assert_allclose(span, made, atol=0.03)
+    assert sigmas > 10 and noise == pytest.approx(0.02 / np.sqrt(2), rel=0.25)  # two points averaged
+    assert drift(rows, r - trend[:, None], valid) is None
+    assert drift(rows, r - 0.95 * trend[:, None], valid) is None  # 0.018 mm: under three times the noise
+
+
+def test_a_tracker_that_drifts_during_the_session_is_named():
+    """A UR5 (NumPy FK) measured at 60 postures by a tracker whose frame drifts 0.36 mm along the
+    session: one base frame averages it, no pose stands out; the report names the drift, its size
+    and direction. The same data without the drift: nothing named."""
+    from helpers import dh_fk
+
+    import jaxcal
+
+    robot = jaxcal.preset("ur5")
+    rng = np.random.default_rng(2)
+    dh = np.asarray(robot.dh, float) + rng.normal(0, [1e-3, 0.5, 0.5, 1e-3], (6, 4))
+    base = np.eye(4)
+    base[:3, :3], base[:3, 3] = Rotation.from_euler("z", 0.5).as_matrix(), [1500.0, 200.0, -300.0]
+    q = rng.uniform(-2.8, 2.8, (60, 6))
+    T = dh_fk(dh, q, base=base)
+    points = T[:, :3, :3] @ np.array([30.0, -20.0, 120.0]) + T[:, :3, 3] + rng.normal(0, 0.02, (60, 3))
+    made = np.array([0.3, 0.0, 0.2])
+    moved = points + np.linspace(0, 1, 60)[:, None] * made
+    rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q, moved[:, None]), nested_max_poses=0).report
+    d = rep["drift"]
+    assert d["mm"] == pytest.approx(np.linalg.norm(made), rel=0.15) and (d["from_row"], d["to_row"]) == (1, 60)
+    assert np.dot(d["direction"], made / np.linalg.norm(made)) > 0.98 and rep["outliers"] == []
+    assert any(n.startswith("the measurements drift along the file") for n in rep["notes"])
+    clean = jaxcal.calibrate_data(robot, jaxcal.Measurements(q, points[:, None]), nested_max_poses=0).report
+    assert clean["drift"] is None and not any("drift" in n for n in clean["notes"])
