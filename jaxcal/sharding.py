@@ -87,6 +87,19 @@ def distribute(tree, mesh: Mesh, *, split: bool = True):
     return jax.tree.map(put, tree)
 
 
+def assemble(parts, mesh: Mesh):
+    """Global arrays on ``mesh`` split along their leading axis, from ``parts``: one pytree per
+    device of this process (each leaf on its device, the device's consecutive share), in any
+    order. What :func:`gather` takes back to NumPy where each device solved its own share."""
+    sharding = NamedSharding(mesh, PartitionSpec(AXIS))
+
+    def join(*leaves):
+        shape = (leaves[0].shape[0] * mesh.size,) + tuple(leaves[0].shape[1:])
+        return jax.make_array_from_single_device_arrays(shape, sharding, list(leaves))
+
+    return jax.tree.map(join, *parts)
+
+
 def gather(tree):
     """Global arrays back to NumPy, whole, on every process."""
     from jax.experimental import multihost_utils

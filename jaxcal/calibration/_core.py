@@ -26,7 +26,7 @@ from ..kinematics import fk
 from ..lie import so3_log
 from ..model import Layout, Model, apply, errors, jacobian, observed, predict
 from ..robot import JOINT_FRAME_NAMES, Robot
-from ..sharding import distribute, gather, member_mesh, sharded
+from ..sharding import assemble, distribute, gather, member_mesh, sharded
 from ..solvers import PIN, fit, robust_scale, robust_weights
 from ._initial import initial_frames
 
@@ -294,17 +294,20 @@ def run_members(
         args = _chunk_args(cfg, models, *padded, np.minimum(np.arange(start, start + c), B - 1))
         if mesh is None:
             outs.append(jax.tree.map(np.asarray, _members(cfg, *args, quick=quick)))
-        elif jax.process_count() == 1 and all(d.platform == "cpu" for d in mesh.devices.flat):
+        elif all(d.platform == "cpu" for d in mesh.devices.flat):
             # each CPU device solves its own members, one device after another (each result waited
             # for): a solve sharded over the member axis tests for its slowest member with a
-            # collective every step, and solves run at once on several CPU devices, both of which
-            # deadlocked in XLA's CPU runtime; jitted here, since the kept (exported) programs
-            # deadlocked on a second device too
+            # collective every step, and solves run at once on several CPU devices of a process,
+            # both of which deadlocked in XLA's CPU runtime; jitted here, since the kept (exported)
+            # programs deadlocked on a second device too. Several processes: each its own
+            # devices' shares, then gathered
             solve = _members.quick if quick and jax.default_backend() == "cpu" else _members.full
-            calls = [
-                jax.tree.map(np.asarray, solve(cfg, *jax.device_put(s, dev))) for dev, s in _shares(args, mesh, cfg)
-            ]
-            outs.append(jax.tree.map(lambda *a: np.concatenate(a), *calls))
+            mine = [(d, s) for d, s in _shares(args, mesh, cfg) if d.process_index == jax.process_index()]
+            calls = [jax.block_until_ready(solve(cfg, *jax.device_put(s, dev))) for dev, s in mine]
+            if jax.process_count() == 1:
+                outs.append(jax.tree.map(lambda *a: np.concatenate([np.asarray(x) for x in a]), *calls))
+            else:
+                outs.append(gather(assemble(calls, mesh)))
         else:  # every member array split over the devices; data shared by all members on each
             m_, q_, t_, *rest = args
             q_, t_ = distribute((q_, t_), mesh, split=not cfg.shared_data)
