@@ -545,11 +545,15 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
         again = None
         if reidentified < 2:
             again = core.reidentified(p.ident, fit, p.layout, p.q, p.robot, selection.MAX_CONDITION)
-            again = again or _wider(p, fit, sig)
+        gap = relinearised < 2 * chooses and _linear_gap(p, lin, sig, fits) > RELINEARISE
+        if again is None and not gap and reidentified < 2:
+            # a wider set only once the choice was made where the fit is: a fit held by a prior the
+            # linearisation far from it chose leaves a residual any set cuts
+            again = _wider(p, fit, sig)
         if again is not None:
             reidentified += 1
             p = dataclasses.replace(p, ident=again[0], notes=p.notes + (again[1],))
-        elif relinearised < 2 * chooses and _linear_gap(p, lin, sig, fits) > RELINEARISE:
+        elif gap:
             relinearised += 1
         else:
             break
@@ -581,6 +585,10 @@ def _wider(p: _Problem, fit: Model, sig):
     lin, J = _linear(p, fit, sig)
     again = core.identify(J, p.layout, p.robot)
     if again.rank <= p.ident.rank:
+        return None
+    cols = np.asarray(J).reshape(-1, p.layout.size)[:, list(again.base)]
+    s = np.linalg.svd(cols / np.maximum(np.linalg.norm(cols, axis=0), 1e-300), compute_uv=False)
+    if not s[0] <= selection.MAX_CONDITION * s[-1]:  # identifiable, but not separable as the selection asks
         return None
     share = np.sum(_stepped(p, lin, again.base) ** 2) / max(np.sum(_stepped(p, lin, p.ident.base) ** 2), 1e-300)
     if not share < WIDER_SHARE:
