@@ -267,11 +267,21 @@ def calibrate(
                 continue
             urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
             model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
+            bent = _rigid_figures(res, meas) if Path(path).suffix.lower() in (".urdf", ".xml") else None
             save_model(
-                model, path, comment=comment, template=urdf, base_link=base_link, tip_link=tip_link,
-                training_ranges=res.training_ranges, point_numbers=numbers,
+                model, path, comment=comment if bent is None else comment | _rigid_comment(bent, "URDF readers"),
+                template=urdf, base_link=base_link, tip_link=tip_link, training_ranges=res.training_ranges,
+                point_numbers=numbers,
             )  # fmt: skip
             console.print(f"calibrated model written to {path}")
+            if bent is not None:
+                console.print(
+                    f"[yellow]warning:[/yellow] the model has joint compliances, written as <jaxcal_compliance> "
+                    f"elements that only jaxcal reads: other URDF readers (ROS, MoveIt) see the rigid geometry, "
+                    f"which errs {bent[1]:.3g} mm RMS on the data, the model with them {bent[0]:.3g} mm (every "
+                    f"pose); --compliance no fits the best rigid model",
+                    highlight=False,
+                )
         if json_out is not None:
             write_atomic(json_out, res.to_json())
             console.print(f"report written to {json_out}")
@@ -284,25 +294,46 @@ def calibrate(
     console.file.write(said.get())
 
 
-def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:
-    """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
+def _rigid_figures(res, meas) -> tuple[float, float] | None:
+    """``(RMS with the joint compliances, RMS of the rigid geometry alone)`` (mm, every pose of
+    ``meas``) where the model has compliances, which only jaxcal's own readers apply; else None."""
     import equinox as eqx
     import numpy as np
 
     from ..calibration import evaluate
+    from ..model import Model
+
+    compliance = res.model.robot.compliance
+    if compliance is None or not np.any(np.asarray(compliance) != 0):
+        return None
+    m = res.model
+    rigid = eqx.tree_at(lambda r: r.compliance, m.robot, None, is_leaf=lambda v: v is None)
+    with_c = evaluate(m, meas)["position_rms_mm"]
+    return with_c, evaluate(Model(rigid, m.points, m.camera_params, camera=m.camera), meas)["position_rms_mm"]
+
+
+def _rigid_comment(bent: tuple[float, float], readers: str) -> dict:
+    """A file's header figures where its readers apply only the rigid geometry: that geometry's,
+    not the held-out error of the model with compliances."""
+    return {
+        "compliance": f"estimated; {readers} apply the rigid geometry only",
+        "rigid_geometry_rms_mm_on_the_data": bent[1],
+        "rms_mm_on_the_data_with_compliance": bent[0],
+    }
+
+
+def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:
+    """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
+    import numpy as np
+
     from ..export import save_dh_table, save_report, save_ur_kinematics
     from ..lie import matrix_to_rpy
-    from ..model import Model
 
     if out_ur_kinematics is not None:
         robot = res.robot.replace(name=f"{res.nominal.name}-calibrated")
-        compliance = res.model.robot.compliance
-        bent = compliance is not None and np.any(np.asarray(compliance) != 0)  # the controller's model is rigid
-        if bent:
-            rigid = eqx.tree_at(lambda r: r.compliance, res.model.robot, None, is_leaf=lambda v: v is None)
-            m = res.model
-            with_c = evaluate(m, meas)["position_rms_mm"]
-            without = evaluate(Model(rigid, m.points, m.camera_params, camera=m.camera), meas)["position_rms_mm"]
+        bent = _rigid_figures(res, meas)  # the controller's model is rigid
+        if bent is not None:
+            with_c, without = bent
             # the file's own figure: its rigid geometry's, not the held-out error of the model with compliances
             comment = dict(comment)  # the other files' comment stays as it is
             held = comment.pop("heldout_rms_mm", None)

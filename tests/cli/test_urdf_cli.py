@@ -2,6 +2,7 @@
 with ``--out-model CAL.urdf``, then ``jaxcal evaluate`` the saved model, nothing re-fitted."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from jaxcal.measurements import tiago_paths
 from jaxcal.model import predict
 
 URDF, CSV = tiago_paths()
+URDF_DIR = Path(__file__).resolve().parents[1] / "data" / "urdf"
 
 
 @pytest.fixture(scope="module")
@@ -229,3 +231,42 @@ def test_a_joint_outside_the_chain_that_moves_is_named(tmp_path, monkeypatch, ca
     assert list(joints_left_out(read_measurements(CSV, arm), arm, above)) == ["torso_lift_joint"]  # moving
     # joints elsewhere in the tree (below the tip, a sibling branch) move nothing of the chain
     assert read_movable_joints(URDF, None) == {} and read_movable_joints(URDF, "base_link") == {}
+
+
+def test_a_compliant_models_urdf_gives_the_error_other_readers_see(tmp_path, monkeypatch, capsys):
+    """A UR5 URDF whose joints bend under gravity: the model's compliances are written as elements
+    only jaxcal reads, so another URDF reader (yourdfpy here) predicts with the rigid geometry. The
+    command warns, and the file's header gives that geometry's error on the data, checked by
+    yourdfpy from the measurement frame to the point link."""
+    from helpers import load_urdf
+
+    from jaxcal import fk, load_robot
+
+    ur5 = load_robot(URDF_DIR / "ur5.urdf", tip_link="tool0")
+    tool = np.eye(4)
+    tool[:3, 3] = [0.0, 0.0, 150.0]
+    true = ur5.replace(compliance=np.r_[0.0, 3e-5, 2e-5, 1e-5, 0.0, 0.0], tool=tool)
+    rng = np.random.default_rng(21)
+    q = rng.uniform(-2.5, 2.5, (40, 6))
+    points = np.asarray(fk(true, q))[:, :3, 3] + rng.normal(0.0, 0.02, (40, 3))
+    rows = "".join(",".join(repr(float(v)) for v in (*a, *b / 1e3)) + "\n" for a, b in zip(q, points))
+    (tmp_path / "bent.csv").write_text(",".join(ur5.joint_names) + ",x,y,z\n" + rows)
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", URDF_DIR / "ur5.urdf", tmp_path / "bent.csv", "--params", "all",
+        "--compliance", "yes", "--folds", "3", "--nested-max-poses", "0", "--tip-link", "tool0",
+        "--out-model", tmp_path / "cal.urdf",
+    )  # fmt: skip
+    assert code in (0, None), err
+    assert "only jaxcal reads: other URDF readers (ROS, MoveIt) see the rigid geometry" in " ".join(out.split())
+    text = (tmp_path / "cal.urdf").read_text()
+    head = dict(
+        part.split(": ", 1) for part in text.split("<!-- jaxcal: ")[1].split(" -->")[0].split("; ") if ": " in part
+    )
+    cal = load_urdf(tmp_path / "cal.urdf")
+    seen = []
+    for row in q:
+        cal.update_cfg(dict(zip(ur5.joint_names, row)))
+        seen.append(np.asarray(cal.get_transform("jaxcal_point1", "jaxcal_measurement_frame"))[:3, 3] * 1e3)
+    rigid = float(np.sqrt(np.mean(np.sum((np.array(seen) - points) ** 2, -1))))
+    assert float(head["rigid_geometry_rms_mm_on_the_data"]) == pytest.approx(rigid, rel=1e-4)
+    assert rigid > 5 * float(head["rms_mm_on_the_data_with_compliance"])
