@@ -19,7 +19,8 @@ ELIMINATION_METHODS = ("elimination", "elimination-literal")
 GAUGE = (
     "DH values are the nominal table plus the estimated changes; a change the base or tool frame can absorb "
     "(theta1, d1, the last joint's offset, ...) is held at 0 and carried by that frame; joint offsets are "
-    "within half a turn of the nominal ones"
+    "within half a turn of the nominal ones, up to whole turns (a TOML file writes an angle beyond a whole "
+    "turn within one)"
 )
 """How a calibrated model's parameters are fixed where several give the same kinematics: written into
 the robot files the command line saves."""
