@@ -108,6 +108,9 @@ class _Problem:
     """``(K,)`` one label per posture (:func:`._core.posture_ids`): repeats share a fold."""
     notes: tuple[str, ...] = ()
     """What the report should say about how the fit was made (:func:`_fitted`)."""
+    prune: bool = True
+    """Whether the chosen set is pruned (auto); off where pruning's linearisation failed
+    (:func:`_prune_holds`)."""
 
     @property
     def masks(self) -> np.ndarray:
@@ -366,7 +369,7 @@ def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selecte
     # here: held, not a singular column that fails every candidate
     free &= (np.diag(rule.A_all) > 0)[None]
     complexity = [c.complexity for c in p.candidates]
-    ch = selection.select(lin, rule, free, priors, complexity, penalised & p.auto)
+    ch = selection.select(lin, rule, free, priors, complexity, penalised & (p.auto and p.prune))
     if ch.index < 0:
         why = "; ".join(f"{c.name}: {selection.failure(k)}" for c, k in zip(p.candidates, ch.conditions))
         raise DataError(
@@ -559,7 +562,46 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
             break
         lin, J = _linear(p, fit, sig, fits["x"][-1])
         final, per_fold, fits = _chosen(p, fr, lin, J, fits["x"])  # each from its last fit
+    if p.prune and final.choice.pruned and not (held := _prune_holds(p, fr, final, fits, sig))[0]:
+        names = p.layout.names()
+        dropped = ", ".join(names[i] for i, *_ in final.choice.pruned)
+        them = "it" if len(final.choice.pruned) == 1 else "them"
+        p = dataclasses.replace(
+            p, prune=False, notes=p.notes + (
+                f"not pruned: the selection would drop {dropped}, which the linearised problem judged of no use, "
+                f"but fitted in full the model without {them} leaves {held[1]:.3g} times the residual of the model "
+                f"with {them} (an arm whose errors are not small for its linearisation)",
+            ),
+        )  # fmt: skip
+        lin, J = _linear(p, core.member(fits["model"], -1), sig, fits["x"][-1])
+        final, per_fold, fits = _chosen(p, fr, lin, J, fits["x"])
     return p, lin, final, per_fold, fits
+
+
+PRUNE_MISS = 1.5
+"""A pruned set whose full fit leaves more than this many times the weighted RMS residual of the
+chosen set unpruned (fitted in full from the same start) is not kept: the linearisation that
+judged the dropped parameters useless does not hold where the arm is."""
+
+
+def _prune_holds(p: _Problem, fr: _Frames, final: _Selected, fits, sig) -> tuple[bool, float]:
+    """``(holds, ratio)``: the chosen set fitted in full on all poses without its pruning, from the
+    pruned fit, and the ratio of the pruned fit's weighted RMS residual to that fit's."""
+    c = final.choice.index
+    prior = np.where(final.free[c], final.priors[c], PIN)[None]
+    last = len(p.masks) - 1
+    full = core.run_members(
+        p.cfg, core.take(fr.fit["model"], [last]), p.q, p.target, p.masks[-1:].astype(float),
+        core.weights_of(p.layout, fr.sig[-1:]), prior, p.opts.loss_scale, x0=np.asarray(fits["x"])[-1:], **p.run,
+        label="the chosen set unpruned",
+    )  # fmt: skip
+    ok = p.valid
+
+    def rms(norms):
+        return float(np.sqrt(np.nanmean(np.asarray(norms)[ok] ** 2)))
+
+    ratio = rms(np.asarray(fits["norms"])[-1]) / max(rms(full["norms"][0]), 1e-300)
+    return not ratio > PRUNE_MISS, ratio
 
 
 WIDER_SHARE = 0.5
