@@ -203,7 +203,7 @@ def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> 
     limits in most poses are refused too (:data:`PRISMATIC_UNIT_FACTOR`): a positions check
     cannot see millimetres read as metres when the points are scaled with the joint. ``rows``:
     the poses' row numbers in the data file, to name one."""
-    _prismatic_units(robot, np.asarray(q))
+    _prismatic_units(robot, np.asarray(q), rows)
     revolute = np.array([t == "R" for t in robot.joint_types])
     if not revolute.any() or q.shape[-2] < 3:
         return
@@ -224,14 +224,15 @@ def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> 
             else ""
         )
         raise DataError(
-            f"q: joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the poses have a "
+            f"{'q: ' if rows is None else ''}joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the "
+            "poses have a "
             f"revolute joint beyond a full turn and its limits ({where} = {q[idx]:.6g} rad); the "
             f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"{turns}',
             option="angle_unit",
         )
 
 
-def _prismatic_units(robot: Robot, q: np.ndarray) -> None:
+def _prismatic_units(robot: Robot, q: np.ndarray, rows=None) -> None:
     prismatic = np.array([t == "P" for t in robot.joint_types]) & robot.limits_given()
     if not prismatic.any() or q.shape[-2] < 3:
         return
@@ -242,10 +243,15 @@ def _prismatic_units(robot: Robot, q: np.ndarray) -> None:
         j = int(np.argmax(frac))
         lu = LENGTH_UNITS[robot.units[0]]  # in the robot's unit, which the data were read in
         lo, hi = np.asarray(robot.q_limits)[j] / lu
+        first = ""
+        if rows is not None and q.ndim == 2:  # a data file's: its first such row, to look at
+            k = int(np.flatnonzero(over[:, j])[0])
+            first = f"; first at row {np.asarray(rows)[k]}: {q[k, j] / lu:.6g} {robot.units[0]}"
         raise DataError(
-            f"q: prismatic joint {robot.joint_names[j]!r} is beyond {PRISMATIC_UNIT_FACTOR:g} times its limits "
-            f"[{lo:.6g}, {hi:.6g}] {robot.units[0]} in {100 * float(frac[j]):.0f}% of the poses (up to "
-            f"{np.abs(q[..., j]).max() / lu:.6g} {robot.units[0]}): lengths in another unit than the robot's? Give "
+            f"{'q: ' if rows is None else ''}prismatic joint {robot.joint_names[j]!r} is beyond "
+            f"{PRISMATIC_UNIT_FACTOR:g} times its limits [{lo:.6g}, {hi:.6g}] {robot.units[0]} in "
+            f"{100 * float(frac[j]):.0f}% of the poses (up to {np.abs(q[..., j]).max() / lu:.6g} "
+            f"{robot.units[0]}{first}): lengths in another unit than the robot's? Give "
             f"the data's unit (length_unit), or, if only this joint's column is in another unit, convert it",
             option="length_unit",
         )
