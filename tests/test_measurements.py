@@ -94,8 +94,9 @@ def test_written_for_a_robot_in_metres_and_degrees_reads_back_for_it(tmp_path, r
             check_angles(robot, q_mm)
         assert e.value.option == "length_unit"
         # from a file: named by the first of its rows beyond, in the robot's unit, not as the array q
-        over = np.flatnonzero(np.abs(q_mm[:, -1]) > 100 * np.abs(np.asarray(robot.q_limits)[-1]).max())[0]
-        first = f"first at row {over + 2}: {q_mm[over, -1] / 1000:.6g} m"
+        j = robot.joint_types.index("P")
+        over = np.flatnonzero(np.abs(q_mm[:, j]) > 100 * np.abs(np.asarray(robot.q_limits)[j]).max())[0]
+        first = f"first at row {over + 2}: {q_mm[over, j] / 1000:.6g} m"
         with pytest.raises(DataError, match=f"^prismatic joint .*; {first}\\)"):
             check_angles(robot, q_mm, np.arange(2, 22))
         # a batch of data sets (calibrate_batch) with one such set: named the same way
