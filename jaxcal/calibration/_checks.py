@@ -257,6 +257,30 @@ def _prismatic_units(robot: Robot, q: np.ndarray, rows=None) -> None:
         )
 
 
+def joint_ranges(robot: Robot, q: Float[np.ndarray, "K n"]) -> tuple[np.ndarray, np.ndarray]:
+    """``(lowest (n,), highest (n,))`` of the readings ``q`` (mm, rad). A revolute joint that can
+    turn a whole turn (no limits of its own, or limits a turn apart) has the shortest arc that
+    holds every reading, starting in ``[-pi, pi)``, where that is shorter than their span: a
+    continuous joint read over ``[0, 2 pi)`` visits the arc across 0, not the span between
+    (:func:`._evaluate.outside` reads a range a whole turn round)."""
+    q = np.asarray(q, float)
+    lo, hi = q.min(0), q.max(0)
+    lim = np.asarray(robot.q_limits, float)
+    turns = ~robot.limits_given() | (lim[:, 1] - lim[:, 0] >= 2 * np.pi - 1e-9)
+    for j, t in enumerate(robot.joint_types):
+        if t != "R" or not turns[j] or len(q) < 2:
+            continue
+        a = np.sort(np.mod(q[:, j], 2 * np.pi))
+        gaps = np.diff(np.r_[a, a[0] + 2 * np.pi])
+        i = int(np.argmax(gaps))
+        arc = 2 * np.pi - gaps[i]
+        if arc < hi[j] - lo[j] - 1e-9:
+            start = a[(i + 1) % len(a)]
+            lo[j] = start - 2 * np.pi if start >= np.pi else start
+            hi[j] = lo[j] + arc
+    return lo, hi
+
+
 def positions_of(target, n_points: int):
     """Measured positions ``(..., K, 3)``: the tool origin of poses, the first point of points."""
     return target[..., :3, 3] if n_points == 0 else target[..., 0, :]

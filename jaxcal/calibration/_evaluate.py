@@ -12,7 +12,7 @@ from ..errors import DataError
 from ..model import Model, predict
 from ..robot import Robot
 from ..solvers import OUTLIER_SIGMAS
-from ._checks import as_target, check_units, zero_points
+from ._checks import as_target, check_units, joint_ranges, zero_points
 from ._outliers import assess
 from ._plausibility import RESIDUAL_SHARE, variants
 
@@ -61,7 +61,7 @@ def posture_groups(robot: Robot, q: np.ndarray, q_train: np.ndarray) -> np.ndarr
     rev = np.array([t == "R" for t in robot.joint_types])
     tol = np.array([REPEAT_RAD if t == "R" else REPEAT_MM for t in robot.joint_types])
     near = np.all(_gap(q[:, None, :], q_train[None, :, :], rev) <= tol, axis=-1).any(axis=1)
-    inside = np.all(_within(q, q_train.min(0), q_train.max(0), tol, rev), axis=-1)
+    inside = np.all(_within(q, *joint_ranges(robot, q_train), tol, rev), axis=-1)
     return np.where(near, 0, np.where(inside, 1, 2))
 
 
@@ -284,10 +284,8 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
     out["dropped_rows"] = [int(r) for r in getattr(meas, "dropped_rows", ())]
     out["ignored_columns"] = list(getattr(meas, "ignored", ()))  # as calibrate's report lists them
     if ranges is None and training is not None:
-        ranges = {
-            n: (float(lo), float(hi))
-            for n, lo, hi in zip(model.robot.joint_names, training.q.min(0), training.q.max(0))
-        }
+        lo, hi = joint_ranges(model.robot, training.q)
+        ranges = {n: (float(a), float(b)) for n, a, b in zip(model.robot.joint_names, lo, hi)}
     rot_rms = 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
     few = _few(model, meas, pos)
     far = [] if few else _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)

@@ -18,7 +18,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
-from ._checks import limit_notes
+from ._checks import joint_ranges, limit_notes
 from ._markers import drift, moved_point
 from ._param_sets import Candidate
 from ._single import estimated, judge, still_joint_notes
@@ -125,8 +125,9 @@ def frame_doc(T) -> dict:
 def training_ranges(robot, q, valid, *, file_units: bool = False) -> dict:
     """``{joint name: [lowest, highest]}`` of the poses a model was fitted on: mm and rad, or in the
     robot file's units (a prismatic joint in its length unit)."""
-    q = np.asarray(q)[np.asarray(valid, bool)] / (robot.joint_scale() if file_units else 1.0)
-    return {name: [float(q[:, j].min()), float(q[:, j].max())] for j, name in enumerate(robot.joint_names)}
+    lo, hi = joint_ranges(robot, np.asarray(q)[np.asarray(valid, bool)])
+    scale = robot.joint_scale() if file_units else np.ones(len(lo))
+    return {name: [float(lo[j] / scale[j]), float(hi[j] / scale[j])] for j, name in enumerate(robot.joint_names)}
 
 
 def _heldout(fits, fr, p, scored):

@@ -3,7 +3,8 @@
 import numpy as np
 
 import jaxcal
-from jaxcal.calibration._checks import limit_notes
+from jaxcal.calibration._checks import joint_ranges, limit_notes
+from jaxcal.calibration._evaluate import outside
 
 
 def test_rows_beyond_a_joints_limits_are_named_in_the_files_units():
@@ -32,3 +33,24 @@ def test_rows_beyond_a_joints_limits_are_named_in_the_files_units():
     assert limit_notes(robot, q[:6])[0].startswith("joint 2 (q2): pose(s) 4 lie beyond")
     q[3, 4] = np.radians(170.001)  # a thousandth of a degree beyond: outside
     assert any(n.startswith("joint 5 (q5): row(s) 5 lie beyond") for n in limit_notes(robot, q, rows=np.arange(2, 14)))
+
+
+def test_a_continuous_joint_read_over_a_whole_turn_has_the_arc_it_visited_as_its_range():
+    """Readings of joint 1 (limits a whole turn apart) in [0, 2 pi) that visit 5.5 rad to 0.8 rad
+    across 0: its range is that arc, -0.783 to 0.8 rad, not 0.0 to 6.28; a posture at 3.1 rad is
+    outside it, one at 6.0 (a turn from -0.283) inside. A joint limited to less than a turn keeps
+    its readings' span, however they are spread, and a prismatic joint too."""
+    lim = [[0.0, 2 * np.pi], [-3.0, 3.0], [0.0, 300.0]]
+    robot = jaxcal.Robot(np.zeros((3, 4)), joint_types="RRP", q_limits=lim)
+    rng = np.random.default_rng(0)
+    q = np.stack([np.r_[rng.uniform(5.5, 2 * np.pi, 20), rng.uniform(0.0, 0.8, 20)], rng.uniform(-3.0, 3.0, 40),
+                  rng.uniform(0.0, 300.0, 40)], 1)  # fmt: skip
+    q[0, 0], q[20, 0] = 5.5, 0.8
+    lo, hi = joint_ranges(robot, q)
+    np.testing.assert_allclose([lo[0], hi[0]], [5.5 - 2 * np.pi, 0.8])
+    np.testing.assert_allclose(
+        [lo[1], hi[1], lo[2], hi[2]], [q[:, 1].min(), q[:, 1].max(), q[:, 2].min(), q[:, 2].max()]
+    )
+    ranges = dict(zip(robot.joint_names, zip(lo, hi)))
+    probe = np.array([[3.1, 0.0, 100.0], [0.3, 0.0, 100.0], [6.0, 0.0, 100.0]])
+    assert outside(robot, probe, ranges).tolist() == [True, False, False]
