@@ -125,19 +125,28 @@ def pose_errors_figure(result):
         color="tab:blue",
         label=f"calibrated, {rep['choice']} (RMS {rep['heldout_rms_mm']:.2f} mm)",
     )
-    bad = np.flatnonzero(pp.get("outlier", np.zeros(len(x), bool)))
-    if bad.size:
-        left = rep["outlier_detection"]["excluded"]
-        ax.scatter(
-            x[bad],
-            np.maximum(ho, fo)[bad] * 1.05,
-            marker="v",
-            color="tab:red",
-            zorder=3,
-            label=f"outlier ({'left out of the fit and the RMS' if left else 'kept'}): rows "
-            + ", ".join(str(int(r)) for r in np.asarray(pp["rows"])[bad][:8])
-            + (", ..." if bad.size > 8 else ""),
-        )
+    flagged = np.asarray(pp.get("outlier", np.zeros(len(x), bool)), bool)
+    scored = np.asarray(pp.get("scored", ~flagged), bool)
+    left = rep["outlier_detection"]["excluded"]
+    for bad, how, colour in (
+        (np.flatnonzero(flagged & ~scored), "left out of the fit and the RMS", "tab:red"),
+        (
+            np.flatnonzero(flagged & scored),
+            "left out of the fit, in the RMS: a region" if left else "kept",
+            "tab:orange",
+        ),
+    ):
+        if bad.size:
+            ax.scatter(
+                x[bad],
+                np.maximum(ho, fo)[bad] * 1.05,
+                marker="v",
+                color=colour,
+                zorder=3,
+                label=f"outlier ({how}): rows "
+                + ", ".join(str(int(r)) for r in np.asarray(pp["rows"])[bad][:8])
+                + (", ..." if bad.size > 8 else ""),
+            )
     ax.set_xlabel("pose (CSV data row)")
     ax.set_ylabel("held-out position error (mm)")
     ax.set_title(f"{rep['folds']}-fold cross-validation: error on poses not used for fitting")

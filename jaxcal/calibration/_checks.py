@@ -281,6 +281,16 @@ def joint_ranges(robot: Robot, q: Float[np.ndarray, "K n"]) -> tuple[np.ndarray,
     return lo, hi
 
 
+def unwrapped(robot: Robot, q: Float[np.ndarray, "K n"]) -> np.ndarray:
+    """``q`` with each joint's readings within its :func:`joint_ranges` range: a joint that turns a
+    whole turn read on the arc it visited (``lo + mod(q - lo, 2 pi)``), the others as they are."""
+    q = np.array(q, float)
+    lo, hi = joint_ranges(robot, q)
+    arc = (np.asarray(robot.joint_types) == "R") & (hi - lo < np.ptp(q, 0) - 1e-9)
+    q[:, arc] = lo[arc] + np.mod(q[:, arc] - lo[arc], 2 * np.pi)
+    return q
+
+
 def positions_of(target, n_points: int):
     """Measured positions ``(..., K, 3)``: the tool origin of poses, the first point of points."""
     return target[..., :3, 3] if n_points == 0 else target[..., 0, :]

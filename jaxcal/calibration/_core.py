@@ -298,9 +298,9 @@ def run_members(
             # each CPU device solves its own members, one device after another (each result waited
             # for): a solve sharded over the member axis tests for its slowest member with a
             # collective every step, and solves run at once on several CPU devices of a process,
-            # both of which deadlocked in XLA's CPU runtime; jitted here, since the kept (exported)
-            # programs deadlocked on a second device too. Several processes: each its own
-            # devices' shares, then gathered
+            # both of which deadlock in XLA's CPU runtime; jitted here, since the kept (exported)
+            # programs deadlock on a second device too. Several processes: each its own devices'
+            # shares, then gathered
             solve = _members.quick if quick and jax.default_backend() == "cpu" else _members.full
             mine = [(d, s) for d, s in _shares(args, mesh, cfg) if d.process_index == jax.process_index()]
             calls = [jax.block_until_ready(solve(cfg, *jax.device_put(s, dev))) for dev, s in mine]

@@ -81,10 +81,11 @@ def drift(
     rows: Float[np.ndarray, " K"],
     residual: Float[np.ndarray, "K M 3"],
     valid: Bool[np.ndarray, " K"],
-) -> tuple[np.ndarray, float, float] | None:
-    """``(the drift over the rows fitted (mm, 3-vector, measured minus predicted), its size in
-    units of its noise, the residual's noise per coordinate (mm))`` where the measurements'
-    residual, averaged over the points, trends linearly with the file's row order, else None.
+) -> tuple[np.ndarray, float, float, np.ndarray] | None:
+    """``(the drift over the rows used (mm, 3-vector, measured minus predicted), the trend's
+    slope in units of its standard error, the residual's noise per coordinate (mm), the rows
+    used)`` where the measurements' residual, averaged over the points, trends linearly with the
+    file's row order, else None. The rows used are those ``valid`` with a finite residual.
     One fixed base frame averages a tracker or base that moved along the session: no pose stands
     out, but every point's residual follows the row. The noise is the residual's own about the
     trend (the model's misfit in it too), per coordinate."""
@@ -102,5 +103,5 @@ def drift(
     span = coef[1] * (t.max() - t.min())
     noise = float(np.sqrt(np.mean(var)))
     if stat > DRIFT_CHI2 and np.linalg.norm(span) > DRIFT_SPAN * noise:
-        return span, float(np.sqrt(stat)), noise
+        return span, float(np.sqrt(stat)), noise, np.asarray(rows)[ok]
     return None

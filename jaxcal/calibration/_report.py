@@ -18,7 +18,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
-from ._checks import joint_ranges, limit_notes
+from ._checks import joint_ranges, limit_notes, unwrapped
 from ._markers import drift, moved_point
 from ._param_sets import Candidate
 from ._single import estimated, judge, still_joint_notes
@@ -46,7 +46,8 @@ class DataCalibration:
     per_pose: dict
     """Per pose: ``rows`` (data rows), position errors (mm) ``heldout``, ``train``,
     ``frames_only_heldout``, ``frames_only_train`` (``(K, M)`` for several points), rotation
-    errors (deg) ``*_rot``; ``outlier``, ``sigmas``; ``frames_only``: the frames-only robot."""
+    errors (deg) ``*_rot``; ``outlier``, ``sigmas``; ``scored``: the poses the held-out figures
+    are over; ``frames_only``: the frames-only robot."""
     deltas: dict
     """name -> (value, standard error, unit) of every estimated parameter (DH errors relative to
     the nominal table; frame twists relative to the closed-form guess)."""
@@ -197,15 +198,14 @@ def _drift_doc(p, model: Model) -> dict | None:
     found = drift(p.rows, res, p.valid)
     if found is None:
         return None
-    span, sigmas, noise = found
-    fitted = p.rows[p.valid]
+    span, sigmas, noise, used = found
     return {
         "mm": float(np.linalg.norm(span)),
         "direction": (span / np.linalg.norm(span)).tolist(),
         "sigmas": sigmas,
         "noise_mm": noise,
-        "from_row": int(fitted.min()),
-        "to_row": int(fitted.max()),
+        "from_row": int(used.min()),
+        "to_row": int(used.max()),
     }
 
 
@@ -214,8 +214,8 @@ def _drift_note(d: dict) -> str:
     x, y, z = d["direction"]
     return (
         f"the measurements drift along the file: the residual moves by {d['mm']:.3g} mm from row {d['from_row']} to "
-        f"row {d['to_row']}, along ({x:.2f}, {y:.2f}, {z:.2f}) in the measurement frame ({d['sigmas']:.0f} "
-        "standard deviations of its noise): the tracker, the base or the arm's temperature changing during "
+        f"row {d['to_row']}, along ({x:.2f}, {y:.2f}, {z:.2f}) in the measurement frame (a trend {d['sigmas']:.0f} "
+        "standard errors from none): the tracker, the base or the arm's temperature changing during "
         "the session, or postures that change steadily along the file where the model misses something. "
         "One base frame averages it. Measure a reference posture at the start and the end, or calibrate "
         "parts of the session apart"
@@ -459,7 +459,7 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict, reg) -> dict:
             # flagged by the detection, then predicted by the calibrated model (the second look)
             "taken_back_rows": [int(r) for r in p.rows[det.flags[0] & p.valid]] if not opts.keep_outliers else [],
             # outliers together in one part of a joint's range: scored in the held-out figures
-            "region": _region_doc(p, reg, _rms(h["pe"][p.valid])),
+            "region": _region_doc(p, reg, _rms(h["pe"][p.valid & ~(reg.flags if reg is not None else False)])),
         },
         "lost_points": [{"row": r, "point": j} for r, j in getattr(p.data, "lost_points", [])],
         "dropped_rows": [int(r) for r in getattr(p.data, "dropped_rows", ())],
@@ -492,7 +492,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
             )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
-    reg = outliers.region(q, last.flags[0])
+    reg = outliers.region(unwrapped(robot, q), last.flags[0])  # a continuous joint on the arc it visited
     scored = p.valid | (reg.flags if reg is not None else False)
     h = _heldout(fits, fr, p, scored)
     noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]), f.leverage)
@@ -576,6 +576,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         "frames_only_train": _squeeze(np.asarray(fr.fit["pos_err"])[-1]),
         "train": _squeeze(fin["pos_err"][0]),
         "outlier": last.flags[0],
+        "scored": scored,
         "sigmas": last.sigmas[0],
         "frames_only_heldout_rot": h["fre"],
         "heldout_rot": h["re"],

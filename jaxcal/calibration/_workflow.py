@@ -444,7 +444,8 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     beyond the training ranges), the frames-only ones, ``choice``, ``selection`` (the parameters
     kept and why the others were not), ``cv`` (every candidate's score), ``parameters`` (values,
     standard errors, units), ``training_ranges``, ``outliers`` and the rest listed in
-    docs/conventions.md. Training and held-out figures are over the poses not found outliers.
+    docs/conventions.md. Training figures are over the poses not found outliers; held-out
+    figures over those and the outliers that lie together in one part of a joint's range.
     """
     opts = make_options(options, kw, camera_auto=True)
     p = _prepare(robot, data, opts, progress)
@@ -548,8 +549,10 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
         again = None
         if reidentified < 2:
             again = core.reidentified(p.ident, fit, p.layout, p.q, p.robot, selection.MAX_CONDITION)
-        gap = relinearised < 2 * chooses and _linear_gap(p, lin, sig, fits) > RELINEARISE
-        if again is None and not gap and reidentified < 2:
+        # a fixed set has nothing the linearisation decides: never pending
+        pending = chooses and again is None and _linear_gap(p, lin, sig, fits) > RELINEARISE
+        gap = pending and relinearised < 2 * chooses
+        if again is None and not pending and reidentified < 2:
             # a wider set only once the choice was made where the fit is: a fit held by a prior the
             # linearisation far from it chose leaves a residual any set cuts
             again = _wider(p, fit, sig)
@@ -568,9 +571,9 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
         them = "it" if len(final.choice.pruned) == 1 else "them"
         p = dataclasses.replace(
             p, prune=False, notes=p.notes + (
-                f"not pruned: the selection would drop {dropped}, which the linearised problem judged of no use, "
-                f"but fitted in full the model without {them} leaves {held[1]:.3g} times the residual of the model "
-                f"with {them} (an arm whose errors are not small for its linearisation)",
+                f"not pruned: the selection would drop {dropped} from {final.candidate.name}, which the linearised "
+                f"problem judged of no use, but fitted in full the model without {them} leaves {held[1]:.3g} times "
+                f"the residual of the model with {them} (an arm whose errors are not small for its linearisation)",
             ),
         )  # fmt: skip
         lin, J = _linear(p, core.member(fits["model"], -1), sig, fits["x"][-1])
@@ -586,7 +589,8 @@ judged the dropped parameters useless does not hold where the arm is."""
 
 def _prune_holds(p: _Problem, fr: _Frames, final: _Selected, fits, sig) -> tuple[bool, float]:
     """``(holds, ratio)``: the chosen set fitted in full on all poses without its pruning, from the
-    pruned fit, and the ratio of the pruned fit's weighted RMS residual to that fit's."""
+    pruned fit, and the ratio of the pruned fit's weighted RMS residual to that fit's. Judged only
+    where both fits converged: one stopped short compares where it stopped, not the sets."""
     c = final.choice.index
     prior = np.where(final.free[c], final.priors[c], PIN)[None]
     last = len(p.masks) - 1
@@ -601,7 +605,8 @@ def _prune_holds(p: _Problem, fr: _Frames, final: _Selected, fits, sig) -> tuple
         return float(np.sqrt(np.nanmean(np.asarray(norms)[ok] ** 2)))
 
     ratio = rms(np.asarray(fits["norms"])[-1]) / max(rms(full["norms"][0]), 1e-300)
-    return not ratio > PRUNE_MISS, ratio
+    both = bool(np.asarray(fits["converged"])[-1]) and bool(full["converged"][0])
+    return not (both and ratio > PRUNE_MISS), ratio
 
 
 WIDER_SHARE = 0.5

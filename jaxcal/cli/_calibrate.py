@@ -510,9 +510,13 @@ def show_outliers(rep: dict) -> None:
         t.add_row(*cells, f"{o['sigmas']:.1f}")
     console.print(t)
     if d["excluded"] and d.get("region"):
+        rows = d["region"]["rows"]
+        listed = ", ".join(map(str, rows[:8])) + (f" and {len(rows) - 8} more" if len(rows) > 8 else "")
+        others = len(found) > len(rows)  # scattered ones besides: out of the figures, as without a region
         console.print(
-            f"outliers: {rule}; left out of the fit; rows {', '.join(map(str, d['region']['rows']))} lie together "
-            "in one part of a joint's range (see the notes) and are counted in the held-out figures"
+            f"outliers: {rule}; left out of the fit; rows {listed} lie together in one part of a joint's range "
+            "(see the notes) and are counted in the held-out figures"
+            + (f"; held-out RMS with the others scored too: {d['heldout_rms_mm_all_poses']:.3f} mm" if others else "")
         )
     elif d["excluded"]:
         console.print(

@@ -29,12 +29,12 @@ def accuracy_map(result, q, *, workspace_poses: int = 400, seed: int = 0) -> dic
     ``data`` and ``workspace`` (``workspace_poses`` seeded poses uniform within the joint limits)
     as ``(positions (K, 3) in the base frame, predicted sigma (K,) mm)``, the sigma the RMS over a
     pose's points; ``heldout`` the measured held-out error per data pose (NaN for an outlier left
-    out of the fit); ``noise_mm`` the final
+    out of the held-out figures); ``noise_mm`` the final
     fit's noise (``noise_pos_mm``, per coordinate) as an RMS distance, ``sqrt(3)`` times it."""
     from ..plots import heldout_errors
 
-    # the outliers left out of the fit are left out of the held-out figures, as in the report
-    left_out = np.asarray(result.per_pose["outlier"], bool) & bool(result.report["outlier_detection"]["excluded"])
+    # the poses the report's held-out figures leave out (outliers, except those of a region)
+    left_out = ~np.asarray(result.per_pose["scored"], bool)
 
     lim = np.asarray(result.nominal.q_limits)
     qw = lim[:, 0] + np.random.default_rng(seed).uniform(size=(workspace_poses, len(lim))) * (lim[:, 1] - lim[:, 0])

@@ -119,9 +119,9 @@ def test_calibrate_batch_chooses_the_set_again_for_a_member_that_ran_there(far_a
 def test_a_set_is_not_widened_at_a_fit_the_prior_held_far_from_the_arm():
     """A UR5 whose lengths are millimetres and angles 1-2 degrees off its table, 50 full poses
     (NumPy FK, tests.helpers). Linearised at the nominal, tens of mm away, the selection chose a
-    prior that held the fit millimetres off; at that fit two lengths of the parallel joints looked
-    worth estimating, and with them no set without a prior was separable: the default wrote that
-    fit. The set is widened only once the choice is made where the fit is."""
+    prior that holds the fit millimetres off; at that fit two lengths of the parallel joints look
+    worth estimating, and with them no set without a prior is separable. The set is widened only
+    once the choice is made where the fit is: the default's model is within the noise."""
     from scipy.spatial.transform import Rotation
 
     robot = preset("ur5")

@@ -80,11 +80,17 @@ def test_a_drift_along_the_rows_is_found_and_noise_or_a_small_one_is_not():
     r[7, 1] = np.nan  # a point not seen
     valid = np.ones(60, bool)
     valid[30] = False
-    span, sigmas, noise = drift(rows, r, valid)
+    span, sigmas, noise, used = drift(rows, r, valid)
     np.testing.assert_allclose(span, made, atol=0.03)
     assert sigmas > 10 and noise == pytest.approx(0.02 / np.sqrt(2), rel=0.25)  # two points averaged
+    assert used.tolist() == np.delete(rows, 30).tolist()
     assert drift(rows, r - trend[:, None], valid) is None
-    assert drift(rows, r - 0.95 * trend[:, None], valid) is None  # 0.018 mm: under three times the noise
+    # 5000 rows: a drift of 0.036 mm is a trend far beyond chance, but under three times the noise
+    rows = np.arange(5000)
+    small = 0.1 * made * rows[:, None] / rows[-1]
+    r = small[:, None] + rng.normal(0, 0.02, (5000, 1, 3))
+    assert drift(rows, r, np.ones(5000, bool)) is None
+    assert drift(rows, r + 9 * small[:, None], np.ones(5000, bool)) is not None
 
 
 def test_a_tracker_that_drifts_during_the_session_is_named():

@@ -330,10 +330,10 @@ def test_a_marker_far_out_on_a_flange_that_barely_moves_is_not_taken_for_another
 
 def test_a_pruning_the_linearisation_misjudged_is_undone():
     """``tests/data/custom_arm`` (its README): an odd arm whose joint origins are a millimetre and
-    a few mrad off, measured as exact poses. The selection, linearised, found y3 and ry4 of no use
-    and dropped them; fitted in full, the model without them missed new postures by several times
-    the noise, where the chosen set unpruned is within it. The pruned fit's residual, several times
-    the unpruned one's, now undoes the pruning, and a note says why."""
+    a few mrad off, measured as exact poses. The selection, linearised, finds y3 and ry4 of no use;
+    fitted in full, the model without them leaves several times the residual of the chosen set
+    unpruned, so nothing is pruned, a note says why, and the model is within the noise of the
+    truth on new postures."""
     from jaxcal import load_robot, read_measurements
     from jaxcal.model import predict
 

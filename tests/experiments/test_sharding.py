@@ -79,8 +79,8 @@ def _processes(devices) -> list[str]:
 def test_one_two_four_devices_over_two_processes_give_the_same_results():
     """Two processes of two CPU devices each, joined by jax.distributed on localhost: the fits on
     1 device (each process alone), 2 (one per process) and 4 agree to 1e-12, and name the devices
-    they used. 128 robots of 30 poses, base and tool estimated: on two CPU devices of each process
-    the sharded solve hung for good; each process now solves its own devices' shares in turn, then
+    they used. 128 robots of 30 poses, base and tool estimated, where a solve sharded over two CPU
+    devices of each process deadlocks: each process solves its own devices' shares in turn, then
     gathers."""
     with socket.socket() as s:  # a free port for the coordinator
         s.bind(("localhost", 0))
@@ -123,9 +123,9 @@ print(json.dumps({"devices": list(two.devices), "diff": float(np.abs(two.x - one
 
 
 def test_two_cpu_devices_of_one_process_finish_where_a_sharded_solve_deadlocked():
-    """32 robots with base and tool estimated over two CPU devices of one process: the sharded
-    solve (and the kept programs run on both devices at once) hung for good; each device now
-    solves its own members in turn."""
+    """32 robots with base and tool estimated over two CPU devices of one process, where a sharded
+    solve (or the kept programs run on both devices at once) deadlocks: each device solves its own
+    members in turn."""
     flags = " ".join(f for f in os.environ.get("XLA_FLAGS", "").split() if "device_count" not in f)
     r = _result(_run(ONE_PROCESS, env={"XLA_FLAGS": flags}), timeout=150)
     assert len(r["devices"]) == 2 and r["diff"] < 1e-12
