@@ -12,6 +12,8 @@ in the file's order, the order they were measured in.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from jaxtyping import Bool, Float
 
@@ -77,31 +79,60 @@ DRIFT_SPAN = 3.0
 coordinate: a trend too small to matter next to the noise is not named."""
 
 
+@dataclasses.dataclass(frozen=True)
+class Drift:
+    """The measurements' residual moving along the file's rows (:func:`drift`)."""
+
+    change: np.ndarray
+    """``(3,)`` mm, measured minus predicted: over the rows used (a line), or across the step."""
+    sigmas: float
+    """The slope, or the step, in units of its standard error."""
+    noise: float
+    """The residual's noise per coordinate about the line or the step (mm)."""
+    rows: np.ndarray
+    """The rows used, in order."""
+    step: int | None = None
+    """A step: the index into :attr:`rows` of the first row after it; ``None``: a line."""
+
+
 def drift(
     rows: Float[np.ndarray, " K"],
     residual: Float[np.ndarray, "K M 3"],
     valid: Bool[np.ndarray, " K"],
-) -> tuple[np.ndarray, float, float, np.ndarray] | None:
-    """``(the drift over the rows used (mm, 3-vector, measured minus predicted), the trend's
-    slope in units of its standard error, the residual's noise per coordinate (mm), the rows
-    used)`` where the measurements' residual, averaged over the points, trends linearly with the
-    file's row order, else None. The rows used are those ``valid`` with a finite residual.
-    One fixed base frame averages a tracker or base that moved along the session: no pose stands
-    out, but every point's residual follows the row. The noise is the residual's own about the
-    trend (the model's misfit in it too), per coordinate."""
+) -> Drift | None:
+    """How the measurements' residual, averaged over the points, moves along the file's row order:
+    a line (a slow drift: warming, a creeping stand) or one step (a tracker or base knocked), the
+    one of the two that leaves the smaller residual, where its slope or step is beyond chance
+    (:data:`DRIFT_CHI2`) and large next to the noise (:data:`DRIFT_SPAN`); else None. The rows
+    used are those ``valid`` with a finite residual. One fixed base frame averages such a move:
+    no pose stands out, but every point's residual follows the row. The noise is the residual's
+    own about the line or step (the model's misfit in it too), per coordinate."""
     with np.errstate(invalid="ignore"):
         r = np.nanmean(np.asarray(residual, float), 1)
     ok = np.asarray(valid, bool) & np.isfinite(r).all(-1)
-    if ok.sum() < 8:
+    n = int(ok.sum())
+    if n < 2 * MIN_SIDE:
         return None
-    t = np.asarray(rows, float)[ok]
-    t = t - t.mean()
-    A = np.stack([np.ones_like(t), t], 1)
-    coef = np.linalg.lstsq(A, r[ok], rcond=None)[0]
-    var = np.sum((r[ok] - A @ coef) ** 2, 0) / (ok.sum() - 2)  # per coordinate
+    order = np.argsort(np.asarray(rows, float)[ok], kind="stable")
+    used, x = np.asarray(rows)[ok][order], r[ok][order]
+    found = []
+    t = used - used.mean()
+    A = np.stack([np.ones_like(t), t], 1).astype(float)
+    coef = np.linalg.lstsq(A, x, rcond=None)[0]
+    rss = np.sum((x - A @ coef) ** 2, 0)  # per coordinate
+    var = rss / (n - 2)
     stat = float(np.sum(coef[1] ** 2 * np.sum(t**2) / np.maximum(var, 1e-300)))
-    span = coef[1] * (t.max() - t.min())
-    noise = float(np.sqrt(np.mean(var)))
-    if stat > DRIFT_CHI2 and np.linalg.norm(span) > DRIFT_SPAN * noise:
-        return span, float(np.sqrt(stat)), noise, np.asarray(rows)[ok]
-    return None
+    found.append(
+        (float(rss.sum()), Drift(coef[1] * (t.max() - t.min()), np.sqrt(stat), float(np.sqrt(var.mean())), used))
+    )
+    c = np.cumsum(x, 0)
+    k = np.arange(MIN_SIDE, n - MIN_SIDE + 1)
+    before, after = c[k - 1] / k[:, None], (c[-1] - c[k - 1]) / (n - k)[:, None]
+    rss_k = np.sum(x**2) - np.sum(k[:, None] * before**2 + (n - k)[:, None] * after**2, 1)
+    b = int(np.argmin(rss_k))
+    s, jump = int(k[b]), after[b] - before[b]
+    var = (np.sum((x[:s] - before[b]) ** 2, 0) + np.sum((x[s:] - after[b]) ** 2, 0)) / (n - 2)
+    stat = float(np.sum(jump**2 / np.maximum(var * (1.0 / s + 1.0 / (n - s)), 1e-300)))
+    found.append((float(rss_k[b]), Drift(jump, np.sqrt(stat), float(np.sqrt(var.mean())), used, s)))
+    real = [(e, d) for e, d in found if d.sigmas**2 > DRIFT_CHI2 and np.linalg.norm(d.change) > DRIFT_SPAN * d.noise]
+    return min(real, key=lambda ed: ed[0])[1] if real else None

@@ -195,30 +195,37 @@ def _drift_doc(p, model: Model) -> dict | None:
     target = np.asarray(p.target)
     pred = np.asarray(predict(model, p.q))
     res = (target - pred)[:, None, :3, 3] if target.shape[-2:] == (4, 4) else target - pred
-    found = drift(p.rows, res, p.valid)
-    if found is None:
+    d = drift(p.rows, res, p.valid)
+    if d is None:
         return None
-    span, sigmas, noise, used = found
+    size = float(np.linalg.norm(d.change))
     return {
-        "mm": float(np.linalg.norm(span)),
-        "direction": (span / np.linalg.norm(span)).tolist(),
-        "sigmas": sigmas,
-        "noise_mm": noise,
-        "from_row": int(used.min()),
-        "to_row": int(used.max()),
+        "kind": "linear" if d.step is None else "step",
+        "mm": size,
+        "direction": (d.change / size).tolist(),
+        "sigmas": float(d.sigmas),
+        "noise_mm": d.noise,
+        "from_row": int(d.rows[0] if d.step is None else d.rows[d.step - 1]),
+        "to_row": int(d.rows[-1] if d.step is None else d.rows[d.step]),
     }
 
 
 def _drift_note(d: dict) -> str:
-    """What the report says of measurements that drift along the file."""
+    """What the report says of measurements that drift along the file, or jump."""
     x, y, z = d["direction"]
+    along = f"along ({x:.2f}, {y:.2f}, {z:.2f}) in the measurement frame"
+    if d["kind"] == "step":
+        return (
+            f"the measurements jump between rows {d['from_row']} and {d['to_row']}: the residual steps by "
+            f"{d['mm']:.3g} mm there, {along} (a step {d['sigmas']:.0f} standard errors from none): the tracker "
+            "or the base moved then? One base frame averages it. Calibrate the rows before and after apart"
+        )
     return (
         f"the measurements drift along the file: the residual moves by {d['mm']:.3g} mm from row {d['from_row']} to "
-        f"row {d['to_row']}, along ({x:.2f}, {y:.2f}, {z:.2f}) in the measurement frame (a trend {d['sigmas']:.0f} "
-        "standard errors from none): the tracker, the base or the arm's temperature changing during "
-        "the session, or postures that change steadily along the file where the model misses something. "
-        "One base frame averages it. Measure a reference posture at the start and the end, or calibrate "
-        "parts of the session apart"
+        f"row {d['to_row']}, {along} (a trend {d['sigmas']:.0f} standard errors from none): the tracker, the base or "
+        "the arm's temperature changing during the session, or postures that change steadily along the file where "
+        "the model misses something. One base frame averages it. Measure a reference posture at the start and the "
+        "end, or calibrate parts of the session apart"
     )
 
 

@@ -80,11 +80,16 @@ def test_a_drift_along_the_rows_is_found_and_noise_or_a_small_one_is_not():
     r[7, 1] = np.nan  # a point not seen
     valid = np.ones(60, bool)
     valid[30] = False
-    span, sigmas, noise, used = drift(rows, r, valid)
-    np.testing.assert_allclose(span, made, atol=0.03)
-    assert sigmas > 10 and noise == pytest.approx(0.02 / np.sqrt(2), rel=0.25)  # two points averaged
-    assert used.tolist() == np.delete(rows, 30).tolist()
+    d = drift(rows, r, valid)
+    np.testing.assert_allclose(d.change, made, atol=0.03)
+    assert d.step is None and d.sigmas > 10 and d.noise == pytest.approx(0.02 / np.sqrt(2), rel=0.25)  # 2 points
+    assert d.rows.tolist() == np.delete(rows, 30).tolist()
     assert drift(rows, r - trend[:, None], valid) is None
+    # the same rows, the tracker knocked by (0.3, 0, 0.2) mm between the 25th and 26th: a step there
+    knocked = np.where((np.arange(60) >= 25)[:, None, None], made, 0.0) + rng.normal(0, 0.02, (60, 2, 3))
+    d = drift(rows, knocked, valid)
+    np.testing.assert_allclose(d.change, made, atol=0.03)
+    assert d.rows[d.step - 1 : d.step + 1].tolist() == rows[24:26].tolist()
     # 5000 rows: a drift of 0.036 mm is a trend far beyond chance, but under three times the noise
     rows = np.arange(5000)
     small = 0.1 * made * rows[:, None] / rows[-1]
@@ -113,7 +118,8 @@ def test_a_tracker_that_drifts_during_the_session_is_named():
     moved = points + np.linspace(0, 1, 60)[:, None] * made
     rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q, moved[:, None]), nested_max_poses=0).report
     d = rep["drift"]
-    assert d["mm"] == pytest.approx(np.linalg.norm(made), rel=0.15) and (d["from_row"], d["to_row"]) == (1, 60)
+    assert d["kind"] == "linear" and (d["from_row"], d["to_row"]) == (1, 60)
+    assert d["mm"] == pytest.approx(np.linalg.norm(made), rel=0.15)
     assert np.dot(d["direction"], made / np.linalg.norm(made)) > 0.98 and rep["outliers"] == []
     assert any(n.startswith("the measurements drift along the file") for n in rep["notes"])
     clean = jaxcal.calibrate_data(robot, jaxcal.Measurements(q, points[:, None]), nested_max_poses=0).report
