@@ -240,6 +240,9 @@ there, such as the tracker's line of sight) when scattered gross errors would li
 this probability (Bonferroni over every joint and end; the cut-offs scanned add a little)."""
 REGION_MIN = 3
 """Fewest outliers that make a region: two together at an end are chance too often."""
+HINT_CHANCE = 0.05
+"""Outliers that lie together at an end with a chance below this, but too few (two) or in too
+few poses to make a region, are pointed out in a note: the figures leave them out."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -259,15 +262,21 @@ class Region:
     """Probability that scattered outliers lie so (Bonferroni over joints and ends)."""
 
 
-def region(q: Float[np.ndarray, "K n"], flags: Bool[np.ndarray, " K"]) -> Region | None:
-    """The part of one joint's range (one end, or both ends about its middle) where outliers lie
-    together beyond chance (:data:`REGION_CHANCE`), or ``None``. Each joint's poses are ranked by
+def region(
+    q: Float[np.ndarray, "K n"],
+    flags: Bool[np.ndarray, " K"],
+    *,
+    chance: float = REGION_CHANCE,
+    least: int = REGION_MIN,
+) -> Region | None:
+    """The part of one joint's range (one end, or both ends about its middle) where at least
+    ``least`` outliers lie together beyond ``chance``, or ``None``. Each joint's poses are ranked by
     how far they lie towards an end; the chance that at least ``f`` of the ``n`` outliers fall
     among the ``m`` poses farthest out, were they ``n`` poses drawn at random, is hypergeometric.
     Every outlier's place sets a cut-off ``m``; the least chance wins."""
     q, flags = np.asarray(q, float), np.asarray(flags, bool)
     K, n = len(flags), int(flags.sum())
-    if n < REGION_MIN:
+    if n < least:
         return None
     from scipy.stats import hypergeom  # only where outliers were found: no import cost otherwise
 
@@ -279,13 +288,13 @@ def region(q: Float[np.ndarray, "K n"], flags: Bool[np.ndarray, " K"]) -> Region
             for cut in np.unique(s[flags]):
                 inside = s >= cut
                 f = int((inside & flags).sum())
-                if f < REGION_MIN:
+                if f < least:
                     continue
-                chance = min(1.0, tests * float(hypergeom.sf(f - 1, K, n, int(inside.sum()))))
-                if best is None or chance < best.chance:
+                odds = min(1.0, tests * float(hypergeom.sf(f - 1, K, n, int(inside.sum()))))
+                if best is None or odds < best.chance:
                     bound = float(-cut if end == "low" else cut)
-                    best = Region(j, end, bound, float(centre), inside & flags, int(inside.sum()), chance)
-    return best if best is not None and best.chance <= REGION_CHANCE else None
+                    best = Region(j, end, bound, float(centre), inside & flags, int(inside.sum()), odds)
+    return best if best is not None and best.chance <= chance else None
 
 
 SWAP_FIT = 5.0

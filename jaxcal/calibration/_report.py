@@ -439,6 +439,20 @@ def _region_note(p, doc: dict, kept: bool) -> str:
     )
 
 
+def _hint_note(p, doc: dict, detection: dict) -> str:
+    """What the report says of a few outliers together at an end of a joint's range."""
+    j = p.robot.joint_names.index(doc["joint"])
+    name = f"joint {j + 1} ({doc['joint']})"
+    where = "both ends" if doc["end"] == "both" else f"the {doc['end']} end"
+    return (
+        f"rows {', '.join(map(str, doc['rows']))}, left out as outliers, are the poses farthest out at {where} of "
+        f"the range of {name} (probability {doc['chance']:.1g} for scattered errors; too few to be counted as a "
+        "region): if that is the arm's own error there, not bad measurements, the held-out figures leave it out; "
+        f"with them scored the held-out RMS is {detection['heldout_rms_mm_all_poses']:.3g} mm (--keep-outliers fits "
+        "them)"
+    )
+
+
 def _outlier_section(p, fr, det, last, fin: dict, h: dict, reg) -> dict:
     """The outliers found and how (docs/conventions.md#outliers); ``reg`` where they lie together."""
     opts, rot = p.opts, p.n_points == 0
@@ -499,7 +513,11 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
             )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
-    reg = outliers.region(unwrapped(robot, q), last.flags[0])  # a continuous joint on the arc it visited
+    qu = unwrapped(robot, q)  # a continuous joint on the arc it visited
+    reg = outliers.region(qu, last.flags[0])
+    hint = None
+    if reg is None and not opts.keep_outliers:  # too few to make a region, but together at an end
+        hint = outliers.region(qu, last.flags[0], chance=outliers.HINT_CHANCE, least=2)
     scored = p.valid | (reg.flags if reg is not None else False)
     h = _heldout(fits, fr, p, scored)
     noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]), f.leverage)
@@ -562,6 +580,8 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
     rep["drift"] = moved
     if region := rep["outlier_detection"]["region"]:
         rep["notes"].append(_region_note(p, region, kept=opts.keep_outliers))
+    elif hint is not None:
+        rep["notes"].append(_hint_note(p, _region_doc(p, hint, 0.0), rep["outlier_detection"]))
     if rep["cv_fits_converged"] < rep["cv_fits"]:  # the held-out figures come from these fits
         rep["notes"].append(
             f"{rep['cv_fits'] - rep['cv_fits_converged']} of the {rep['cv_fits']} cross-validation fits did not "
