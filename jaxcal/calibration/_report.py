@@ -444,12 +444,13 @@ def _hint_note(p, doc: dict, detection: dict) -> str:
     j = p.robot.joint_names.index(doc["joint"])
     name = f"joint {j + 1} ({doc['joint']})"
     where = "both ends" if doc["end"] == "both" else f"the {doc['end']} end"
+    rows, m = doc["rows"], doc["poses_in_region"]
+    among = "are the poses" if m == len(rows) else f"lie among the {m} poses"
     return (
-        f"rows {', '.join(map(str, doc['rows']))}, left out as outliers, are the poses farthest out at {where} of "
-        f"the range of {name} (probability {doc['chance']:.1g} for scattered errors; too few to be counted as a "
-        "region): if that is the arm's own error there, not bad measurements, the held-out figures leave it out; "
-        f"with them scored the held-out RMS is {detection['heldout_rms_mm_all_poses']:.3g} mm (--keep-outliers fits "
-        "them)"
+        f"rows {', '.join(map(str, rows))}, left out as outliers, {among} farthest out at {where} of the range of "
+        f"{name} (probability {doc['chance']:.1g} for scattered errors; too few to be counted as a region): if that "
+        "is the arm's own error there, not bad measurements, the held-out figures leave it out; with the outliers "
+        f"scored the held-out RMS is {detection['heldout_rms_mm_all_poses']:.3g} mm (--keep-outliers fits them)"
     )
 
 

@@ -547,7 +547,7 @@ def test_two_outliers_farthest_out_on_a_joint_are_pointed_out():
     assert sorted(np.argsort(-np.abs(q[:, 1] - 0.5 * (q[:, 1].min() + q[:, 1].max())))[:2] + 1) == rows
     all_poses = rep["outlier_detection"]["heldout_rms_mm_all_poses"]
     note = f"rows {rows[0]}, {rows[1]}, left out as outliers, are the poses farthest out at both ends of"
-    assert any(n.startswith(note) and f"the held-out RMS is {all_poses:.3g} mm" in n for n in rep["notes"])
+    assert any(n.startswith(note) and f"scored the held-out RMS is {all_poses:.3g} mm" in n for n in rep["notes"])
 
 
 def test_outliers_of_a_joint_that_sags_at_the_ends_of_its_range_are_counted_in_the_figures():
