@@ -593,6 +593,14 @@ def identify(J, layout: Layout, robot: Robot | None = None, *, rtol: float = 1e-
     return analyze(np.asarray(J).reshape(-1, layout.size), layout.names(), rtol=rtol, priority=frames + kin + cams)
 
 
+def scaled_condition(J, base) -> float:
+    """The condition number of the columns ``base`` of ``J (rows, m)``, each scaled to unit norm:
+    how separable those parameters are on these poses, whatever their units."""
+    cols = np.asarray(J)[:, list(base)]
+    s = np.linalg.svd(cols / np.maximum(np.linalg.norm(cols, axis=0), 1e-300), compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
 def reidentified(
     ident: Identifiability, model: Model, layout: Layout, q, robot: Robot, max_condition: float
 ) -> tuple[Identifiability, str] | None:
@@ -602,9 +610,8 @@ def reidentified(
     cancelled makes a shift one with two joint offsets); it stops there at a point of the
     parameterisation, not of the arm. ``None`` otherwise."""
     J = analyse(model, layout, q)[0].reshape(-1, layout.size)
-    cols = J[:, list(ident.base)]
-    s = np.linalg.svd(cols / np.maximum(np.linalg.norm(cols, axis=0), 1e-300), compute_uv=False)
-    if s[0] <= max_condition * s[-1]:
+    cond = scaled_condition(J, ident.base)
+    if cond <= max_condition:
         return None
     again = identify(J, layout, robot)
     if set(again.base) == set(ident.base):
@@ -614,7 +621,7 @@ def reidentified(
     held = [names[i] for i in ident.base if i not in again.base]
     return again, (
         f"the parameters estimated were chosen again at the fit: those identifiable at the nominal model "
-        f"were not separable where the fit ran (condition {s[0] / s[-1]:.1e}), so {', '.join(freed)} "
+        f"were not separable where the fit ran (condition {cond:.1e}), so {', '.join(freed)} "
         f"{'is' if len(freed) == 1 else 'are'} estimated and {', '.join(held)} held instead"
     )
 

@@ -565,7 +565,7 @@ def _fitted(p: _Problem, fr: _Frames, x0=None):
             break
         lin, J = _linear(p, fit, sig, fits["x"][-1])
         final, per_fold, fits = _chosen(p, fr, lin, J, fits["x"])  # each from its last fit
-    if p.prune and final.choice.pruned and not (held := _prune_holds(p, fr, final, fits, sig))[0]:
+    if p.prune and final.choice.pruned and not (held := _prune_holds(p, fr, final, fits))[0]:
         names = p.layout.names()
         dropped = ", ".join(names[i] for i, *_ in final.choice.pruned)
         them = "it" if len(final.choice.pruned) == 1 else "them"
@@ -587,7 +587,7 @@ chosen set unpruned (fitted in full from the same start) is not kept: the linear
 judged the dropped parameters useless does not hold where the arm is."""
 
 
-def _prune_holds(p: _Problem, fr: _Frames, final: _Selected, fits, sig) -> tuple[bool, float]:
+def _prune_holds(p: _Problem, fr: _Frames, final: _Selected, fits) -> tuple[bool, float]:
     """``(holds, ratio)``: the chosen set fitted in full on all poses without its pruning, from the
     pruned fit, and the ratio of the pruned fit's weighted RMS residual to that fit's. Judged only
     where both fits converged: one stopped short compares where it stopped, not the sets."""
@@ -633,10 +633,8 @@ def _wider(p: _Problem, fit: Model, sig):
     again = core.identify(J, p.layout, p.robot)
     if again.rank <= p.ident.rank:
         return None
-    cols = np.asarray(J).reshape(-1, p.layout.size)[:, list(again.base)]
-    s = np.linalg.svd(cols / np.maximum(np.linalg.norm(cols, axis=0), 1e-300), compute_uv=False)
-    if not s[0] <= selection.MAX_CONDITION * s[-1]:  # identifiable, but not separable as the selection asks
-        return None
+    if not core.scaled_condition(np.asarray(J).reshape(-1, p.layout.size), again.base) <= selection.MAX_CONDITION:
+        return None  # identifiable, but not separable as the selection asks
     share = np.sum(_stepped(p, lin, again.base) ** 2) / max(np.sum(_stepped(p, lin, p.ident.base) ** 2), 1e-300)
     if not share < WIDER_SHARE:
         return None
