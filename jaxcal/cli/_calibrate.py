@@ -313,8 +313,8 @@ def _rigid_figures(res, meas) -> tuple[float, float] | None:
 
 
 def _rigid_comment(bent: tuple[float, float], readers: str) -> dict:
-    """A file's header figures where its readers apply only the rigid geometry: that geometry's,
-    not the held-out error of the model with compliances."""
+    """Header figures for a file that other tools (``readers``) read as rigid geometry: that
+    geometry's error on the data beside the model's with its compliances."""
     return {
         "compliance": f"estimated; {readers} apply the rigid geometry only",
         "rigid_geometry_rms_mm_on_the_data": bent[1],
