@@ -411,10 +411,14 @@ def _region_doc(p, reg, without: float) -> dict | None:
     }
 
 
+def _joint_label(p, doc: dict) -> str:
+    """``joint 2 (q2)``: the joint of a region's JSON, by its number in the chain and its name."""
+    return f"joint {p.robot.joint_names.index(doc['joint']) + 1} ({doc['joint']})"
+
+
 def _region_note(p, doc: dict, kept: bool) -> str:
     """What the report says of outliers that lie together in one part of a joint's range."""
-    j = p.robot.joint_names.index(doc["joint"])
-    b, u, name = doc["bound"], doc["unit"], f"joint {j + 1} ({doc['joint']})"
+    b, u, name = doc["bound"], doc["unit"], _joint_label(p, doc)
     if doc["end"] == "both":
         lo, hi = doc["centre"] - b, doc["centre"] + b
         where = f"at both ends of the range of {name}, {lo:.4g} {u} and below or {hi:.4g} {u} and above"
@@ -441,8 +445,7 @@ def _region_note(p, doc: dict, kept: bool) -> str:
 
 def _hint_note(p, doc: dict, detection: dict) -> str:
     """What the report says of a few outliers together at an end of a joint's range."""
-    j = p.robot.joint_names.index(doc["joint"])
-    name = f"joint {j + 1} ({doc['joint']})"
+    name = _joint_label(p, doc)
     where = "both ends" if doc["end"] == "both" else f"the {doc['end']} end"
     rows, m = doc["rows"], doc["poses_in_region"]
     among = "are the poses" if m == len(rows) else f"lie among the {m} poses"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import typer
@@ -261,13 +262,14 @@ def calibrate(
                     f"they hang, not one of them",
                     highlight=False,
                 )
+        rigid = functools.cache(lambda: _rigid_figures(res, meas))  # once, for every file that needs it
         # a URDF robot's --out-robot is its model too: the points are links of the written URDF
         for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
             if path is None:
                 continue
             urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
             model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
-            bent = _rigid_figures(res, meas) if Path(path).suffix.lower() in (".urdf", ".xml") else None
+            bent = rigid() if Path(path).suffix.lower() in (".urdf", ".xml") else None
             save_model(
                 model, path, comment=comment if bent is None else comment | _rigid_comment(bent, "URDF readers"),
                 template=urdf, base_link=base_link, tip_link=tip_link, training_ranges=res.training_ranges,
@@ -290,7 +292,7 @@ def calibrate(
 
             for p in calibration_figures(res, plots):
                 console.print(f"plot written to {p}")
-        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment)
+        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid)
     console.file.write(said.get())
 
 
@@ -322,7 +324,7 @@ def _rigid_comment(bent: tuple[float, float], readers: str) -> dict:
     }
 
 
-def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> None:
+def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid) -> None:
     """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
     import numpy as np
 
@@ -331,7 +333,7 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment) -> Non
 
     if out_ur_kinematics is not None:
         robot = res.robot.replace(name=f"{res.nominal.name}-calibrated")
-        bent = _rigid_figures(res, meas)  # the controller's model is rigid
+        bent = rigid()  # the controller's model is rigid
         if bent is not None:
             with_c, without = bent
             # the file's own figure: its rigid geometry's, not the held-out error of the model with compliances
