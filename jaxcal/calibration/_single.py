@@ -383,7 +383,8 @@ def calibrate(
     **Returns** a :class:`CalibrationResult`; ``converged`` is False (never silently) when the
     solver did not meet its tolerances; ``not_identified()`` says which parameters were held at
     0 and why; ``outliers`` the poses left out (:mod:`._outliers`; ``keep_outliers`` fits them).
-    A point lost at a pose is NaN (all three coordinates) and weighs nothing.
+    A point lost at a pose is NaN (all three coordinates) and weighs nothing; a pose with no point
+    seen is refused (leave it out), where :func:`calibrate_batch` leaves it out of its data set.
 
     **Raises** :class:`jaxcal.DataError` for bad input (shapes, non-finite values, poses that are
     not rigid, lengths apparently not in mm, too few poses, bad options).

@@ -81,6 +81,10 @@ def load_robot_arg(robot: str, base_link: str | None = None, tip_link: str | Non
     return load_robot(robot, base_link=base_link, tip_link=tip_link)
 
 
+PRESET_NAMES = ("paper-6r", "puma560", "ur5", "ur10e", "panda")
+"""The presets as help texts name them; written out, since the help is shown before jax loads
+(a test keeps it equal to :data:`jaxcal.robot.PRESETS`)."""
+ROBOT_HELP = f"robot file (TOML or URDF) or preset name ({', '.join(PRESET_NAMES)})"
 BASE_LINK_HELP = "URDF: the chain's first link (default: a calibrated model's own, else the root)"
 TIP_LINK_HELP = "URDF: the chain's last link (default: a calibrated model's own, else the one leaf)"
 

@@ -11,6 +11,7 @@ from rich.table import Table
 from ..calibration import Options
 from ._app import (
     BASE_LINK_HELP,
+    ROBOT_HELP,
     TIP_LINK_HELP,
     app,
     check_outputs,
@@ -31,7 +32,7 @@ def _fmt(v, spec=".3f"):
 
 @app.command()
 def calibrate(
-    robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name: the nominal model"),
+    robot: str = typer.Argument(..., help=ROBOT_HELP + ": the nominal model"),
     data: Path = typer.Argument(
         ..., help="measurement CSV: joints (q1..qN or names), x, y, z [, qw, qx, qy, qz] or x1, y1, z1 ... xM, yM, zM"
     ),

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import BASE_LINK_HELP, COMMAND_FLAGS, TIP_LINK_HELP, app, check_outputs, console, load_robot_arg
+from ._app import BASE_LINK_HELP, COMMAND_FLAGS, ROBOT_HELP, TIP_LINK_HELP, app, check_outputs, console, load_robot_arg
 from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, numbers, read_poses_for, region_arg, view_arg
 
 
@@ -19,7 +19,7 @@ def _given(default: bool, **kw) -> dict:
 
 @app.command()
 def design(
-    robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name (paper-6r, puma560, ur5, panda)"),
+    robot: str = typer.Argument(..., help=ROBOT_HELP),
     poses: int = typer.Option(..., "--poses", help="number of poses to design"),
     out: Path = typer.Option(..., "--out", help="pose file to write (CSV: q1..qN or the joint names)"),
     criterion: str = typer.Option(

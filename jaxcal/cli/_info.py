@@ -5,12 +5,12 @@ from __future__ import annotations
 import typer
 from rich.table import Table
 
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, console, load_robot_arg
+from ._app import BASE_LINK_HELP, ROBOT_HELP, TIP_LINK_HELP, app, console, load_robot_arg
 
 
 @app.command()
 def info(
-    robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name"),
+    robot: str = typer.Argument(..., help=ROBOT_HELP),
     base_link: str = typer.Option(None, help=BASE_LINK_HELP),
     tip_link: str = typer.Option(None, help=TIP_LINK_HELP),
 ):

@@ -10,7 +10,17 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, check_outputs, console, err_console, load_robot_arg, progress
+from ._app import (
+    BASE_LINK_HELP,
+    ROBOT_HELP,
+    TIP_LINK_HELP,
+    app,
+    check_outputs,
+    console,
+    err_console,
+    load_robot_arg,
+    progress,
+)
 from ._conditions import REGION_HELP, SPREAD_HELP, VIEW_HELP, numbers, read_poses_for, region_arg, view_arg
 
 
@@ -49,7 +59,7 @@ def _conditions_line(c: dict, n_val: int) -> str:
 
 @app.command()
 def montecarlo(
-    robot: str = typer.Argument(..., help="robot file (TOML or URDF) or preset name (paper-6r, puma560, ur5, panda)"),
+    robot: str = typer.Argument(..., help=ROBOT_HELP),
     robots: int = typer.Option(1000, "--robots", help="number of simulated robots"),
     poses: int = typer.Option(100, "--poses", help="calibration poses per robot"),
     val_poses: int = typer.Option(50, "--val-poses", help="inspection poses per robot"),

@@ -1,6 +1,8 @@
 """The command line (through the real entry point `jaxcal.cli.main`): bad input gives one clear
 line and exit code 2; a unit mismatch is refused with its evidence; compensation output."""
 
+import re
+
 import numpy as np
 import pytest
 from helpers import run_cli  # noqa: E402
@@ -283,3 +285,15 @@ def test_info_says_a_joint_given_no_limits_has_none(monkeypatch, capsys):
     assert out.count("none") == out.count("sampled") == 6 and out.count("3.142") == 12  # the column may wrap
     code, out, err = run_cli(monkeypatch, capsys, "info", "panda")
     assert "none" not in out and out.count("2.897") == 8
+
+
+@pytest.mark.parametrize("command", ["calibrate", "design", "montecarlo", "info"])
+def test_the_help_names_every_preset(monkeypatch, capsys, command):
+    """The robot argument's help lists the presets a command accepts, each of them."""
+    from jaxcal.robot import PRESETS
+
+    code, out, _ = run_cli(monkeypatch, capsys, command, "--help")
+    assert code in (0, None)
+    text = re.sub(r"[\s│]", "", out)  # rich wraps and boxes the help
+    for name in PRESETS:
+        assert name in text, name
