@@ -26,8 +26,8 @@ prismatic joints take the length unit. Everything is converted to mm and rad on 
 
 Quaternions whose norm is within ``1e-3`` of 1 are normalised silently (files written with a few
 decimals are fine); anything further off is refused. Every problem raises
-:class:`jaxcal.DataError` naming the file, the data row (1-based, header not counted; blank lines
-skipped), its line in the file and the column. Rows in another unit than the rest (metres
+:class:`jaxcal.DataError` naming the file, the data row (1-based, header not counted; blank, comment
+and empty lines skipped), its line in the file and the column. Rows in another unit than the rest (metres
 among millimetres, degrees among radians) are refused by row; a whole file in another unit is
 refused by the calibration's unit check (:func:`jaxcal.calibrate`), which compares it with the
 robot.
@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import itertools
 import math
 import re
 from pathlib import Path
@@ -236,19 +237,56 @@ def _header_read(header) -> str:
 
 
 def _records(lines: list[str]) -> list[tuple[int, list[str]]]:
-    """``(line number, fields)`` of the non-blank lines. Spreadsheet exports are read as written:
-    leading ``#`` comment lines and Excel's ``sep=;`` line are skipped, and the delimiter is the
-    header's (a comma, else a semicolon or a tab)."""
+    """``(line number, fields)`` of the lines that hold data. Spreadsheet exports are read as
+    written: ``#`` comment lines (before the header, or a row commented out), Excel's ``sep=;``
+    line and lines of empty fields (``,,,``: formatted empty cells) are skipped, and the delimiter
+    is the header's (a comma, else a semicolon or a tab)."""
     start, delimiter = 0, None
-    while start < len(lines) and (not lines[start].strip() or lines[start].lstrip().startswith("#")):
+    while start < len(lines):
+        text = lines[start].strip()
+        if delimiter is None and text.lower().startswith("sep=") and len(text) == 5:
+            delimiter = text[4]
+        elif text and not text.startswith("#"):
+            break
         start += 1
-    if start < len(lines) and lines[start].strip().lower().startswith("sep=") and len(lines[start].strip()) == 5:
-        delimiter, start = lines[start].strip()[4], start + 1
     if delimiter is None and start < len(lines):
         head = lines[start]
         delimiter = next((d for d in (",", ";", "\t") if d in head), ",")
     reader = csv.reader(lines[start:], delimiter=delimiter or ",")
-    return [(start + reader.line_num, [v.strip() for v in rec]) for rec in reader if rec]
+    out = []
+    for rec in reader:
+        fields = [v.strip() for v in rec]
+        if any(fields) and not fields[0].startswith("#"):
+            out.append((start + reader.line_num, fields))
+    return out
+
+
+def _fitted_to(header: list[str], rec: list[str]) -> list[str]:
+    """``rec`` with as many fields as ``header`` where the two differ only by trailing empty fields
+    (a spreadsheet's trailing separators on some lines, or on the header alone); else as it is."""
+    n_head = len(header) - len(list(itertools.takewhile(lambda v: not v, reversed(header))))
+    n_rec = len(rec) - len(list(itertools.takewhile(lambda v: not v, reversed(rec))))
+    if len(rec) != len(header) and n_head <= len(rec) and n_rec <= len(header):
+        return (rec + [""] * len(header))[: len(header)]
+    return rec
+
+
+def _decoded(raw: bytes, path) -> str:
+    """The file's text: UTF-8 (with or without a byte-order mark), UTF-16 with its mark (Excel's
+    "Unicode text"), else Windows-1252 (Excel's "CSV" on Windows; the numbers read the same)."""
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return raw.decode("utf-16")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        try:
+            return raw.decode("cp1252")
+        except UnicodeDecodeError:
+            line = raw[: e.start].count(b"\n") + 1
+            raise DataError(
+                f"{path}: line {line}: byte {raw[e.start]:#04x} is neither UTF-8 nor Windows-1252 text; save the "
+                f"file as CSV UTF-8"
+            ) from None
 
 
 def read_table(path, expected: str, what: str = "measurement"):
@@ -257,12 +295,10 @@ def read_table(path, expected: str, what: str = "measurement"):
     empty (``expected`` says what the header should hold) or repeats a column name."""
     path = Path(path)
     try:
-        with path.open(newline="", encoding="utf-8-sig") as f:
-            lines = f.read().splitlines()
-        records = _records(lines)
+        records = _records(_decoded(path.read_bytes(), path).splitlines())
     except FileNotFoundError:
         raise DataError(f"{what} file not found: {path}") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as e:
+    except (OSError, UnicodeError, csv.Error) as e:
         raise DataError(f"{path}: cannot read as a CSV text file: {e}") from None
     if not records:
         raise DataError(f"{path}: file is empty; {expected}")
@@ -278,7 +314,7 @@ def read_table(path, expected: str, what: str = "measurement"):
             )
             raise DataError(f"{path}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1}){clash}")
         seen[name] = i
-    return str(path), header, records[1:]
+    return str(path), header, [(line, _fitted_to(header, rec)) for line, rec in records[1:]]
 
 
 def require_rows(records, src: str) -> None:

@@ -381,6 +381,19 @@ def test_missing_file(tmp_path, panda):
         read_measurements(tmp_path / "nope.csv", panda)
 
 
+@pytest.mark.parametrize("encoding", ["utf-16", "cp1252"])
+def test_a_file_saved_as_unicode_text_or_windows_text_reads_as_utf8(tmp_path, panda, encoding):
+    """Excel's "Unicode text" (UTF-16 with its byte-order mark) and its Windows "CSV"
+    (Windows-1252, here a degree sign in a column the calibration ignores) read as the UTF-8 file."""
+    text = HEADER7 + ",angle \u00b0\n" + "".join(r + ",0\n" for r in _spread_rows(4).splitlines())
+    want = read_measurements(_csv(tmp_path, text, "plain.csv"), panda)
+    p = tmp_path / "other.csv"
+    p.write_bytes(text.encode(encoding))
+    got = read_measurements(p, panda)
+    assert_array_equal(got.q, want.q)
+    assert_array_equal(got.measured, want.measured)
+
+
 def test_not_text(tmp_path, panda):
     p = tmp_path / "bin.csv"
     p.write_bytes(b"\xff\xfe\x00\x81garbage")
@@ -410,19 +423,37 @@ def test_measurements_shape_check():
 
 @pytest.mark.parametrize(
     "dialect",
-    ["semicolons", "tabs", "excel sep line", "comment lines first", "crlf"],
+    [
+        "semicolons",
+        "tabs",
+        "excel sep line",
+        "comment lines first",
+        "crlf",
+        "sep line then comments",
+        "a row commented out",
+        "lines of empty fields",
+        "trailing separators on rows",
+        "trailing separators on the header",
+    ],
 )
 def test_spreadsheet_exports_read_as_the_plain_file(tmp_path, panda, dialect):
     """The same table as a European spreadsheet (semicolons), a tab-separated export, a file whose
-    first line is Excel's ``sep=;``, one that opens with ``#`` comment lines, or Windows line ends:
-    the same measurements, and line numbers that still point into the file."""
+    first line is Excel's ``sep=;`` (before or after comments), one with ``#`` comment lines (or a
+    row commented out), Windows line ends, lines of empty cells, or trailing separators on the rows
+    or on the header alone: the same measurements, and line numbers that still point into the file."""
     plain = HEADER7 + "\n" + _spread_rows(4)
+    lines = plain.splitlines()
     text = {
         "semicolons": plain.replace(",", ";"),
         "tabs": plain.replace(",", "\t"),
         "excel sep line": "sep=;\n" + plain.replace(",", ";"),
         "comment lines first": "# exported by a tracker\n# units: mm, rad\n" + plain,
         "crlf": plain.replace("\n", "\r\n"),
+        "sep line then comments": "sep=;\n# exported by a tracker\n" + plain.replace(",", ";"),
+        "a row commented out": "\n".join(lines[:3] + ["# " + lines[2].replace("0.1", "9", 1)] + lines[3:]) + "\n",
+        "lines of empty fields": "\n".join(lines[:2] + [",,,,,,,,,", ",,"] + lines[2:]) + "\n",
+        "trailing separators on rows": "\n".join(lines[:1] + [r + ",," for r in lines[1:]]) + "\n",
+        "trailing separators on the header": "\n".join([lines[0] + ",,,"] + lines[1:]) + "\n",
     }[dialect]
     want = read_measurements(_csv(tmp_path, plain, "plain.csv"), panda)
     got = read_measurements(_csv(tmp_path, text), panda)

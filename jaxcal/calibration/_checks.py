@@ -223,11 +223,24 @@ def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> 
             if not robot.limits_given()[idx[-1]]
             else ""
         )
+        # some columns beyond in most poses, the other revolute ones within a turn's span (as
+        # radians are): the file may mix units by column
+        flat, n = q.reshape(-1, q.shape[-1]), q.shape[-1]
+        cols = over.reshape(-1, n).mean(0) > 0.5
+        rest = revolute & ~over.reshape(-1, n).any(0) & (np.ptp(flat, axis=0) <= 2 * np.pi)
+        alone = (
+            f"; only joint(s) {', '.join(repr(robot.joint_names[j]) for j in np.flatnonzero(cols))} look so, the "
+            "other revolute joints' values span less than a turn: if only those columns are in degrees, convert "
+            "them"
+            if rest.any()
+            else ""
+        )
         raise DataError(
             f"{'q: ' if rows is None else ''}joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the "
             "poses have a "
             f"revolute joint beyond a full turn and its limits ({where} = {q[idx]:.6g} rad); the "
-            f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"{turns}',
+            f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"{turns}'
+            f"{alone}",
             option="angle_unit",
         )
 

@@ -1,9 +1,10 @@
 """Checks of the data against the robot file before and beside a fit (:mod:`jaxcal.calibration._checks`)."""
 
 import numpy as np
+import pytest
 
 import jaxcal
-from jaxcal.calibration._checks import joint_ranges, limit_notes
+from jaxcal.calibration._checks import check_angles, joint_ranges, limit_notes
 from jaxcal.calibration._evaluate import outside
 
 
@@ -54,3 +55,22 @@ def test_a_continuous_joint_read_over_a_whole_turn_has_the_arc_it_visited_as_its
     ranges = dict(zip(robot.joint_names, zip(lo, hi)))
     probe = np.array([[3.1, 0.0, 100.0], [0.3, 0.0, 100.0], [6.0, 0.0, 100.0]])
     assert outside(robot, probe, ranges).tolist() == [True, False, False]
+
+
+@pytest.mark.parametrize("columns", [[5], [1, 5], list(range(6))])
+def test_joint_columns_in_degrees_are_named_where_the_others_are_radians(columns):
+    """UR5 readings within +-2.5 rad, the given columns written in degrees: refused, with the
+    option for a whole file in degrees; where the other columns span less than a turn (radians),
+    the message names the columns in degrees and says to convert them."""
+    ur5 = jaxcal.preset("ur5")
+    q = np.random.default_rng(3).uniform(-2.5, 2.5, (20, 6))
+    q[:, columns] = np.degrees(q[:, columns])
+    with pytest.raises(jaxcal.DataError, match="look like degrees") as e:
+        check_angles(ur5, q, rows=np.arange(1, 21))
+    msg = str(e.value)
+    assert 'angle_unit="deg"' in msg
+    named = ", ".join(repr(ur5.joint_names[j]) for j in columns)
+    if len(columns) < 6:
+        assert f"only joint(s) {named} look so" in msg and "convert them" in msg
+    else:
+        assert "only joint(s)" not in msg
