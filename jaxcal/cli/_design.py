@@ -158,7 +158,9 @@ def design(
     # the pose file and its summary together, or neither; said once written
     with console.capture() as said, all_or_nothing():
         write_poses(out, result.q, r)
-        console.print(f"wrote {out}")
+        length, angle = r.units
+        in_units = f"joint values in {angle}" + (f", {length} for prismatic joints" if "P" in r.joint_types else "")
+        console.print(f"wrote {out} ({in_units}, the robot file's units)", highlight=False, markup=False)
         if json_out is not None:
             summary = result.to_dict()
             summary["validation_poses"] = (
@@ -167,9 +169,13 @@ def design(
                 else {"random": val_poses, "seed": seed, "within": "joint limits"}
             )
             summary["params_from"] = None if params_from is None else str(params_from)
-            summary["points_mm"] = None if measured is None else measured.tolist()
+            summary["points_mm"] = None if measured is None or not measured.size else measured.tolist()
             # jaxcal's own units, whatever the robot file's (the pose file --out is in those)
-            summary["units"] = {"q": "rad, mm for prismatic joints", "min_distance": "rad, mm for prismatic joints"}
+            summary["units"] = {
+                "q": "rad, mm for prismatic joints",
+                "min_distance": "rad, mm for prismatic joints",
+                "pose_file": in_units,
+            }
             write_atomic(json_out, json_text(summary))
             console.print(f"wrote {json_out}")
     console.file.write(said.get())

@@ -262,6 +262,7 @@ def optimal_poses(
             "start_pool": start_pool,
             "start_losses": [float(v) for v in losses],
             "feasible_starts": int(good.sum()),
+            "start_feasible": [bool(g) for g in good],
             "converged_starts": int(ok.sum()),
             "max_evaluations": int(evals.max()),
             "optimise_seconds": seconds,

@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
 from ._problem import CRITERIA, value
+
+STARTS_AGREE = 1e-3
+"""Optimiser starts none of which met its tolerance, but whose criteria (each feasible start's)
+end within this relative spread, have found one flat optimum: said as a note, not a warning."""
 
 LABELS = {
     "d": "log det information (D, larger is better)",
@@ -99,11 +104,30 @@ class PoseDesign:
             else f"(random: {R} sets of {N} poses within the joint limits, region and view if given)"
         )
         if self.details.get("converged_starts") == 0:  # a solver that stopped short says so
-            lines.append(
-                f"warning: none of the {self.details['starts']} optimiser starts converged (the most evaluations "
-                f"one used: {self.details['max_evaluations']}): the poses are the best point reached, not an optimum"
-            )
+            lines.append(self._stopped_short())
         return "\n".join(lines)
+
+    def _stopped_short(self) -> str:
+        """What a design none of whose optimiser starts met its tolerance says: a warning, or a
+        note where the feasible starts' criteria ended together (:data:`STARTS_AGREE`)."""
+        d = self.details
+        said = (
+            f"none of the {d['starts']} optimiser starts converged (the most evaluations one used: "
+            f"{d['max_evaluations']})"
+        )
+        ok = [v for v, f in zip(d.get("start_losses", []), d.get("start_feasible", [])) if f and np.isfinite(v)]
+        if len(ok) < 2:
+            return f"warning: {said}: the poses are the best point reached, not an optimum"
+        spread = math.expm1(max(ok) - min(ok))  # the losses are logs of the criterion
+        if spread <= STARTS_AGREE:
+            return (
+                f"note: {said}, but the {len(ok)} starts' criteria ended within {spread:.2%} of one another: a "
+                f"flat optimum, which more evaluations would barely improve"
+            )
+        return (
+            f"warning: {said}, and the {len(ok)} starts' criteria ended {spread:.1%} apart: the poses are the best "
+            f"point reached, not an optimum (more --starts may find a better one)"
+        )
 
     def to_dict(self) -> dict:
         """JSON-ready summary (without the random samples)."""

@@ -18,6 +18,9 @@ def test_design_then_montecarlo_on_its_poses(monkeypatch, capsys, tmp_path):
     assert "random median" in stdout
     d = json.loads(js.read_text())
     assert out.read_text().startswith("q1,q2,q3,q4,q5,q6\n") and d["feasible"]
+    # the pose file's units said where it is written and in the summary; no point for full poses
+    assert f"wrote {out} (joint values in rad, the robot file's units)" in " ".join(stdout.split())
+    assert d["units"]["pose_file"] == "joint values in rad" and d["points_mm"] is None
     code, stdout, err = run_cli(
         monkeypatch, capsys, "montecarlo", "paper-6r", "--poses-file", out, "--robots", "64", "--repeats", "0",
         "--json", mc,
