@@ -240,7 +240,8 @@ def _records(lines: list[str]) -> list[tuple[int, list[str]]]:
     """``(line number, fields)`` of the lines that hold data. Spreadsheet exports are read as
     written: ``#`` comment lines (before the header, or a row commented out), Excel's ``sep=;``
     line and lines of empty fields (``,,,``: formatted empty cells) are skipped, and the delimiter
-    is the header's (a comma, else a semicolon or a tab)."""
+    is the header's: of a comma, a semicolon and a tab, the one that splits it into most names
+    (a comma inside a name of a semicolon file is part of the name)."""
     start, delimiter = 0, None
     while start < len(lines):
         text = lines[start].strip()
@@ -249,9 +250,9 @@ def _records(lines: list[str]) -> list[tuple[int, list[str]]]:
         elif text and not text.startswith("#"):
             break
         start += 1
-    if delimiter is None and start < len(lines):
+    if delimiter is None and start < len(lines):  # the one that splits the header into most names
         head = lines[start]
-        delimiter = next((d for d in (",", ";", "\t") if d in head), ",")
+        delimiter = max((",", ";", "\t"), key=lambda d: len(next(csv.reader([head], delimiter=d))))
     reader = csv.reader(lines[start:], delimiter=delimiter or ",")
     out = []
     for rec in reader:

@@ -434,6 +434,7 @@ def test_measurements_shape_check():
         "lines of empty fields",
         "trailing separators on rows",
         "trailing separators on the header",
+        "semicolons and a comma in a name",
     ],
 )
 def test_spreadsheet_exports_read_as_the_plain_file(tmp_path, panda, dialect):
@@ -454,6 +455,10 @@ def test_spreadsheet_exports_read_as_the_plain_file(tmp_path, panda, dialect):
         "lines of empty fields": "\n".join(lines[:2] + [",,,,,,,,,", ",,"] + lines[2:]) + "\n",
         "trailing separators on rows": "\n".join(lines[:1] + [r + ",," for r in lines[1:]]) + "\n",
         "trailing separators on the header": "\n".join([lines[0] + ",,,"] + lines[1:]) + "\n",
+        "semicolons and a comma in a name": "\n".join(
+            [lines[0].replace(",", ";") + ";note, operator"] + [r.replace(",", ";") + ";ok" for r in lines[1:]]
+        )
+        + "\n",
     }[dialect]
     want = read_measurements(_csv(tmp_path, plain, "plain.csv"), panda)
     got = read_measurements(_csv(tmp_path, text), panda)
