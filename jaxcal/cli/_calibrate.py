@@ -250,7 +250,7 @@ def calibrate(
                 res.robot.replace(name=f"{nominal.name}-calibrated"), out_robot, comment=comment,
                 training_ranges=res.training_ranges, points=points, point_numbers=numbers,
             )  # fmt: skip
-            console.print(f"calibrated robot written to {out_robot}")
+            console.print(f"calibrated robot written to {out_robot}", soft_wrap=True, highlight=False, markup=False)
             if res.model.n_points == 1:
                 console.print(
                     "  its tool origin is the measured point; the tool's orientation was not measured (the nominal "
@@ -276,7 +276,7 @@ def calibrate(
                 template=urdf, base_link=base_link, tip_link=tip_link, training_ranges=res.training_ranges,
                 point_numbers=numbers,
             )  # fmt: skip
-            console.print(f"calibrated model written to {path}")
+            console.print(f"calibrated model written to {path}", soft_wrap=True, highlight=False, markup=False)
             if bent is not None:
                 console.print(
                     f"[yellow]warning:[/yellow] the model has joint compliances, written as <jaxcal_compliance> "
@@ -287,12 +287,12 @@ def calibrate(
                 )
         if json_out is not None:
             write_atomic(json_out, res.to_json())
-            console.print(f"report written to {json_out}")
+            console.print(f"report written to {json_out}", soft_wrap=True, highlight=False, markup=False)
         if plots is not None:
             from ..plots import calibration_figures
 
             for p in calibration_figures(res, plots):
-                console.print(f"plot written to {p}")
+                console.print(f"plot written to {p}", soft_wrap=True, highlight=False, markup=False)
         _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid)
     console.file.write(said.get())
 
@@ -346,7 +346,12 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid)
                 "heldout_rms_mm_with_compliance": held,
             }
         base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment)
-        console.print(f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):")
+        console.print(
+            f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):",
+            soft_wrap=True,
+            highlight=False,
+            markup=False,
+        )
         for what, T in (("base (measurement frame -> base)", base), ("tool (tool0 -> TCP)", tool)):
             xyz = ", ".join(f"{v:.4f}" for v in T[:3, 3])
             rpy = ", ".join(f"{v + 0.0:.6f}" for v in np.asarray(matrix_to_rpy(np.asarray(T)[:3, :3])))
@@ -366,10 +371,10 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid)
             )
     if out_dh is not None:
         save_dh_table(res, out_dh)
-        console.print(f"DH table written to {out_dh}")
+        console.print(f"DH table written to {out_dh}", soft_wrap=True, highlight=False, markup=False)
     if report is not None:
         save_report(res, meas, report)
-        console.print(f"report written to {report}")
+        console.print(f"report written to {report}", soft_wrap=True, highlight=False, markup=False)
 
 
 def _weight_source(rep: dict, which: str) -> str:

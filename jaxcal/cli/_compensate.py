@@ -103,7 +103,12 @@ def compensate(
             values = [repr(float(v)) for v in qk] + [repr(float(ep)), repr(float(er))][: 1 + rot] + [str(v) for v in f]
             lines.append(",".join(values))
         write_atomic(out, "\n".join(lines) + "\n")
-        console.print(f"compensated commands written to {out} (rows to send: reached, within_limits and on_branch = 1)")
+        console.print(
+            f"compensated commands written to {out} (rows to send: reached, within_limits and on_branch = 1)",
+            soft_wrap=True,
+            highlight=False,
+            markup=False,
+        )
     if bad.size:
         hint = (
             "; without joint columns every solve starts at the middle of the joint limits: give the nominal "

@@ -160,7 +160,9 @@ def design(
         write_poses(out, result.q, r)
         length, angle = r.units
         in_units = f"joint values in {angle}" + (f", {length} for prismatic joints" if "P" in r.joint_types else "")
-        console.print(f"wrote {out} ({in_units}, the robot file's units)", highlight=False, markup=False)
+        console.print(
+            f"wrote {out} ({in_units}, the robot file's units)", soft_wrap=True, highlight=False, markup=False
+        )
         if json_out is not None:
             summary = result.to_dict()
             summary["validation_poses"] = (
@@ -177,5 +179,5 @@ def design(
                 "pose_file": in_units,
             }
             write_atomic(json_out, json_text(summary))
-            console.print(f"wrote {json_out}")
+            console.print(f"wrote {json_out}", soft_wrap=True, highlight=False, markup=False)
     console.file.write(said.get())

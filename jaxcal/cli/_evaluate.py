@@ -110,4 +110,4 @@ def evaluate(
         console.print(f"[yellow]warning:[/yellow] {w}", highlight=False)
     if json_out is not None:
         write_atomic(json_out, json_text(rep))
-        console.print(f"report written to {json_out}")
+        console.print(f"report written to {json_out}", soft_wrap=True, highlight=False, markup=False)

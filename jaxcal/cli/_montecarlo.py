@@ -216,7 +216,7 @@ def montecarlo(
         )
     if json_out and out["complete"]:  # a summary of part of a study is not written
         write_atomic(json_out, json_text(out))
-        console.print(f"wrote {json_out}")
+        console.print(f"wrote {json_out}", soft_wrap=True, highlight=False, markup=False)
 
 
 def _pair(text: str) -> tuple[float, float]:

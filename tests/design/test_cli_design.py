@@ -9,7 +9,9 @@ from helpers import run_cli
 
 
 def test_design_then_montecarlo_on_its_poses(monkeypatch, capsys, tmp_path):
-    out, js, mc = tmp_path / "poses.csv", tmp_path / "design.json", tmp_path / "mc.json"
+    # a long folder name with brackets: paths said whole, not wrapped or read as markup
+    runs = tmp_path / ("run[1]-" + "x" * 80)
+    out, js, mc = runs / "poses.csv", runs / "design.json", tmp_path / "mc.json"
     code, stdout, err = run_cli(
         monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", out, "--starts", "2",
         "--no-estimate-base", "--no-estimate-tool", "--random-sets", "50", "--json", js,
@@ -19,7 +21,7 @@ def test_design_then_montecarlo_on_its_poses(monkeypatch, capsys, tmp_path):
     d = json.loads(js.read_text())
     assert out.read_text().startswith("q1,q2,q3,q4,q5,q6\n") and d["feasible"]
     # the pose file's units said where it is written and in the summary; no point for full poses
-    assert f"wrote {out} (joint values in rad, the robot file's units)" in " ".join(stdout.split())
+    assert f"wrote {out} (joint values in rad, the robot file's units)\n" in stdout and f"wrote {js}\n" in stdout
     assert d["units"]["pose_file"] == "joint values in rad" and d["points_mm"] is None
     code, stdout, err = run_cli(
         monkeypatch, capsys, "montecarlo", "paper-6r", "--poses-file", out, "--robots", "64", "--repeats", "0",
