@@ -20,8 +20,12 @@ from ._app import COMMAND_FLAGS, app, err_console, say_error
 def main():
     """Entry point: a jaxcal error prints as one line, exit code 2 (3 for a fit that is not a
     calibration); Ctrl-C as one line, 130."""
+    import warnings
+
     from ..errors import ImplausibleFitError, JaxcalError
 
+    shown = warnings.showwarning
+    warnings.showwarning = _warned
     try:
         use_compilation_cache()
         COMMAND_FLAGS.clear()  # a command sets its own spellings; none carried from an earlier run in-process
@@ -38,6 +42,15 @@ def main():
         raise SystemExit(3 if isinstance(e, ImplausibleFitError) else 2) from None
     except KeyboardInterrupt:
         _interrupted()
+    finally:
+        warnings.showwarning = shown
+
+
+def _warned(message, category, filename, lineno, file=None, line=None):
+    """A library warning the command does not say in its own words, as one line in the command's
+    form (``warning: ...``), without Python's file and line."""
+    err_console.print("[yellow]warning:[/yellow] ", end="", highlight=False)
+    err_console.print(str(message), highlight=False, markup=False, soft_wrap=True)
 
 
 def _interrupted():

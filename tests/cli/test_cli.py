@@ -297,3 +297,25 @@ def test_the_help_names_every_preset(monkeypatch, capsys, command):
     text = re.sub(r"[\s│]", "", out)  # rich wraps and boxes the help
     for name in PRESETS:
         assert name in text, name
+
+
+def test_a_library_warning_is_said_as_one_line_of_the_command(monkeypatch, capsys):
+    """A warning from inside the library reaches the terminal as the command's own
+    ``warning: ...`` line, not Python's ``file:line: UserWarning`` form."""
+    import warnings
+
+    from jaxcal.cli import _info
+
+    loaded = _info.load_robot_arg
+
+    def load(*a, **k):
+        warnings.warn("greedy base set topped up [by QR]", UserWarning, stacklevel=1)
+        return loaded(*a, **k)
+
+    monkeypatch.setattr(_info, "load_robot_arg", load)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        code, _, err = run_cli(monkeypatch, capsys, "info", "ur5")
+    assert code in (0, None)
+    assert err == "warning: greedy base set topped up [by QR]\n"
+    assert warnings.showwarning is not None and "jaxcal" not in getattr(warnings.showwarning, "__module__", "")
