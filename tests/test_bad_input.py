@@ -547,6 +547,18 @@ CLI = {
         "--noise-mm must be >= 0",
     ),
     "reproduce --pairs 0": (lambda f: ["reproduce", "--pairs", "0", "--out", f["good"].parent / "o"], "--pairs"),
+    "reproduce --seed -3": (
+        lambda f: ["reproduce", "--seed", "-3", "--out", f["good"].parent / "o"],
+        "--seed must be an integer >= 0, got -3",
+    ),
+    "montecarlo elimination of positions": (
+        lambda f: ["montecarlo", "paper-6r", "--robots", "2", "--method", "elimination", "--position-only"],
+        "needs full-pose measurements, not positions alone (--position-only)",
+    ),
+    "montecarlo elimination estimating the base": (
+        lambda f: ["montecarlo", "paper-6r", "--robots", "2", "--method", "elimination", "--estimate-base"],
+        "needs a known base frame, not one estimated (--estimate-base)",
+    ),
     "calibrate header-only file": (lambda f: ["calibrate", "paper-6r", f["header"]], "header only, no data rows"),
     "calibrate mixed units": (lambda f: ["calibrate", "paper-6r", f["mixed"]], "mixed length units?"),
     "calibrate joints in degrees": (
@@ -577,6 +589,7 @@ def test_cli_one_line_exit_2(tmp_path, monkeypatch, capsys, case):
     assert len(lines) == 1 and lines[0].startswith("error: "), err
     assert msg in lines[0], err
     assert "Traceback" not in err + out
+    assert not (tmp_path / "o").exists()  # a refused reproduce leaves no folder
 
 
 def test_calibrate_leaves_out_a_point_with_a_sentinel_before_reading_it(tmp_path, monkeypatch, capsys):

@@ -853,12 +853,18 @@ def _pairs_problems(plan, ident, ok) -> tuple[str, ...]:
 
 
 def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
-    if n_points or layout.base or layout.tool or layout.camera != "none":
-        raise DataError(
-            "the elimination method needs full-pose measurements and known base/tool frames: pass "
-            "estimate_base=False, estimate_tool=False",
-            option="method",
-        )
+    # the first of what it cannot do, named by its own option
+    for given, option, why in (
+        (n_points, "position_only", "full-pose measurements, not positions alone"),
+        (layout.camera != "none", "camera", "full-pose measurements, not a camera model"),
+        (layout.base, "estimate_base", "a known base frame, not one estimated"),
+        (layout.tool, "estimate_tool", "a known tool frame, not one estimated"),
+    ):
+        if given:
+            raise DataError(
+                f"the elimination method needs {why} ({option}), or a least-squares method ('gn', 'lm')",
+                option=option,
+            )
     sp = opts.sigma_pos_mm or 1.0
     sr = opts.sigma_rot_rad or 1e-3
     x, ok, steps, plan = calibrate_design_batch(

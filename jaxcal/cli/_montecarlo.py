@@ -206,6 +206,18 @@ def montecarlo(
     for k, v in rows:
         t.add_row(k, v)
     console.print(t)
+    if out["converged_fraction"] < 1:  # the figures are over every robot, converged or not
+        stopped = out["robots_done"] - round(out["converged_fraction"] * out["robots_done"])
+        pairs = (
+            "; one pose pair per elimination step: more --poses give more pairs"
+            if out["elimination_pairs_per_step"] == 1
+            else ""
+        )
+        console.print(
+            f"[yellow]warning:[/yellow] {stopped} of {out['robots_done']} robots did not converge (in "
+            f"{out['max_steps_taken']} steps); the figures above include their estimates{pairs}",
+            highlight=False,
+        )
     if out.get("crlb_efficiency_note"):
         console.print(f"[yellow]warning:[/yellow] {out['crlb_efficiency_note']}", highlight=False)
     if out["conditions"].get("given_poses_meet_conditions") is False:

@@ -455,6 +455,7 @@ def run_montecarlo(
     described += tuple(k for k in ("outliers", "keep_outliers") if k in definition)
     out_d = {k: definition[k] for k in described} | {
         "conditions": conditions,
+        "elimination_pairs_per_step": None if design is None else design[0],
         "devices": describe(devs),
         "chunk_robots": c,
         "chunks": n_chunks,

@@ -71,9 +71,9 @@ def run_reproduce(
     for name, v in (("noise_mm", sigma_pos), ("noise_rad", sigma_rot)):
         if not (np.isfinite(v) and v >= 0):
             raise DataError(f"{name} must be >= 0, got {v}", option=name)
-    for name, v in (("pairs", n_pairs), ("inspect", n_inspect), ("repeats", repeats)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-            raise DataError(f"{name} must be an integer >= 1, got {v!r}", option=name)
+    for name, v, lo in (("seed", seed, 0), ("pairs", n_pairs, 1), ("inspect", n_inspect, 1), ("repeats", repeats, 1)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise DataError(f"{name} must be an integer >= {lo}, got {v!r}", option=name)
     step = progress or (lambda s: None)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -130,8 +130,27 @@ def test_montecarlo_elimination_uses_its_pair_design():
     assert out["n_poses"] == 2 * 5 * 2 + 2  # 2 pairs per step x 5 steps + 2 absolute poses
     assert "pair design" in out["conditions"]["calibration_poses"]  # not "random"
     assert out["conditions"]["calibration_poses"].endswith("= 22 poses")  # as asked: no "(of the ... asked)"
-    assert out["converged_fraction"] == 1.0
+    assert out["converged_fraction"] == 1.0 and out["elimination_pairs_per_step"] == 2
     assert out["validation_pos_rms_mm"] < 1e-4  # only the d3 truth error's second-order trace
+
+
+def test_cli_montecarlo_says_how_many_robots_did_not_converge(tmp_path):
+    """One pose pair per elimination step (10 poses asked): robots that do not converge are
+    counted in a warning, which says the figures include them and what gives more pairs."""
+    from typer.testing import CliRunner
+
+    from jaxcal.cli import app
+
+    out = tmp_path / "mc.json"
+    args = ["montecarlo", "paper-6r", "--robots", "8", "--poses", "10", "--method", "elimination"]
+    r = CliRunner().invoke(app, args + ["--repeats", "0", "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    stopped = round(8 * (1 - d["converged_fraction"]))
+    assert d["elimination_pairs_per_step"] == 1 and stopped > 0
+    text = " ".join(r.output.split())
+    assert f"warning: {stopped} of 8 robots did not converge (in {d['max_steps_taken']} steps)" in text
+    assert "more --poses give more pairs" in text
 
 
 def test_batched_crlb_equals_per_robot_crlb():
