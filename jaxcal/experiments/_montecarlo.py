@@ -408,7 +408,7 @@ def run_montecarlo(
     base_idx = list(ident.base)
     acc = _Sums.empty(len(base_idx))
     for i in np.flatnonzero(done):
-        acc.add(folder.load(int(i)))
+        acc.add(folder.load(int(i), n_robots))
     step(acc.n, n_robots, "robots")
     first, warm, computed = None, [], 0
     t_start = time.perf_counter()

@@ -9,7 +9,9 @@ so that a study interrupted anywhere continues where it stopped.
 
 Every file is written atomically (:func:`jaxcal._io.write_atomic`), so a chunk file exists only
 complete. A rerun with the same folder checks that it asks for the same study, then computes
-only the chunks without a file. With several processes (:func:`jax.distributed.initialize`),
+only the chunks without a file; each chunk read holds its study's hash and its robots, so one
+from another study (a folder whose ``study.json`` was replaced, a file copied in) or a damaged
+one is refused by name, never summed in. With several processes (:func:`jax.distributed.initialize`),
 process 0 writes and every process reads: the folder must be on a file system they share.
 """
 
@@ -26,7 +28,7 @@ import numpy as np
 from .._io import json_text, write_atomic
 from ..errors import DataError
 
-FORMAT = 2
+FORMAT = 3
 """What a study's chunks hold and how their errors are measured: a folder of another format is
 another study, refused rather than mixed with this one's chunks."""
 
@@ -57,7 +59,7 @@ class StudyFolder:
                 if k != "chunk_robots" and old.get(k) != self.definition.get(k):
                     raise DataError(
                         f"out {self.path} holds another study ({k}: {old.get(k)!r} there, "
-                        f"{self.definition.get(k)!r} now): use another folder, or delete it to start over",
+                        f"{self.definition.get(k)!r} now): use another folder, or delete the folder to start over",
                         option="out",
                     )
             self.definition["chunk_robots"] = old["chunk_robots"]  # its chunking, whatever the budget now
@@ -67,6 +69,11 @@ class StudyFolder:
     @property
     def chunk_robots(self) -> int:
         return int(self.definition["chunk_robots"])
+
+    @property
+    def study_id(self) -> str:
+        """A hash of the definition (its chunking included): what every chunk file carries."""
+        return hashlib.sha256(json.dumps(self.definition, sort_keys=True).encode()).hexdigest()[:16]
 
     def chunk_path(self, i: int) -> Path:
         return self.path / f"chunk-{i:06d}.npz"
@@ -85,12 +92,27 @@ class StudyFolder:
         if jax.process_index() != 0:
             return
         buf = io.BytesIO()
-        np.savez(buf, **record)
+        np.savez(buf, **record, study=np.array(self.study_id))
         write_atomic(self.chunk_path(i), buf.getvalue())
 
-    def load(self, i: int) -> dict:
-        with np.load(self.chunk_path(i)) as f:
-            return {k: f[k] for k in f.files}
+    def load(self, i: int, n_robots: int) -> dict:
+        """Chunk ``i``'s record, checked to be this study's chunk ``i`` of ``n_robots`` robots;
+        :class:`DataError` naming the file otherwise."""
+        path = self.chunk_path(i)
+        again = "delete that file and rerun to compute its robots again (the other chunks are kept)"
+        try:
+            with np.load(path) as f:
+                rec = {k: f[k] for k in f.files}
+        except Exception as e:  # a truncated or damaged file: zip, CRC or pickle errors alike
+            raise DataError(f"out {path}: cannot be read ({type(e).__name__}: {e}); {again}", option="out") from None
+        c = self.chunk_robots
+        want = [i * c, min((i + 1) * c, n_robots)]
+        if str(rec.pop("study", "")) != self.study_id:
+            raise DataError(f"out {path}: a chunk of another study than the folder's study.json; {again}", option="out")
+        if rec.get("robots") is None or rec["robots"].tolist() != want:
+            got = None if rec.get("robots") is None else rec["robots"].tolist()
+            raise DataError(f"out {path}: holds robots {got}, where this chunk is robots {want}; {again}", option="out")
+        return rec
 
     def write_summary(self, summary: dict) -> None:
         if jax.process_index() == 0:

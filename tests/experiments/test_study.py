@@ -53,3 +53,33 @@ def test_a_folder_of_another_study_is_refused(tmp_path):
     (tmp_path / "file").write_text("")
     with pytest.raises(DataError, match="is a file, not a folder"):
         run_montecarlo(ROBOT, out=tmp_path / "file", **STUDY)
+
+
+def test_a_chunk_of_another_study_or_a_damaged_one_is_refused_by_name(tmp_path):
+    """Chunk files are checked as they are read: one of another study (the folder's study.json
+    deleted and the folder reused with another seed, or a file copied in), one in another
+    chunk's place, and a truncated one are each refused naming the file and what to delete;
+    the same study rerun after its study.json was deleted reads its own chunks."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    run_montecarlo(ROBOT, out=a, max_chunks=2, **STUDY)
+    run_montecarlo(ROBOT, out=b, max_chunks=1, **dict(STUDY, seed=8))
+    (a / "study.json").unlink()  # the same study again: its own chunks are read
+    again = run_montecarlo(ROBOT, out=a, max_chunks=1, **STUDY)
+    assert again["chunks_done"] == 3 and again["chunks_computed"] == 1  # chunks 0 and 1 read, not computed
+    (a / "study.json").unlink()
+    with pytest.raises(DataError, match=r"chunk-000000\.npz: a chunk of another study .*delete that file"):
+        run_montecarlo(ROBOT, out=a, max_chunks=1, **dict(STUDY, seed=8))
+    (a / "study.json").unlink()
+    run_montecarlo(ROBOT, out=a, max_chunks=1, **STUDY)  # back to its own study.json
+    (a / "chunk-000000.npz").write_bytes((b / "chunk-000000.npz").read_bytes())
+    with pytest.raises(DataError, match=r"chunk-000000\.npz: a chunk of another study"):
+        run_montecarlo(ROBOT, out=a, max_chunks=1, **STUDY)
+    (a / "chunk-000000.npz").write_bytes((a / "chunk-000001.npz").read_bytes())
+    with pytest.raises(
+        DataError, match=r"chunk-000000\.npz: holds robots \[8, 16\], where this chunk is robots \[0, 8\]"
+    ):
+        run_montecarlo(ROBOT, out=a, max_chunks=1, **STUDY)
+    data = (a / "chunk-000001.npz").read_bytes()
+    (a / "chunk-000000.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(DataError, match=r"chunk-000000\.npz: cannot be read \(BadZipFile"):
+        run_montecarlo(ROBOT, out=a, max_chunks=1, **STUDY)
