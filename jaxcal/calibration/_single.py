@@ -828,7 +828,7 @@ MORE_PAIRS = "(n_pairs of jaxcal.solvers.design_poses; --pairs of jaxcal reprodu
 PAIRS_LOSE = "the elimination's pose pairs hold"
 
 
-def _pairs_problems(plan, ident, ok) -> tuple[str, ...]:
+def _pairs_problems(plan, ident, ok, joint_types) -> tuple[str, ...]:
     """Where the robust elimination's pairs lose what the poses tell a least-squares fit (its
     base set, ``ident``): a plan that identifies fewer parameters (a pair whose poses barely
     differ in its joint; no result then), or, where the sweeps did not settle, a step that holds
@@ -844,10 +844,16 @@ def _pairs_problems(plan, ident, ok) -> tuple[str, ...]:
         ) * len(ok)
     lost = lambda st: [plan.names[j] for j in st.columns if j not in st.free and plan.names[j] not in gn_fixed]  # noqa: E731
     mixed = [f"step {st.joint} holds {', '.join(lost(st))}" for st in plan.steps if lost(st)]
+    # the steps difference poses of turning joints: a sliding joint's pairs may never separate it
+    sliding = [str(j + 1) for j, t in enumerate(joint_types) if t == "P"]
+    cure = (
+        f"the arm's joint(s) {', '.join(sliding)} are prismatic, where more pairs may not help: use method='gn'"
+        if sliding
+        else f"use a design with more pairs per step {MORE_PAIRS}, or method='gn'"
+    )
     why = (
         f"not converged where {'; '.join(mixed)} at 0 for want of pose pairs, although these poses identify "
-        f"it: the sweeps then need not settle; use a design with more pairs per step {MORE_PAIRS}, or "
-        "method='gn'"
+        f"it: the sweeps then need not settle; {cure}"
     )
     return tuple("" if k or not mixed else why for k in ok)
 
@@ -879,7 +885,7 @@ def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
     # judged on the first data set's poses, as the plan is: only where every data set has them (a
     # Monte Carlo study draws a design per robot); the literal variant solves each block whole
     if opts.method == "elimination" and np.all(q == q[:1]):
-        problems = _pairs_problems(plan, ident, ok)
+        problems = _pairs_problems(plan, ident, ok, robot.joint_types)
         ok &= ~np.array([w.startswith(PAIRS_LOSE) for w in problems])
     else:
         problems = ("",) * R

@@ -197,3 +197,30 @@ def test_one_pair_per_step_that_cannot_settle_says_why():
     sim = S.simulate(robot, n_robots=1, q=q, seed=6, scales=scales)
     res = jaxcal.calibrate_batch(robot, sim.q, sim.measured, method="elimination", **DH)
     assert not res.converged[0] and "step 3 holds a2 at 0" in res.problems[0]
+    assert "more pairs per step" in res.problems[0] and "prismatic" not in res.problems[0]
+
+
+def test_an_arm_with_a_prismatic_joint_is_not_told_that_more_pairs_help(tmp_path):
+    """A six-joint arm whose joint 3 slides: with four pairs per step the sweeps do not settle
+    on step 3; the problem names the prismatic joint and the least-squares method, not a design
+    with more pairs."""
+    joints = [
+        (0.0, 300.0, 50.0, -np.pi / 2, "R", (-2.9, 2.9)),
+        (0.0, 0.0, 400.0, np.pi / 2, "R", (-2.0, 2.0)),
+        (0.0, 200.0, 0.0, 0.0, "P", (0.0, 300.0)),
+        (0.0, 100.0, 0.0, -np.pi / 2, "R", (-2.9, 2.9)),
+        (0.0, 0.0, 0.0, np.pi / 2, "R", (-2.9, 2.9)),
+        (0.0, 80.0, 0.0, 0.0, "R", (-2.9, 2.9)),
+    ]
+    text = 'name = "slide-3"\nconvention = "sdh"\n' + "".join(
+        f'[[joints]]\ntheta = {t}\nd = {d}\na = {a}\nalpha = {al}\ntype = "{k}"\nlimits = [{lo}, {hi}]\n'
+        for t, d, a, al, k, (lo, hi) in joints
+    )
+    (tmp_path / "slide.toml").write_text(text)
+    robot = jaxcal.load_robot(tmp_path / "slide.toml")
+    q = np.asarray(design_poses(jax.random.PRNGKey(0), robot, n_pairs=4))
+    sim = S.simulate(robot, n_robots=1, q=q, seed=6)
+    res = jaxcal.calibrate_batch(robot, sim.q, sim.measured, method="elimination", **DH)
+    assert not res.converged[0]
+    assert "joint(s) 3 are prismatic" in res.problems[0] and "use method='gn'" in res.problems[0]
+    assert "more pairs per step" not in res.problems[0]
