@@ -10,8 +10,8 @@ set ``T`` solves
 $$\Big(\sum_{k \in T} J_k^\top J_k + \mathrm{diag}(p^2)\Big)_{FF}\, x_F = \Big(\sum_{k \in T} J_k^\top r_k\Big)_F,$$
 
 summed over each training set once for all candidates. Thousands of such fits (every candidate on
-every training set, inside every outer fold) cost about a second, and only the chosen model is
-fitted in full (:mod:`._core`).
+every training set, inside every outer fold) are small linear solves, and only the chosen model
+is fitted in full (:mod:`._core`).
 
 ## The scoring rule
 Within one session, K-fold cross-validation asks how well a model predicts *new postures among

@@ -69,8 +69,8 @@ def test_repeats_of_a_posture_are_held_out_together():
 
 def test_a_held_out_figure_is_not_lowered_by_listing_each_pose_twice():
     """A file of 24 poses of a point on the tool, and the same file with every row listed twice:
-    the same information, so about the same held-out RMS (the folds differ), not the 23-29 %
-    lower one a pose's copy left in the training set gives. Both fits are plausible."""
+    the same information, so about the same held-out RMS (the folds differ), not the lower one a
+    pose's copy left in the training set gives. Both fits are plausible."""
     import warnings
 
     rng = np.random.default_rng(16)

@@ -510,7 +510,7 @@ def test_the_report_shows_a_bound_beyond_the_largest_count_and_a_dash_where_none
 
 def test_a_position_only_design_without_a_point_is_for_a_marker_off_the_last_axis(robot):
     """The tool origin of a DH flange lies on the last joint's axis, where a point hides that
-    joint's parameters (22 base parameters instead of 26) and the bound is some 20 % optimistic
+    joint's parameters (22 base parameters instead of 26) and the bound is over 15 % optimistic
     for any real marker. Without a point the design takes one just off the axis: the set and the
     bound of a marker 5 mm off it (the bound moves a few % with the marker's direction)."""
     kw = dict(estimate_base=True, estimate_tool=True, q_val=_random_q(robot, 60, 1))
