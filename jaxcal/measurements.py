@@ -26,8 +26,8 @@ prismatic joints take the length unit. Everything is converted to mm and rad on 
 
 Quaternions whose norm is within ``1e-3`` of 1 are normalised silently (files written with a few
 decimals are fine); anything further off is refused. Every problem raises
-:class:`jaxcal.DataError` naming the file, the data row (1-based, header not counted; blank, comment
-and empty lines skipped), its line in the file and the column. Rows in another unit than the rest (metres
+:class:`jaxcal.DataError` naming the file, the data row (1-based, header not counted; blank lines
+and lines of empty fields skipped), its line in the file and the column. Rows in another unit than the rest (metres
 among millimetres, degrees among radians) are refused by row; a whole file in another unit is
 refused by the calibration's unit check (:func:`jaxcal.calibrate`), which compares it with the
 robot.
@@ -238,27 +238,28 @@ def _header_read(header) -> str:
 
 def _records(lines: list[str]) -> list[tuple[int, list[str]]]:
     """``(line number, fields)`` of the lines that hold data. Spreadsheet exports are read as
-    written: ``#`` comment lines (before the header, or a row commented out), Excel's ``sep=;``
-    line and lines of empty fields (``,,,``: formatted empty cells) are skipped, and the delimiter
-    is the header's: of a comma, a semicolon and a tab, the one that splits it into most names
-    (a comma inside a name of a semicolon file is part of the name)."""
+    written: ``#`` comment lines and Excel's ``sep=;`` line before the header, and lines of empty
+    fields (``,,,``: formatted empty cells) anywhere, are skipped; the delimiter is the header's:
+    of a comma, a semicolon and a tab, the one that splits it into most names (a comma inside a
+    name of a semicolon file is part of the name). A ``#`` line below the header is a row, which
+    :func:`parse_rows` refuses if it is not one (an id column may hold ``#1``)."""
     start, delimiter = 0, None
     while start < len(lines):
-        text = lines[start].strip()
+        text = lines[start].lstrip(" ").rstrip("\r\n ")  # a tab may be the separator sep= names
         if delimiter is None and text.lower().startswith("sep=") and len(text) == 5:
             delimiter = text[4]
-        elif text and not text.startswith("#"):
+        elif text.strip(" ,;\t") and not text.startswith("#"):  # a line of empty cells is blank too
             break
         start += 1
     if delimiter is None and start < len(lines):  # the one that splits the header into most names
         head = lines[start]
         delimiter = max((",", ";", "\t"), key=lambda d: len(next(csv.reader([head], delimiter=d))))
     reader = csv.reader(lines[start:], delimiter=delimiter or ",")
-    out = []
+    out, first = [], start + 1  # a record's first line (a quoted field may span several)
     for rec in reader:
-        fields = [v.strip() for v in rec]
-        if any(fields) and not fields[0].startswith("#"):
-            out.append((start + reader.line_num, fields))
+        if any(fields := [v.strip() for v in rec]):
+            out.append((first, fields))
+        first = start + reader.line_num + 1
     return out
 
 
@@ -279,10 +280,10 @@ def _decoded(raw: bytes, path) -> str:
         return raw.decode("utf-16")
     try:
         return raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
+    except UnicodeDecodeError:
         try:
             return raw.decode("cp1252")
-        except UnicodeDecodeError:
+        except UnicodeDecodeError as e:  # the byte neither reads
             line = raw[: e.start].count(b"\n") + 1
             raise DataError(
                 f"{path}: line {line}: byte {raw[e.start]:#04x} is neither UTF-8 nor Windows-1252 text; save the "
@@ -421,8 +422,9 @@ def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray,
     values, rows, lines = [], [], []
     for k, (line, rec) in enumerate(records, start=1):
         where = f"{src}: row {k} (line {line})"
+        hash_ = "; it starts with '#': comment lines go before the header" if rec[0].startswith("#") else ""
         if len(rec) != len(header):
-            raise DataError(f"{where}: {len(rec)} fields, but the header has {len(header)} columns")
+            raise DataError(f"{where}: {len(rec)} fields, but the header has {len(header)} columns{hash_}")
         out = []
         for name, i in zip(columns, idx):
             text = rec[i].strip()
@@ -432,7 +434,7 @@ def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray,
                 v = float(text) if text else math.nan
             except ValueError:
                 comma = " (a decimal comma? write decimals with a point)" if re.fullmatch(r"[-+]?\d*,\d+", text) else ""
-                raise DataError(f"{where}, column {name!r}: not a number: {text!r}{comma}") from None
+                raise DataError(f"{where}, column {name!r}: not a number: {text!r}{comma}{hash_}") from None
             if math.isinf(v):
                 raise DataError(f"{where}, column {name!r}: value {text!r} is not finite")
             out.append(v)

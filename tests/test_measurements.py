@@ -357,6 +357,15 @@ BAD = {
         "Q1,Q2,Q3,Q4,Q5,Q6,Q7,X,Y,Z\n" + GOOD_ROW + ",1,2,3\n",
         r"no joint columns; expected q1\.\.q7 .*; the header was read as 'Q1', 'Q2', .*names are matched exactly",
     ),
+    "a row commented out": (
+        HEADER7 + "\n" + GOOD_ROW + ",1,2,3\n# " + GOOD_ROW + ",1,2,3\n",
+        r"row 2 \(line 3\), column 'q1': not a number: '# 0\.1'; it starts with '#': comment lines go before "
+        r"the header",
+    ),
+    "a comment below the header": (
+        HEADER7 + "\n" + GOOD_ROW + ',1,2,3\n# note,"bad batch\n' + GOOD_ROW + ",1,2,3\n",
+        r"row 2 \(line 3\): 2 fields, but the header has 10 columns; it starts with '#'",
+    ),
     "decimal comma": (
         HEADER7.replace(",", ";") + "\n" + GOOD_ROW.replace(",", ";").replace(".", ",") + ";1;2;3\n",
         r"row 1 \(line 2\), column 'q1': not a number: '0,1' \(a decimal comma\? write decimals with a point\)",
@@ -392,6 +401,14 @@ def test_a_file_saved_as_unicode_text_or_windows_text_reads_as_utf8(tmp_path, pa
     got = read_measurements(p, panda)
     assert_array_equal(got.q, want.q)
     assert_array_equal(got.measured, want.measured)
+
+
+def test_a_byte_neither_encoding_reads_is_named_by_its_line(tmp_path, panda):
+    """0xe9 reads in Windows-1252 (an e acute), 0x81 in neither: the error names 0x81's line."""
+    p = tmp_path / "bytes.csv"
+    p.write_bytes((HEADER7 + ",note\n" + GOOD_ROW + ",1,2,3,caf\xe9\n").encode("cp1252") + b"x\x81\n")
+    with pytest.raises(DataError, match=r"bytes\.csv: line 3: byte 0x81 is neither UTF-8 nor Windows-1252"):
+        read_measurements(p, panda)
 
 
 def test_not_text(tmp_path, panda):
@@ -430,17 +447,18 @@ def test_measurements_shape_check():
         "comment lines first",
         "crlf",
         "sep line then comments",
-        "a row commented out",
         "lines of empty fields",
         "trailing separators on rows",
         "trailing separators on the header",
         "semicolons and a comma in a name",
+        "an id column of #1, #2, ...",
+        "a tab named by a sep line",
     ],
 )
 def test_spreadsheet_exports_read_as_the_plain_file(tmp_path, panda, dialect):
     """The same table as a European spreadsheet (semicolons), a tab-separated export, a file whose
-    first line is Excel's ``sep=;`` (before or after comments), one with ``#`` comment lines (or a
-    row commented out), Windows line ends, lines of empty cells, or trailing separators on the rows
+    first line is Excel's ``sep=;`` (before or after comments), one with ``#`` comment lines first,
+    Windows line ends, lines of empty cells, or trailing separators on the rows
     or on the header alone: the same measurements, and line numbers that still point into the file."""
     plain = HEADER7 + "\n" + _spread_rows(4)
     lines = plain.splitlines()
@@ -451,10 +469,12 @@ def test_spreadsheet_exports_read_as_the_plain_file(tmp_path, panda, dialect):
         "comment lines first": "# exported by a tracker\n# units: mm, rad\n" + plain,
         "crlf": plain.replace("\n", "\r\n"),
         "sep line then comments": "sep=;\n# exported by a tracker\n" + plain.replace(",", ";"),
-        "a row commented out": "\n".join(lines[:3] + ["# " + lines[2].replace("0.1", "9", 1)] + lines[3:]) + "\n",
         "lines of empty fields": "\n".join(lines[:2] + [",,,,,,,,,", ",,"] + lines[2:]) + "\n",
         "trailing separators on rows": "\n".join(lines[:1] + [r + ",," for r in lines[1:]]) + "\n",
         "trailing separators on the header": "\n".join([lines[0] + ",,,"] + lines[1:]) + "\n",
+        "a tab named by a sep line": "sep=\t\n" + plain.replace(",", "\t"),
+        "an id column of #1, #2, ...": "\n".join(["id," + lines[0]] + [f"#{i},{r}" for i, r in enumerate(lines[1:])])
+        + "\n",
         "semicolons and a comma in a name": "\n".join(
             [lines[0].replace(",", ";") + ";note, operator"] + [r.replace(",", ";") + ";ok" for r in lines[1:]]
         )
