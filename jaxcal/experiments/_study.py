@@ -51,7 +51,9 @@ class StudyFolder:
         self.path = Path(path)
         if self.path.exists() and not self.path.is_dir():
             raise DataError(f"out {self.path}: is a file, not a folder", option="out")
-        self.definition = dict(definition, format=FORMAT)
+        # as study.json holds it (an int and a float of one value, numpy scalars): what is
+        # compared, written and hashed is one text
+        self.definition = json.loads(json_text(dict(definition, format=FORMAT)))
         manifest = self.path / "study.json"
         if manifest.exists():
             old = json.loads(manifest.read_text())
@@ -62,7 +64,7 @@ class StudyFolder:
                         f"{self.definition.get(k)!r} now): use another folder, or delete the folder to start over",
                         option="out",
                     )
-            self.definition["chunk_robots"] = old["chunk_robots"]  # its chunking, whatever the budget now
+            self.definition = old  # equal, and its chunking, whatever the budget now
         elif jax.process_index() == 0:
             write_atomic(manifest, json.dumps(self.definition, indent=2))
 

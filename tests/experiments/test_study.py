@@ -83,3 +83,11 @@ def test_a_chunk_of_another_study_or_a_damaged_one_is_refused_by_name(tmp_path):
     (a / "chunk-000000.npz").write_bytes(data[: len(data) // 2])
     with pytest.raises(DataError, match=r"chunk-000000\.npz: cannot be read \(BadZipFile"):
         run_montecarlo(ROBOT, out=a, max_chunks=1, **STUDY)
+
+
+def test_a_study_resumed_with_equal_values_written_otherwise_reads_its_chunks(tmp_path):
+    """A float where the first run gave an int, a NumPy integer for a count: the same study, its
+    chunk read, not refused as another study's."""
+    run_montecarlo(ROBOT, out=tmp_path, max_chunks=1, **dict(STUDY, sigma_pos=1))
+    again = run_montecarlo(ROBOT, out=tmp_path, max_chunks=1, **dict(STUDY, sigma_pos=1.0, n_robots=np.int64(20)))
+    assert again["chunks_done"] == 2 and again["chunks_computed"] == 1
