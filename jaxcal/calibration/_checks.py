@@ -195,6 +195,11 @@ def limit_notes(
     return tuple(out)
 
 
+MOVED_SPAN_RAD = 0.2
+"""A revolute column that spans less than this tells nothing of its unit (a joint held still, or
+nearly): the degrees hint by column needs every other revolute joint to move more."""
+
+
 def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> None:
     """Refuse joint angles that look like degrees: revolute values beyond both a full turn and
     the joint limits in most poses (a few such poses are left to the fit and its checks). A
@@ -227,12 +232,15 @@ def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> 
         # radians are): the file may mix units by column
         flat, n = q.reshape(-1, q.shape[-1]), q.shape[-1]
         cols = over.reshape(-1, n).mean(0) > 0.5
-        rest = revolute & ~over.reshape(-1, n).any(0) & (np.ptp(flat, axis=0) <= 2 * np.pi)
+        span = np.ptp(flat, axis=0)
+        # every other revolute joint moves (a joint held still tells no unit) within a turn's span
+        others = revolute & ~cols
+        rest = others & ~over.reshape(-1, n).any(0) & (span <= 2 * np.pi) & (span > MOVED_SPAN_RAD)
         alone = (
             f"; only joint(s) {', '.join(repr(robot.joint_names[j]) for j in np.flatnonzero(cols))} look so, the "
             "other revolute joints' values span less than a turn: if only those columns are in degrees, convert "
             "them"
-            if rest.any()
+            if cols.any() and others.any() and (rest == others).all()
             else ""
         )
         raise DataError(

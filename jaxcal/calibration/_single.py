@@ -843,18 +843,22 @@ def _pairs_problems(plan, ident, ok, joint_types) -> tuple[str, ...]:
             f"with more pairs {MORE_PAIRS}",
         ) * len(ok)
     lost = lambda st: [plan.names[j] for j in st.columns if j not in st.free and plan.names[j] not in gn_fixed]  # noqa: E731
-    mixed = [f"step {st.joint} holds {', '.join(lost(st))}" for st in plan.steps if lost(st)]
+    failing = [st for st in plan.steps if lost(st)]
+    mixed = [f"step {st.joint} holds {', '.join(lost(st))}" for st in failing]
     # the steps difference poses of turning joints: a sliding joint's pairs may never separate it
-    sliding = [str(j + 1) for j, t in enumerate(joint_types) if t == "P"]
-    cure = (
-        f"the arm's joint(s) {', '.join(sliding)} are prismatic, where more pairs may not help: use method='gn'"
-        if sliding
-        else f"use a design with more pairs per step {MORE_PAIRS}, or method='gn'"
-    )
-    why = (
-        f"not converged where {'; '.join(mixed)} at 0 for want of pose pairs, although these poses identify "
-        f"it: the sweeps then need not settle; {cure}"
-    )
+    sliding = [str(st.joint) for st in failing if joint_types[st.joint - 1] == "P"]
+    if sliding:
+        why = (
+            f"not converged where {'; '.join(mixed)} at 0, although these poses identify it: the sweeps then "
+            f"need not settle, and joint(s) {', '.join(sliding)} slide (prismatic), where more pose pairs may not "
+            "help; use method='gn'"
+        )
+    else:
+        why = (
+            f"not converged where {'; '.join(mixed)} at 0 for want of pose pairs, although these poses identify "
+            f"it: the sweeps then need not settle; use a design with more pairs per step {MORE_PAIRS}, or "
+            "method='gn'"
+        )
     return tuple("" if k or not mixed else why for k in ok)
 
 

@@ -7,12 +7,17 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import app, check_outputs, console, load_robot_arg
+from ._app import PRESET_NAMES, app, check_outputs, console, load_robot_arg
 
 
 @app.command()
 def compensate(
-    calibrated: str = typer.Argument(..., help="calibrated robot file (e.g. from calibrate --out-robot)"),
+    calibrated: str = typer.Argument(
+        ...,
+        help="calibrated robot file (e.g. from calibrate --out-robot), or a preset name ("
+        + ", ".join(PRESET_NAMES)
+        + ")",
+    ),
     targets: Path = typer.Argument(..., help="CSV with x, y, z [, qw, qx, qy, qz] and/or the joint columns"),
     nominal: str = typer.Option(
         None,

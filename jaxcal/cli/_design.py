@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import typer
@@ -121,7 +122,9 @@ def design(
                 )
             result = select_poses(problem, candidates, poses, **common)
         else:
-            result = optimal_poses(problem, poses, starts=starts, **common)
+            with warnings.catch_warnings():  # refused below, in the command's words
+                warnings.filterwarnings("ignore", message="no start met the constraints")
+                result = optimal_poses(problem, poses, starts=starts, **common)
     measured = None if problem.model.points is None else np.asarray(problem.model.points)
     if points is None and measured is not None and np.any(measured):
         console.print(

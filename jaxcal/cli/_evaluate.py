@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import BASE_LINK_HELP, TIP_LINK_HELP, app, check_outputs, console, lost_notes, parse_points
+from ._app import BASE_LINK_HELP, ROBOT_HELP, TIP_LINK_HELP, app, check_outputs, console, lost_notes, parse_points
 
 
 def _fmt(v):
@@ -16,9 +16,7 @@ def _fmt(v):
 
 @app.command()
 def evaluate(
-    model: Path = typer.Argument(
-        ..., help="a saved model: calibrate --out-model (URDF or TOML), a robot file or a preset name"
-    ),
+    model: Path = typer.Argument(..., help="a saved model (calibrate --out-model: URDF or TOML), or a " + ROBOT_HELP),
     data: Path = typer.Argument(..., help="measurement CSV, as for calibrate"),
     training: Path = typer.Option(
         None, help="the training CSV: errors by posture group (repeated / new / out of range)"

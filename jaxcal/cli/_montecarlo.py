@@ -33,7 +33,12 @@ def _kept_on_interrupt(out_dir):
     except KeyboardInterrupt:
         if out_dir is None:
             raise
-        err_console.print(f"interrupted: the finished chunks are kept in {out_dir}; rerun to continue", highlight=False)
+        err_console.print(
+            f"interrupted: the finished chunks are kept in {out_dir}; rerun to continue",
+            soft_wrap=True,
+            highlight=False,
+            markup=False,
+        )
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(130)
@@ -214,8 +219,8 @@ def montecarlo(
             else ""
         )
         console.print(
-            f"[yellow]warning:[/yellow] {stopped} of {out['robots_done']} robots did not converge (in "
-            f"{out['max_steps_taken']} steps); the figures above include their estimates{pairs}",
+            f"[yellow]warning:[/yellow] {stopped} of {out['robots_done']} robots did not converge (most steps "
+            f"taken: {out['max_steps_taken']}); the figures above include their estimates{pairs}",
             highlight=False,
         )
     if out.get("crlb_efficiency_note"):

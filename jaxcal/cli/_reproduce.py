@@ -76,6 +76,11 @@ def reproduce(
         console.print(f"[bold]{mth}[/bold]: {why}")
     console.print(
         f"* identifiable combination; fixed parameters are not identifiable (rank "
-        f"{s['identifiable']['rank']}/{s['identifiable']['of']}). Wrote {out}/: table2.csv, "
-        "fig3_x.png, fig4_y.png, fig5_z.png, fig6_time.png, summary.json"
+        f"{s['identifiable']['rank']}/{s['identifiable']['of']})."
+    )
+    console.print(
+        f"Wrote {out}/: table2.csv, fig3_x.png, fig4_y.png, fig5_z.png, fig6_time.png, summary.json",
+        soft_wrap=True,
+        highlight=False,
+        markup=False,
     )

@@ -10,8 +10,9 @@ import numpy as np
 from ._problem import CRITERIA, value
 
 STARTS_AGREE = 1e-3
-"""Optimiser starts none of which met its tolerance, but whose criteria (each feasible start's)
-end within this relative spread, have found one flat optimum: said as a note, not a warning."""
+"""Optimiser starts none of which met its tolerance, but whose criterion (each feasible start's;
+per parameter for D) ends within this relative spread, have found one flat optimum: said as a
+note, not a warning."""
 
 LABELS = {
     "d": "log det information (D, larger is better)",
@@ -118,15 +119,21 @@ class PoseDesign:
         ok = [v for v, f in zip(d.get("start_losses", []), d.get("start_feasible", [])) if f and np.isfinite(v)]
         if len(ok) < 2:
             return f"warning: {said}: the poses are the best point reached, not an optimum"
-        spread = math.expm1(max(ok) - min(ok))  # the losses are logs of the criterion
+        # the losses (:func:`._problem.loss_of`): -log det / b (D: its per-parameter ratio, the
+        # D-efficiency), log of the A trace, log of the squared validation RMS
+        what, spread = {
+            "d": ("D-efficiency (det ** (1 / parameters))", math.expm1(max(ok) - min(ok))),
+            "a": ("A criterion", math.expm1(max(ok) - min(ok))),
+            "validation": ("expected validation RMS", math.expm1((max(ok) - min(ok)) / 2)),
+        }[self.criterion]
         if spread <= STARTS_AGREE:
             return (
-                f"note: {said}, but the {len(ok)} starts' criteria ended within {spread:.2%} of one another: a "
+                f"note: {said}, but the {len(ok)} starts ended within {spread:.2%} of one another in the {what}: a "
                 f"flat optimum, which more evaluations would barely improve"
             )
         return (
-            f"warning: {said}, and the {len(ok)} starts' criteria ended {spread:.1%} apart: the poses are the best "
-            f"point reached, not an optimum (more --starts may find a better one)"
+            f"warning: {said}, and the {len(ok)} starts ended {spread:.1%} apart in the {what}: the poses are the "
+            f"best point reached, not an optimum (more --starts may find a better one)"
         )
 
     def to_dict(self) -> dict:

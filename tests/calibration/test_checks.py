@@ -74,3 +74,14 @@ def test_joint_columns_in_degrees_are_named_where_the_others_are_radians(columns
         assert f"only joint(s) {named} look so" in msg and "convert them" in msg
     else:
         assert "only joint(s)" not in msg
+
+
+def test_no_column_hint_where_another_joint_is_held_still():
+    """A file all in degrees whose joint 6 is held at 3 deg: converting "only" joints 1-5 would
+    leave joint 6 wrong, so no column is named; the whole-file option is."""
+    ur5 = jaxcal.preset("ur5")
+    q = np.degrees(np.random.default_rng(3).uniform(-2.5, 2.5, (20, 6)))
+    q[:, 5] = 3.0
+    with pytest.raises(jaxcal.DataError, match="look like degrees") as e:
+        check_angles(ur5, q, rows=np.arange(1, 21))
+    assert "only joint(s)" not in str(e.value) and 'angle_unit="deg"' in str(e.value)

@@ -287,11 +287,14 @@ def test_info_says_a_joint_given_no_limits_has_none(monkeypatch, capsys):
     assert "none" not in out and out.count("2.897") == 8
 
 
-@pytest.mark.parametrize("command", ["calibrate", "design", "montecarlo", "info"])
+@pytest.mark.parametrize("command", ["calibrate", "design", "montecarlo", "info", "evaluate", "compensate"])
 def test_the_help_names_every_preset(monkeypatch, capsys, command):
-    """The robot argument's help lists the presets a command accepts, each of them."""
+    """The robot argument's help lists the presets a command accepts, each of them, and the list
+    written out for the help is the presets'."""
+    from jaxcal.cli._app import PRESET_NAMES
     from jaxcal.robot import PRESETS
 
+    assert PRESET_NAMES == tuple(PRESETS)
     code, out, _ = run_cli(monkeypatch, capsys, command, "--help")
     assert code in (0, None)
     text = re.sub(r"[\s│]", "", out)  # rich wraps and boxes the help

@@ -495,15 +495,19 @@ def test_the_report_shows_a_bound_beyond_the_largest_count_and_a_dash_where_none
     assert "converged" not in d.report()
     stopped = dataclasses.replace(d, details={"starts": 2, "converged_starts": 0, "max_evaluations": 500})
     assert "warning: none of the 2 optimiser starts converged (the most evaluations one used: 500)" in stopped.report()
-    # where the feasible starts end together it is a flat optimum: a note giving their spread
-    # (losses are logs: 0.0005 apart is 0.05 %); apart, or one of them alone, still a warning
+    # where the feasible starts end together it is a flat optimum: a note giving their spread in
+    # the criterion (the validation loss is the log of the squared RMS: 0.0005 apart is 0.025 %
+    # in the RMS; D's, minus log det per parameter: 0.05 %); apart, or one alone, still a warning
     starts = {"starts": 3, "converged_starts": 0, "max_evaluations": 500}
     together = dict(starts, start_losses=[-8.2469, -8.2474, 3.0], start_feasible=[True, True, False])
     line = dataclasses.replace(d, details=together).report().splitlines()[-1]
-    assert line.startswith("note: none of the 3 optimiser starts converged") and "within 0.05% of one another" in line
+    assert line.startswith("note: none of the 3 optimiser starts converged")
+    assert "within 0.03% of one another in the expected validation RMS" in line
+    line = dataclasses.replace(d, details=together, criterion="d").report().splitlines()[-1]
+    assert "within 0.05% of one another in the D-efficiency" in line
     apart = dict(together, start_losses=[-8.2, -8.3, 3.0])
     line = dataclasses.replace(d, details=apart).report().splitlines()[-1]
-    assert line.startswith("warning:") and "10.5% apart" in line
+    assert line.startswith("warning:") and "5.1% apart in the expected validation RMS" in line
     alone = dict(together, start_feasible=[True, False, False])
     assert dataclasses.replace(d, details=alone).report().splitlines()[-1].startswith("warning:")
 

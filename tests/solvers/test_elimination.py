@@ -222,5 +222,5 @@ def test_an_arm_with_a_prismatic_joint_is_not_told_that_more_pairs_help(tmp_path
     sim = S.simulate(robot, n_robots=1, q=q, seed=6)
     res = jaxcal.calibrate_batch(robot, sim.q, sim.measured, method="elimination", **DH)
     assert not res.converged[0]
-    assert "joint(s) 3 are prismatic" in res.problems[0] and "use method='gn'" in res.problems[0]
+    assert "joint(s) 3 slide (prismatic)" in res.problems[0] and "use method='gn'" in res.problems[0]
     assert "more pairs per step" not in res.problems[0]
