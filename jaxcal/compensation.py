@@ -14,7 +14,8 @@ from their axes), so that the least step weighs a lift and a turn by how far the
 
 A command is then put on the branch of its starting command (revolute joints within pi of it:
 no whole-turn jumps), a joint beyond limits of its own there turned by whole turns into them
-where it fits, and checked against the robot's joint limits. A target is reached
+where it fits and its start lies beyond them too (or no command was given), and checked against
+the robot's joint limits. A target is reached
 (``converged``) when the solver met its tolerances and the residual is below ``tol_mm``; a
 command outside the limits (``within_limits``) or one that left its starting command's branch,
 a joint turned by more than :data:`MAX_MOVE_DEG` (``on_branch``), is flagged, never silently
@@ -98,8 +99,9 @@ def _wrap(d):
 
 
 def _into_limits(q, lim, revolute):
-    """A revolute joint outside its limits on the starting command's branch is moved by whole turns
-    into them where a turn fits (the same pose: a joint's range may span more than one turn)."""
+    """A revolute joint (``revolute``: a mask of the joints, or of each command's) outside its
+    limits on the starting command's branch is moved by whole turns into them where a turn fits
+    (the same pose: a joint's range may span more than one turn)."""
     q = q.copy()
     lo, hi = lim[:, 0] - LIMIT_TOL, lim[:, 1] + LIMIT_TOL
     for k in range(1, 4):  # up to three turns either way (limits of +-2 turns and more exist)
@@ -225,8 +227,12 @@ def compensate(
     )
     q, ep, er = np.asarray(q), np.asarray(ep), np.asarray(er) * (not position_only)
     lim = np.asarray(calibrated.q_limits)
-    # not for default limits: a continuous joint (no limits) would be sent a turn round instead
-    q = _into_limits(q, lim, np.array([t == "R" for t in calibrated.joint_types]) & calibrated.limits_given())
+    # not for default limits: a continuous joint (no limits) would be sent a turn round instead;
+    # and only where the start is no command meant or lies beyond the limits itself (a reading a
+    # whole turn off): from a command within them, a whole turn is a turn the joint would make
+    given = np.array([t == "R" for t in calibrated.joint_types]) & calibrated.limits_given()
+    start_out = (q_start < lim[:, 0] - LIMIT_TOL) | (q_start > lim[:, 1] + LIMIT_TOL)
+    q = _into_limits(q, lim, given & (start_out | (not branch)))
     reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
     # a joint given no limits has none to be outside of (its defaults are a sampling range)
     outside = ((q < lim[:, 0] - LIMIT_TOL) | (q > lim[:, 1] + LIMIT_TOL)) & calibrated.limits_given()

@@ -129,6 +129,14 @@ def test_out_of_limit_and_unreachable_targets_are_flagged(rng):
     res = compensate(wide, np.asarray(fk(r, q_true)), start)
     assert res.ok.all()
     assert_allclose(res.q, q_true, atol=1e-8)
+    # a command within the limits whose target lies just beyond them on its branch: not sent a
+    # whole turn round (the wrist would spin through a turn), flagged beyond the limits
+    lim[0] = -1.0, 6.0  # the target's -1.003 + 2 pi lies inside them
+    q_true[0, 0] = -1.003
+    start = q_true + 0.006
+    res = compensate(r.replace(q_limits=lim), np.asarray(fk(r, q_true)), start)
+    assert res.converged.all() and list(res.within_limits) == [False, True] and list(res.ok) == [False, True]
+    assert_allclose(res.q[0], q_true[0], atol=1e-8)  # on the branch, not -1.003 + 2 pi
 
 
 def test_a_joint_given_no_limits_has_none_to_be_outside_of():
