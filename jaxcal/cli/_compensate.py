@@ -25,7 +25,9 @@ def compensate(
         "relative to its base (they move with the calibrated base frame)",
     ),
     out: Path = typer.Option(None, help="write the compensated joint commands here (CSV)"),
-    length_unit: str = typer.Option(None, help="m | mm (default: the robot file's)"),
+    length_unit: str = typer.Option(
+        None, help="m | mm (default: the robot file's); also the unit of prismatic commands written to --out"
+    ),
     angle_unit: str = typer.Option(None, help="rad | deg (default: the robot file's); also the unit written to --out"),
     point: int = typer.Option(
         None,
