@@ -51,10 +51,6 @@ from .measurements import (
 from .robot import Robot
 from .solvers import least_squares
 
-NEAR_SHARE = 0.01
-"""Target positions without commands that all lie within this share of the reach of the
-measurement frame's origin are refused: metres read as millimetres, not a task."""
-
 FAR_REACHES = 1.5
 """Targets given without commands whose median distance from the robot's base is beyond this many
 times its reach (:meth:`jaxcal.Robot.reach`, an upper bound) are refused: none can be reached."""
@@ -382,23 +378,13 @@ def compensate_targets(calibrated: Robot, targets: Targets, *, nominal: Robot | 
             calibrated, q, poses, 0, batched=False, model_positions=model, robust=True, what="targets",
             model="the calibrated model",
         )  # fmt: skip
-    else:  # no commands to compare with: targets beyond any reach, or all at the frame's origin,
-        # are likely in another unit
-        p = np.asarray(poses)[:, :3, 3]
-        far = np.median(np.linalg.norm(p - np.asarray(calibrated.base)[:3, 3], axis=1))
+    else:  # no commands to compare with: targets beyond any reach are likely in another unit
+        far = np.median(np.linalg.norm(np.asarray(poses)[:, :3, 3] - np.asarray(calibrated.base)[:3, 3], axis=1))
         if far > FAR_REACHES * calibrated.reach():
             raise DataError(
                 f"targets: their median distance from the robot's base is {far:.4g} mm, {far / calibrated.reach():.3g} "
                 f"times its reach ({calibrated.reach():.4g} mm): written in another length unit (length_unit), or "
                 "in another frame than the calibrated model's?",
-                option="length_unit",
-            )
-        near = float(np.max(np.linalg.norm(p, axis=1)))
-        if len(p) >= 3 and near < NEAR_SHARE * calibrated.reach():
-            raise DataError(
-                f"targets: all lie within {near:.4g} mm of the measurement frame's origin, under "
-                f"{NEAR_SHARE:.0%} of the robot's reach ({calibrated.reach():.4g} mm): written in metres or another "
-                "length unit (length_unit)?",
                 option="length_unit",
             )
     q0 = targets.q if targets.q is not None else np.tile(np.asarray(calibrated.q_limits).mean(axis=1), (len(poses), 1))

@@ -316,7 +316,17 @@ def read_table(path, expected: str, what: str = "measurement"):
             )
             raise DataError(f"{path}: duplicated column name {name!r} (columns {seen[name] + 1} and {i + 1}){clash}")
         seen[name] = i
-    return str(path), header, [(line, _fitted_to(header, rec)) for line, rec in records[1:]]
+    rows = records[1:]
+    # a row commented out below the header: refused, whatever its columns (an ignored first column
+    # would let it through as data); a first column of ids that all start with '#' is data
+    hashed = [k for k, (_, rec) in enumerate(rows) if rec[0].startswith("#")]
+    if hashed and len(hashed) < len(rows):
+        k = hashed[0]
+        raise DataError(
+            f"{path}: row {k + 1} (line {rows[k][0]}) starts with '#': comment lines go before the header; delete "
+            f"the row, or its '#' ({len(hashed)} such row(s))"
+        )
+    return str(path), header, [(line, _fitted_to(header, rec)) for line, rec in rows]
 
 
 def require_rows(records, src: str) -> None:

@@ -234,15 +234,6 @@ def test_targets_in_another_unit_are_refused_naming_the_option(tmp_path):
     with pytest.raises(DataError, match="times its reach") as e:
         compensate_targets(far, read_targets(p, far))
     assert e.value.option == "length_unit"
-    # the same 0.9 m from the base, within any reach: every target within a few mm of the
-    # measurement frame's origin, refused as metres; in mm the same file is a task
-    near = r.replace(base=np.asarray(r.base) + np.pad(np.array([[900.0], [0.0], [0.0]]), ((0, 1), (3, 0))))
-    p.write_text("x,y,z\n" + "".join(",".join(repr(float(v)) for v in b / 1000.0) + "\n" for b in pos + [900.0, 0, 0]))
-    with pytest.raises(DataError, match="within .* mm of the measurement frame's origin.*written in metres") as e:
-        compensate_targets(near, read_targets(p, near))
-    assert e.value.option == "length_unit"
-    p.write_text("x,y,z\n" + "".join(",".join(repr(float(v)) for v in b) + "\n" for b in pos + [900.0, 0, 0]))
-    compensate_targets(near, read_targets(p, near))
 
 
 def test_a_command_that_left_its_starting_branch_is_not_sent():

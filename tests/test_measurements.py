@@ -359,12 +359,15 @@ BAD = {
     ),
     "a row commented out": (
         HEADER7 + "\n" + GOOD_ROW + ",1,2,3\n# " + GOOD_ROW + ",1,2,3\n",
-        r"row 2 \(line 3\), column 'q1': not a number: '# 0\.1'; it starts with '#': comment lines go before "
-        r"the header",
+        r"e\.csv: row 2 \(line 3\) starts with '#': comment lines go before the header; delete the row, or its '#'",
     ),
     "a comment below the header": (
         HEADER7 + "\n" + GOOD_ROW + ',1,2,3\n# note,"bad batch\n' + GOOD_ROW + ",1,2,3\n",
-        r"row 2 \(line 3\): 2 fields, but the header has 10 columns; it starts with '#'",
+        r"row 2 \(line 3\) starts with '#'",
+    ),
+    "a row commented out beside an id column": (
+        "id," + HEADER7 + "\nP1," + GOOD_ROW + ",1,2,3\n# P2," + GOOD_ROW + ",1,2,3\nP3," + GOOD_ROW + ",1,2,3\n",
+        r"row 2 \(line 3\) starts with '#'.*\(1 such row\(s\)\)",
     ),
     "decimal comma": (
         HEADER7.replace(",", ";") + "\n" + GOOD_ROW.replace(",", ";").replace(".", ",") + ";1;2;3\n",

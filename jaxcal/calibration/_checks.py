@@ -195,9 +195,10 @@ def limit_notes(
     return tuple(out)
 
 
-MOVED_SPAN_RAD = 0.2
+MOVED_SPAN_RAD = 0.5
 """A revolute column that spans less than this tells nothing of its unit (a joint held still, or
-nearly): the degrees hint by column needs every other revolute joint to move more."""
+nearly): the degrees hint by column needs every other revolute joint to span more, and at most
+pi (a column of degrees spanning a few degrees reads as a few radians)."""
 
 
 def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> None:
@@ -233,13 +234,13 @@ def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> 
         flat, n = q.reshape(-1, q.shape[-1]), q.shape[-1]
         cols = over.reshape(-1, n).mean(0) > 0.5
         span = np.ptp(flat, axis=0)
-        # every other revolute joint moves (a joint held still tells no unit) within a turn's span
+        # every other revolute joint moves (a joint held still tells no unit) within half a turn
         others = revolute & ~cols
-        rest = others & ~over.reshape(-1, n).any(0) & (span <= 2 * np.pi) & (span > MOVED_SPAN_RAD)
+        rest = others & ~over.reshape(-1, n).any(0) & (span <= np.pi) & (span > MOVED_SPAN_RAD)
         alone = (
             f"; only joint(s) {', '.join(repr(robot.joint_names[j]) for j in np.flatnonzero(cols))} look so, the "
-            "other revolute joints' values span less than a turn: if only those columns are in degrees, convert "
-            "them"
+            "other revolute joints' values span less than half a turn: if only those columns are in degrees, "
+            "convert them"
             if cols.any() and others.any() and (rest == others).all()
             else ""
         )

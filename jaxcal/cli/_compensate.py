@@ -9,6 +9,10 @@ from rich.table import Table
 
 from ._app import PRESET_NAMES, app, check_outputs, console, load_robot_arg
 
+NEAR_SHARE = 0.01
+"""Targets without commands that all lie within this share of the reach of the measurement
+frame's origin, where targets were missed, get a hint: metres read as millimetres?"""
+
 
 @app.command()
 def compensate(
@@ -61,7 +65,7 @@ def compensate(
     ):
         if note:
             console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)
-    _, res = compensate_targets(cal, tg, nominal=nom)
+    poses, res = compensate_targets(cal, tg, nominal=nom)
     rot = not (tg.poses is not None and tg.position_only)  # position targets: no rotation was asked for
     table = Table(title=f"compensation of {len(res.q)} targets")
     for col in ("", "position residual (mm)", "rotation residual (deg)")[: 3 if rot else 2]:
@@ -76,8 +80,9 @@ def compensate(
         + (f"; on the commands' branch: {n_br}/{K}" if tg.q is not None else "")
     )
     if tg.q is not None:
-        moved = np.abs(res.q - tg.q)
         rev = np.array([t == "R" for t in cal.joint_types])
+        d = np.asarray(res.q - tg.q)
+        moved = np.abs(np.where(rev, (d + np.pi) % (2 * np.pi) - np.pi, d))  # a whole turn into the limits: none
         parts = [f"{np.degrees(moved[:, rev].max()):.4g} deg"] if rev.any() else []
         parts += [f"{moved[:, ~rev].max():.4g} mm"] if (~rev).any() else []
         console.print(f"largest joint correction: {', '.join(parts)}")
@@ -123,6 +128,12 @@ def compensate(
             if tg.q is None
             else ""
         )
+        near = float(np.max(np.linalg.norm(np.asarray(poses)[:, :3, 3], axis=1)))
+        if tg.q is None and near < NEAR_SHARE * cal.reach():  # a hint only: probes about a datum are fine
+            hint += (
+                f"; the targets all lie within {near:.4g} mm of the measurement frame's origin, under "
+                f"{NEAR_SHARE:.0%} of the reach: written in metres (--length-unit m)?"
+            )
         console.print(
             f"[yellow]warning:[/yellow] {bad.size} target(s) not reached, outside the joint limits or off the "
             f"starting commands' branch{hint}",

@@ -59,11 +59,11 @@ def test_a_continuous_joint_read_over_a_whole_turn_has_the_arc_it_visited_as_its
 
 @pytest.mark.parametrize("columns", [[5], [1, 5], list(range(6))])
 def test_joint_columns_in_degrees_are_named_where_the_others_are_radians(columns):
-    """UR5 readings within +-2.5 rad, the given columns written in degrees: refused, with the
-    option for a whole file in degrees; where the other columns span less than a turn (radians),
-    the message names the columns in degrees and says to convert them."""
+    """UR5 readings within +-1.2 rad, the given columns written in degrees: refused, with the
+    option for a whole file in degrees; where the other columns span less than half a turn
+    (radians), the message names the columns in degrees and says to convert them."""
     ur5 = jaxcal.preset("ur5")
-    q = np.random.default_rng(3).uniform(-2.5, 2.5, (20, 6))
+    q = np.random.default_rng(3).uniform(-1.2, 1.2, (20, 6))
     q[:, columns] = np.degrees(q[:, columns])
     with pytest.raises(jaxcal.DataError, match="look like degrees") as e:
         check_angles(ur5, q, rows=np.arange(1, 21))
@@ -76,12 +76,14 @@ def test_joint_columns_in_degrees_are_named_where_the_others_are_radians(columns
         assert "only joint(s)" not in msg
 
 
-def test_no_column_hint_where_another_joint_is_held_still():
-    """A file all in degrees whose joint 6 is held at 3 deg: converting "only" joints 1-5 would
-    leave joint 6 wrong, so no column is named; the whole-file option is."""
+@pytest.mark.parametrize("held", ["still at 3 deg", "within +-3 deg"])
+def test_no_column_hint_where_another_joint_is_held_still(held):
+    """A file all in degrees whose joint 6 is held at 3 deg, or moves within +-3 deg: converting
+    "only" joints 1-5 would leave joint 6 wrong, so no column is named; the whole-file option is."""
     ur5 = jaxcal.preset("ur5")
-    q = np.degrees(np.random.default_rng(3).uniform(-2.5, 2.5, (20, 6)))
-    q[:, 5] = 3.0
+    rng = np.random.default_rng(3)
+    q = np.degrees(rng.uniform(-2.5, 2.5, (20, 6)))
+    q[:, 5] = 3.0 if held == "still at 3 deg" else rng.uniform(-3.0, 3.0, 20)
     with pytest.raises(jaxcal.DataError, match="look like degrees") as e:
         check_angles(ur5, q, rows=np.arange(1, 21))
     assert "only joint(s)" not in str(e.value) and 'angle_unit="deg"' in str(e.value)

@@ -160,6 +160,21 @@ def test_compensate_cli(tmp_path, monkeypatch, capsys):
     assert np.abs(got[:, :3, 3] - want[:, :3, 3]).max() < 1e-5
 
 
+def test_compensate_hints_at_metres_for_targets_all_at_the_frames_origin(tmp_path, monkeypatch, capsys):
+    """UR5 tool positions written in metres, without commands: every target within a mm of the
+    measurement frame's origin, none reached; the warning asks whether they are metres. The same
+    file in mm is reached, with no such hint."""
+    r = preset("ur5")
+    pos = np.asarray(fk(r, np.asarray(simulate(r, n_poses=5, seed=3).q[0])))[:, :3, 3]
+    t = tmp_path / "t.csv"
+    for scale, reached in ((1e-3, False), (1.0, True)):
+        t.write_text("x,y,z\n" + "".join(",".join(repr(float(v)) for v in p * scale) + "\n" for p in pos))
+        code, out, err = run_cli(monkeypatch, capsys, "compensate", "ur5", t)
+        said = " ".join((out + err).split())
+        assert (code in (0, None)) == reached, (code, said)
+        assert ("written in metres (--length-unit m)?" in said) == (not reached), said
+
+
 def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys):
     """Position targets, one far beyond the reach: exit 1, the row is named, and the output file
     marks it (reached = 0) while the others are sent."""
