@@ -242,7 +242,7 @@ def _records(lines: list[str]) -> list[tuple[int, list[str]]]:
     fields (``,,,``: formatted empty cells) anywhere, are skipped; the delimiter is the header's:
     of a comma, a semicolon and a tab, the one that splits it into most names (a comma inside a
     name of a semicolon file is part of the name). A ``#`` line below the header is a row, which
-    :func:`parse_rows` refuses if it is not one (an id column may hold ``#1``)."""
+    :func:`read_table` refuses unless every row starts so (a column of ids ``#1``, ``#2``)."""
     start, delimiter = 0, None
     while start < len(lines):
         text = lines[start].lstrip(" ").rstrip("\r\n ")  # a tab may be the separator sep= names
@@ -432,9 +432,8 @@ def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray,
     values, rows, lines = [], [], []
     for k, (line, rec) in enumerate(records, start=1):
         where = f"{src}: row {k} (line {line})"
-        hash_ = "; it starts with '#': comment lines go before the header" if rec[0].startswith("#") else ""
         if len(rec) != len(header):
-            raise DataError(f"{where}: {len(rec)} fields, but the header has {len(header)} columns{hash_}")
+            raise DataError(f"{where}: {len(rec)} fields, but the header has {len(header)} columns")
         out = []
         for name, i in zip(columns, idx):
             text = rec[i].strip()
@@ -444,7 +443,7 @@ def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray,
                 v = float(text) if text else math.nan
             except ValueError:
                 comma = " (a decimal comma? write decimals with a point)" if re.fullmatch(r"[-+]?\d*,\d+", text) else ""
-                raise DataError(f"{where}, column {name!r}: not a number: {text!r}{comma}{hash_}") from None
+                raise DataError(f"{where}, column {name!r}: not a number: {text!r}{comma}") from None
             if math.isinf(v):
                 raise DataError(f"{where}, column {name!r}: value {text!r} is not finite")
             out.append(v)
