@@ -175,6 +175,34 @@ def test_compensate_hints_at_metres_for_targets_all_at_the_frames_origin(tmp_pat
         assert ("written in metres (--length-unit m)?" in said) == (not reached), said
 
 
+def test_the_largest_joint_correction_does_not_count_a_whole_turn(tmp_path, monkeypatch, capsys):
+    """A command read a whole turn below joint 1's limits [0.5, 6] (5.0 written as 5.0 - 2 pi),
+    its pose the target: the command sent is 5.0, on the target, and the correction said is the
+    solve's own few hundredths of a degree, not 360."""
+    from scipy.spatial.transform import Rotation
+
+    r = preset("paper-6r")
+    lim = np.array(r.q_limits)
+    lim[0] = 0.5, 6.0
+    robot = r.replace(q_limits=lim)
+    save_robot(robot, tmp_path / "r.toml")
+    q = np.asarray(r.q_limits).mean(1)
+    q[0] = 5.0
+    T = np.asarray(fk(r, q[None]))[0]
+    wx, wy, wz, w = Rotation.from_matrix(T[:3, :3]).as_quat()
+    start = q + 1e-4
+    start[0] -= 2 * np.pi
+    t = tmp_path / "t.csv"
+    row = [*start, *T[:3, 3], w, wx, wy, wz]
+    t.write_text("q1,q2,q3,q4,q5,q6,x,y,z,qw,qx,qy,qz\n" + ",".join(repr(float(v)) for v in row) + "\n")
+    code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "r.toml", t, "--out", tmp_path / "o.csv")
+    assert code in (0, None), out + err
+    sent = [float(v) for v in (tmp_path / "o.csv").read_text().splitlines()[1].split(",")[:6]]
+    assert abs(sent[0] - 5.0) < 1e-6
+    said = float(out.split("largest joint correction: ")[1].split(" deg")[0])
+    assert said < 0.1, said
+
+
 def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys):
     """Position targets, one far beyond the reach: exit 1, the row is named, and the output file
     marks it (reached = 0) while the others are sent."""
