@@ -46,6 +46,7 @@ from .measurements import (
     quaternions_to_rotations,
     read_table,
     require_rows,
+    rotations_without,
     unit_scale,
 )
 from .robot import Robot
@@ -290,6 +291,36 @@ def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Ta
         if quat:
             poses[:, :3, :3] = quaternions_to_rotations(values[:, k + 3 :], rows, lines, src)
     return Targets(q=q, poses=poses, position_only=bool(points) and not quat, rows=rows)
+
+
+QUATERNION_HINT_DEG = 10.0
+"""Target orientations whose median angle from where the commands put the calibrated tool is
+beyond this are checked for a quaternion written in another order (:func:`quaternion_note`)."""
+
+
+def quaternion_note(calibrated: Robot, targets: Targets) -> str:
+    """A hint for target orientations far from where their commands put the calibrated tool
+    (median beyond :data:`QUATERNION_HINT_DEG`) that a quaternion order or sign mistake brings
+    within a quarter of that and of the limit (:func:`jaxcal.measurements.rotations_without`).
+    Empty otherwise, and for targets without commands or orientations."""
+    if targets.q is None or targets.poses is None or targets.position_only:
+        return ""
+    R_fk = np.asarray(fk(calibrated, jnp.asarray(targets.q)))[:, :3, :3]
+
+    def median_deg(R):
+        c = (np.trace(np.swapaxes(R_fk, -1, -2) @ R, axis1=-2, axis2=-1) - 1.0) / 2.0
+        return float(np.degrees(np.median(np.arccos(np.clip(c, -1.0, 1.0)))))
+
+    given = median_deg(targets.poses[:, :3, :3])
+    if given <= QUATERNION_HINT_DEG:
+        return ""
+    best, name = min((median_deg(R), m) for m, R in rotations_without(targets.poses[:, :3, :3]).items())
+    if best > min(0.25 * given, 0.25 * QUATERNION_HINT_DEG):
+        return ""
+    return (
+        f"the target orientations lie a median {given:.3g} deg from where their commands put the tool, "
+        f"{best:.3g} deg without a {name}: check the quaternion columns (qw is the scalar part)"
+    )
 
 
 def orientation_note(n_points: int, targets: Targets, name: str) -> str:

@@ -484,6 +484,31 @@ def quaternions_to_rotations(quat, rows, lines, src) -> np.ndarray:
     return quat_to_matrix(quat / norm[:, None])
 
 
+QUATERNION_MISTAKES = (
+    "quaternion written x, y, z, w",
+    "quaternion written w, x, y, z under names x, y, z, w",
+    "quaternion of the inverse rotation",
+)
+"""The ways a file's quaternions are commonly written other than read (:func:`rotations_without`)."""
+
+
+def rotations_without(R: np.ndarray) -> dict[str, np.ndarray]:
+    """``{mistake: rotations}``: rotation matrices ``R (..., 3, 3)`` as read, taken again as they
+    would be without each mistake of :data:`QUATERNION_MISTAKES` (a scalar-last quaternion under
+    scalar-first names, the reverse, or the inverse rotation: JPL's convention, or the frame's
+    inverse)."""
+    from scipy.spatial.transform import Rotation
+
+    R = np.asarray(R, dtype=np.float64)
+    xyzw = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat()
+    out = {}
+    # the read w, x, y, z fields taken as x, y, z, w; then the read x, y, z, w taken as w, x, y, z
+    for name, order in zip(QUATERNION_MISTAKES[:2], ([3, 0, 1, 2], [1, 2, 3, 0])):
+        out[name] = Rotation.from_quat(xyzw[:, order]).as_matrix().reshape(R.shape)
+    out[QUATERNION_MISTAKES[2]] = np.swapaxes(R, -1, -2)
+    return out
+
+
 def mixed_units(q, pos, robot: Robot, rows, src, joint_cols, point_numbers=()) -> None:
     """Raise :class:`DataError` when some rows are in another unit than the rest: a few positions
     ~1000x closer to / farther from the measurement origin than the median row (metres among

@@ -32,6 +32,7 @@ import dataclasses
 import numpy as np
 from jaxtyping import Float
 
+from ..measurements import QUATERNION_MISTAKES, rotations_without
 from ..model import Layout, Model
 from ..robot import Robot
 from . import _core as core
@@ -43,9 +44,7 @@ MISTAKES = (
     "mirrored x",
     "mirrored y",
     "mirrored z",
-    "quaternion written x, y, z, w",
-    "quaternion written w, x, y, z under names x, y, z, w",
-    "quaternion of the inverse rotation",
+    *QUATERNION_MISTAKES,
     "joints reversed",
     "degrees read as radians",
     "radians read as degrees",
@@ -191,19 +190,10 @@ def variants(robot: Robot, q, target, n_points: int):
         sign[a] = -1.0
         out[f"mirrored {'xyz'[a]}"] = (q, with_pos(lambda p, sign=sign: p * sign))
     if n_points == 0:
-        from scipy.spatial.transform import Rotation
-
-        xyzw_read = Rotation.from_matrix(target[:, :3, :3]).as_quat()
-        for name, order in (
-            ("quaternion written x, y, z, w", [3, 0, 1, 2]),  # the read w, x, y, z fields taken as x, y, z, w
-            ("quaternion written w, x, y, z under names x, y, z, w", [1, 2, 3, 0]),  # the read x, y, z, w as w, x, y, z
-        ):
+        for name, R in rotations_without(target[:, :3, :3]).items():
             t = np.array(target, copy=True)
-            t[:, :3, :3] = Rotation.from_quat(xyzw_read[:, order]).as_matrix()
+            t[:, :3, :3] = R
             out[name] = (q, t)
-        t = np.array(target, copy=True)  # a conjugated quaternion (JPL's convention, or the frame's inverse)
-        t[:, :3, :3] = np.swapaxes(target[:, :3, :3], -1, -2)
-        out["quaternion of the inverse rotation"] = (q, t)
     n = q.shape[1]
     for j in range(n - 1):
         perm = list(range(n))

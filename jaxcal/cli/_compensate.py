@@ -46,7 +46,14 @@ def compensate(
     import numpy as np
 
     from .._io import write_atomic
-    from ..compensation import MAX_MOVE_DEG, compensate_targets, orientation_note, read_targets, tool_note
+    from ..compensation import (
+        MAX_MOVE_DEG,
+        compensate_targets,
+        orientation_note,
+        quaternion_note,
+        read_targets,
+        tool_note,
+    )
     from ..measurements import unit_scale
     from ..robot import ANGLE_UNITS, LENGTH_UNITS, calibrated_chain
 
@@ -128,6 +135,8 @@ def compensate(
             if tg.q is None
             else ""
         )
+        quaternion = quaternion_note(cal, tg)
+        hint += f"; {quaternion}" if quaternion else ""
         near = float(np.max(np.linalg.norm(np.asarray(poses)[:, :3, 3], axis=1)))
         if tg.q is None and near < NEAR_SHARE * cal.reach():  # a hint only: probes about a datum are fine
             hint += (

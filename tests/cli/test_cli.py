@@ -175,6 +175,35 @@ def test_compensate_hints_at_metres_for_targets_all_at_the_frames_origin(tmp_pat
         assert ("written in metres (--length-unit m)?" in said) == (not reached), said
 
 
+def test_compensate_names_a_quaternion_written_in_another_order(tmp_path, monkeypatch, capsys):
+    """UR5 poses with their commands, the quaternions written by scipy (scalar last) under the
+    scalar-first names, or of the inverse rotation: rows are missed, and the warning names that
+    mistake. The same file written right is reached without the hint."""
+    from scipy.spatial.transform import Rotation
+
+    r = preset("ur5")
+    q = np.asarray(simulate(r, n_poses=6, seed=4).q[0])
+    T = np.asarray(fk(r, q))
+    xyzw = Rotation.from_matrix(T[:, :3, :3]).as_quat()
+    t = tmp_path / "t.csv"
+    written = {
+        "": xyzw[:, [3, 0, 1, 2]],
+        "quaternion written x, y, z, w": xyzw,
+        "quaternion of the inverse rotation": xyzw[:, [3, 0, 1, 2]] * [1, -1, -1, -1],
+    }
+    for mistake, quat in written.items():
+        rows = np.hstack([q + 1e-3, T[:, :3, 3], quat])
+        t.write_text(
+            "q1,q2,q3,q4,q5,q6,x,y,z,qw,qx,qy,qz\n" + "".join(",".join(map(repr, map(float, v))) + "\n" for v in rows)
+        )
+        code, out, err = run_cli(monkeypatch, capsys, "compensate", "ur5", t)
+        said = " ".join((out + err).split())
+        assert (code in (0, None)) == (not mistake), (code, said)
+        assert ("check the quaternion columns" in said) == bool(mistake), said
+        if mistake:
+            assert f"without a {mistake}" in said, said
+
+
 def test_the_largest_joint_correction_does_not_count_a_whole_turn(tmp_path, monkeypatch, capsys):
     """A command read a whole turn below joint 1's limits [0.5, 6] (5.0 written as 5.0 - 2 pi),
     its pose the target: the command sent is 5.0, on the target, and the correction said is the
