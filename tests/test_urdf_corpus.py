@@ -139,12 +139,13 @@ def test_compensate_takes_the_nominal_chain_from_the_record(monkeypatch, capsys,
 
 def test_a_failed_candidate_is_reported(monkeypatch, capsys, simulated):
     """The xArm7 with the base set of the rounding-blind greedy walk (identifiability without its
-    separation test): the unregularized candidate's fits are singular. The report names it and
-    why; it is not chosen, and the terminal says so too."""
+    separation test, nor the exchange after it): the unregularized candidate's fits are singular.
+    The report names it and why; it is not chosen, and the terminal says so too."""
     import jaxcal.identifiability
 
     d, _ = simulated("xarm7")
     monkeypatch.setattr(jaxcal.identifiability, "SEPARATION", ())
+    monkeypatch.setattr(jaxcal.identifiability, "DOMINANCE", np.inf)  # the exchange would mend that set
     # the candidates' scores are the selection's (no nested cross-validation needed to see them)
     rep, out = _calibrate(monkeypatch, capsys, "xarm7", d, "--nested-max-poses", "0", "--compliance", "no")
     rows = {row["name"]: row for row in rep["cv"]}

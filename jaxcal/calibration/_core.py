@@ -587,10 +587,15 @@ def _analysed(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray, 
 def identify(J, layout: Layout, robot: Robot | None = None, *, rtol: float = 1e-8) -> Identifiability:
     """Identifiability of every parameter of ``layout`` from the Jacobian ``J`` (:func:`analyse`),
     the frames offered first (they keep what they can absorb), then the DH errors or joint frames
-    (in :func:`kin_order` of ``robot``) and the joint compliances, then the camera."""
+    (in :func:`kin_order` of ``robot``) and the joint compliances, then the camera. A URDF's joint
+    frames are then exchanged for better separated ones (``swappable`` of :func:`analyze`): their
+    order is a heuristic, a DH table's held parameters the textbook ones."""
     frames, cams = list(layout.frames), list(layout.cameras)
-    kin = kin_order(robot, layout) + list(layout.compliances)
-    return analyze(np.asarray(J).reshape(-1, layout.size), layout.names(), rtol=rtol, priority=frames + kin + cams)
+    order = kin_order(robot, layout)
+    swappable = order if robot is not None and robot.convention == "joint" else None
+    J = np.asarray(J).reshape(-1, layout.size)
+    kin = order + list(layout.compliances)
+    return analyze(J, layout.names(), rtol=rtol, priority=frames + kin + cams, swappable=swappable)
 
 
 def scaled_condition(J, base) -> float:
