@@ -297,6 +297,38 @@ def region(
     return best if best is not None and best.chance <= chance else None
 
 
+def not_rigid(predicted, target, flags, sigmas: float) -> Bool[np.ndarray, " K"]:
+    """The flagged poses whose measured points do not move as one rigid body. An error of the arm
+    moves every point on the tool together; a marker that slipped, was taken for another or was
+    seen through a reflection moves alone: a measurement fault, not a region of the arm's motion
+    (:func:`region`). Each pose's predicted points ``(K, M, 3)`` are moved onto the points seen
+    by the best rigid motion (Kabsch); the residual, ``3 m - 6`` rows for ``m`` points seen, is
+    standardised by its robust scale over the poses not flagged (the noise: the tool's points keep
+    their shape, whatever the arm's error), and a flagged pose beyond the outlier threshold of its
+    rows is named. Fewer than three points seen: never."""
+    P, T = np.asarray(predicted, float), np.asarray(target, float)
+    flags = np.asarray(flags, bool)
+    seen = np.all(np.isfinite(T), -1) & np.all(np.isfinite(P), -1)  # (K, M)
+    m = seen.sum(-1)
+    ok = m >= 3
+    if P.ndim != 3 or not (ok & flags).any() or not (ok & ~flags).any():
+        return np.zeros(len(flags), bool)
+    w = seen[..., None].astype(float)
+    Pz, Tz = np.where(seen[..., None], P, 0.0), np.where(seen[..., None], T, 0.0)
+    n = np.maximum(m, 1)[:, None, None]
+    cp, ct = (Pz * w).sum(1, keepdims=True) / n, (Tz * w).sum(1, keepdims=True) / n
+    A, B = (Pz - cp) * w, (Tz - ct) * w
+    U, _, Vt = np.linalg.svd(np.swapaxes(A, 1, 2) @ B)  # (K, 3, 3): A^T B
+    d = np.sign(np.linalg.det(U @ Vt))
+    D = np.broadcast_to(np.eye(3), U.shape).copy()
+    D[:, 2, 2] = d
+    R = U @ D @ Vt  # rows of A times R fit rows of B
+    left = np.sqrt((((A @ R - B) * w) ** 2).sum((1, 2)))
+    dof = np.where(ok, 3 * m - 6, 1)
+    scale = float(robust_scale(np.where(ok, left, 0.0), dof, (ok & ~flags).astype(float)))
+    return flags & ok & (left / scale > thresholds(dof, sigmas))
+
+
 SWAP_FIT = 5.0
 """A flagged pose fits once its points are relabelled when its RMS point error drops to this
 many times the noise, and to a fifth of what it was, or less."""

@@ -518,10 +518,15 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
     qu = unwrapped(robot, q)  # a continuous joint on the arc it visited
-    reg = outliers.region(qu, last.flags[0])
+    # a pose whose points do not move together is a measurement fault, whatever joint range it is in
+    faults = np.zeros(len(q), bool)
+    if p.n_points >= 3 and last.flags[0].any():
+        faults = outliers.not_rigid(predict(f.model, q), p.target, last.flags[0], opts.outlier_sigmas)
+    arm = last.flags[0] & ~faults
+    reg = outliers.region(qu, arm)
     hint = None
     if reg is None and not opts.keep_outliers:  # too few to make a region, but together at an end
-        hint = outliers.region(qu, last.flags[0], chance=outliers.HINT_CHANCE, least=2)
+        hint = outliers.region(qu, arm, chance=outliers.HINT_CHANCE, least=2)
     scored = p.valid | (reg.flags if reg is not None else False)
     h = _heldout(fits, fr, p, scored)
     noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]), f.leverage)
@@ -579,6 +584,13 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h, reg)
+    rep["outlier_detection"]["not_rigid_rows"] = [int(r) for r in p.rows[faults]]
+    if faults.any():
+        rep["notes"].append(
+            f"row(s) {', '.join(str(int(r)) for r in p.rows[faults])}: the points do not move as one rigid body "
+            "(a marker slipped, was taken for another or seen through a reflection): measurement faults, not "
+            "the arm's, so never counted as a region of its motion where it errs"
+        )
     if moved := _drift_doc(p, f.model):
         rep["notes"].append(_drift_note(moved))
     rep["drift"] = moved
