@@ -143,20 +143,27 @@ def pose_errors_figure(result):
                 marker="v",
                 color=colour,
                 zorder=3,
-                label=f"outlier ({how}): rows "
+                label=f"outlier ({how}): row{'s' if bad.size > 1 else ''} "
                 + ", ".join(str(int(r)) for r in np.asarray(pp["rows"])[bad][:8])
                 + (", ..." if bad.size > 8 else ""),
             )
     ax.set_xlabel("pose (CSV data row)")
     ax.set_ylabel("held-out position error (mm)")
     ax.set_title(f"{rep['folds']}-fold cross-validation: error on poses not used for fitting")
-    ax.legend(loc="upper right")  # "best" searches every bar: slow, and warns, for a file of thousands of poses
+    # below the axes: inside, it covers the tallest bars and their markers ("best" also searches
+    # every bar: slow, and warns, for a file of thousands of poses)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, fontsize=8)
     fig.tight_layout()
     return fig
 
 
+def parameter_kind(robot) -> str:
+    """What a robot's kinematic parameters are called: a URDF's are its joint frames'."""
+    return "joint-frame" if robot.convention == "joint" else "DH"
+
+
 def parameters_figure(result):
-    """Estimated DH errors with 1-sigma error bars (a :class:`DataCalibration`)."""
+    """Estimated DH (or joint-frame) errors with 1-sigma error bars (a :class:`DataCalibration`)."""
     rep = result.report
     dh = [(k, v) for k, v in result.deltas.items() if not k.startswith(("base_", "tool_", "point", "camera_"))]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
@@ -179,7 +186,7 @@ def parameters_figure(result):
         ax.set_xlabel("parameter")
         ax.set_ylabel(label)
         ax.legend()
-    fig.suptitle(f"estimated DH errors ({rep['choice']})")
+    fig.suptitle(f"estimated {parameter_kind(result.robot)} errors ({rep['choice']})")
     fig.tight_layout()
     return fig
 
@@ -222,7 +229,7 @@ def accuracy_figure(workspace, data, heldout, noise_mm: float):
 
 def calibration_figures(result, out_dir) -> list[Path]:
     """Write ``pose_errors.png`` (held-out position error per pose, frames only vs calibrated)
-    and ``parameters.png`` (estimated DH errors with 1-sigma error bars) into ``out_dir``.
+    and ``parameters.png`` (estimated DH or joint-frame errors with 1-sigma error bars) into ``out_dir``.
     **Returns** the paths written."""
     out = Path(out_dir)
     paths = []

@@ -100,6 +100,22 @@ CSS = (
 )
 
 
+def _unusable(rep: dict) -> str:
+    """A fit not to use (the command refuses to write one; the Python API writes what it is
+    given), said first: unconverged or implausible, with the report's reason. Empty otherwise."""
+    if not rep["plausible"]:  # its reason says first when the fit did not converge
+        why = str(rep["implausible"])
+    elif not rep["converged"]:
+        why = f"the final fit did not converge in {rep['steps']} step(s)"
+    else:
+        return ""
+    return (
+        '<p style="border:2px solid #c00;padding:.5em;background:#fee"><strong>Not a calibration to use:</strong> '
+        + html.escape(why)
+        + "</p>"
+    )
+
+
 def _lost(rep: dict) -> str:
     """The data file's rows read without a pose (every point lost) and the points not seen, as
     the command's notes and the JSON name them; empty when every point was seen."""
@@ -118,7 +134,7 @@ def _lost(rep: dict) -> str:
 def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> str:
     """The report page of a :class:`jaxcal.DataCalibration` of the measurements ``data``
     (:class:`jaxcal.Measurements`; their joint values place the accuracy map), as HTML text."""
-    from ..plots import accuracy_figure, parameters_figure, pose_errors_figure
+    from ..plots import accuracy_figure, parameter_kind, parameters_figure, pose_errors_figure
 
     rep = result.report
     kind = "nested cross-validation" if rep["nested"] else "K-fold cross-validation"
@@ -129,6 +145,7 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
         + f". Parameter set: {html.escape(rep['choice'])} ({html.escape(rep['choice_rule'])}). "
         f"Held-out errors from {kind} ({rep['folds']} folds): every pose scored by a model fitted "
         "without it.</p>",
+        _unusable(rep),
         _lost(rep),
         "<h2>Summary</h2>",
         _table(
@@ -303,8 +320,12 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
     parts += [
         "<h2>Held-out errors</h2>",
         _figure("pose-errors", pose_errors_figure(result), "held-out position error per pose"),
-        "<h2>Estimated DH errors</h2>",
-        _figure("parameter-errors", parameters_figure(result), "estimated DH errors with 1-sigma error bars"),
+        f"<h2>Estimated {parameter_kind(result.robot)} errors</h2>",
+        _figure(
+            "parameter-errors",
+            parameters_figure(result),
+            f"estimated {parameter_kind(result.robot)} errors with 1-sigma error bars",
+        ),
     ]
     notes = list(rep.get("notes", [])) + [f"{k}: {v}" for k, v in rep.get("not_estimated", {}).items()]
     if notes:

@@ -55,7 +55,7 @@ def check_ur(robot: Robot, option: str | None = None) -> None:
         why = f"joint {robot.joint_types.index('P') + 1} is prismatic"
     if why:
         raise RobotFileError(
-            f"{option or 'a UR kinematics file'} needs a six-joint revolute DH robot in UR's convention; "
+            f"{option or 'a UR kinematics file'} needs a six-joint revolute DH table (UR's, or any such); "
             f"{robot.name!r} is not: {why}",
             option=option,
         )

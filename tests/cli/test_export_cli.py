@@ -105,7 +105,7 @@ def _no_fit(*a, **kw):
 @pytest.mark.parametrize(
     "robot, flag, msg",
     [
-        ("panda", "--out-ur-kinematics", "needs a six-joint revolute DH robot in UR's convention; 'panda' is not"),
+        ("panda", "--out-ur-kinematics", "needs a six-joint revolute DH table (UR's, or any such); 'panda' is not"),
         ("tiago", "--out-ur-kinematics", "described by joint frames (a URDF, or a UR kinematics file whose"),
         ("tiago", "--out-dh", "is described by joint frames (a URDF), not a DH table"),
     ],

@@ -172,3 +172,26 @@ def test_lost_markers_and_rows_without_any_are_named():
     assert "rows 20 left out: none of the points read was seen" in text
     assert "2 point(s) not seen, each fitted without it: row 4 point 1, row 9 point 1" in text
     assert "Lost markers" not in report_html(res, data, workspace_poses=20)
+
+
+def test_a_fit_not_to_use_says_so_first(page):
+    """The command refuses to write such a fit; the Python API writes what it is given, and the
+    page says first why it is not a calibration to use: the reason of an implausible fit (which
+    names a fit that did not converge), or the steps of one that did not converge."""
+    _, _, data, res = ur5_tracker()
+    said = "Not a calibration to use:"
+    assert said not in report_html(res, data, workspace_poses=20)
+    assert "Estimated DH errors" in page[0].headings
+    from jaxcal import load_robot
+    from jaxcal.measurements import tiago_paths
+    from jaxcal.plots import parameter_kind
+
+    assert parameter_kind(load_robot(tiago_paths()[0])) == "joint-frame"  # a URDF's heading names its frames
+    unconverged = dict(res.report, converged=False, steps=1)
+    text = report_html(dataclasses.replace(res, report=unconverged), data, workspace_poses=20)
+    assert f"{said}</strong> the final fit did not converge in 1 step(s)" in text
+    assert text.index(said) < text.index("<h2>Summary</h2>")
+    why = "not a calibration: d2 changes by 80 mm, more than 59.6 mm (max_length_change_mm)"
+    implausible = dict(res.report, plausible=False, implausible=why)
+    text = report_html(dataclasses.replace(res, report=implausible), data, workspace_poses=20)
+    assert f"{said}</strong> {why}" in text
