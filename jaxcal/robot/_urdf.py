@@ -70,11 +70,12 @@ def _parse(path: Path):
     from lxml import etree  # yourdfpy's XML library
 
     try:  # strictly first: yourdfpy recovers from broken XML, dropping what follows the break
-        etree.parse(str(path))
+        tree = etree.parse(str(path))
     except etree.XMLSyntaxError as e:
         raise RobotFileError(f"{path}: not a readable URDF: the XML is broken: {e}") from None
     except OSError as e:
         raise RobotFileError(f"{path}: cannot be read: {e}") from None
+    _check_numbers(tree, path)
     try:
         urdf = yourdfpy.URDF.load(
             str(path),
@@ -96,6 +97,35 @@ def _parse(path: Path):
     return urdf.robot
 
 
+NUMBERS = {"origin": {"xyz": 3, "rpy": 3}, "axis": {"xyz": 3}, "limit": {"lower": 1, "upper": 1}}
+"""A joint's numeric attributes jaxcal reads, and how many numbers each holds (finite, but a
+limit's)."""
+
+
+def _check_numbers(tree, path: Path) -> None:
+    """Refuse a joint's numeric attribute that is not its count of numbers, naming the joint,
+    the element and the line (yourdfpy's own error names none): a xacro file not expanded
+    (``${...}``, ``$(...)``), a decimal comma, two numbers for three."""
+    for joint in tree.getroot().iter("joint"):
+        for tag, attrs in NUMBERS.items():
+            for el in joint.findall(tag):
+                for attr, count in attrs.items():
+                    text = el.get(attr)
+                    if text is None:
+                        continue
+                    where = f"{path}: line {el.sourceline}: joint {joint.get('name')!r}, <{tag} {attr}={text!r}>"
+                    if "$" in text:
+                        raise RobotFileError(f"{where}: a xacro expression; expand the file first (xacro F > F.urdf)")
+                    try:
+                        values = [float(v) for v in text.split()]
+                    except ValueError:
+                        raise RobotFileError(f"{where}: not {count} number(s) (a decimal point, spaces)") from None
+                    if len(values) != count:
+                        raise RobotFileError(f"{where}: {len(values)} number(s), not {count}")
+                    if tag != "limit" and not np.all(np.isfinite(values)):  # a limit may be infinite: said later
+                        raise RobotFileError(f"{where}: not finite")
+
+
 def _mm(T) -> np.ndarray:
     T = np.eye(4) if T is None else np.array(T, dtype=np.float64)
     T[:3, 3] *= M_TO_MM
@@ -108,15 +138,27 @@ def _is_ours(link: str) -> bool:
 
 
 def _tree(doc, source: str) -> dict:
-    """``{child link: joint}``, refusing what is not a tree: a link with two parents."""
+    """``{child link: joint}``, refusing what is not a tree: a joint between links the file does
+    not declare, a link with two parents, joints that close a loop."""
+    declared = {lk.name for lk in doc.links}
     by_child = {}
     for j in doc.joints:
+        for role, link in (("parent", j.parent), ("child", j.child)):
+            if link not in declared:
+                raise RobotFileError(f"{source}: joint {j.name!r}: its {role} link {link!r} is no <link> in the file")
         if j.child in by_child:
             raise RobotFileError(
                 f"{source}: link {j.child!r} is the child of two joints ({by_child[j.child].name!r}, {j.name!r}); "
                 "a URDF is a tree"
             )
         by_child[j.child] = j
+    for start in by_child:  # up from every link: a tree reaches a root within as many joints
+        seen, link = [], start
+        while link in by_child:
+            seen.append(by_child[link].name)
+            link = by_child[link].parent
+            if link == start:
+                raise RobotFileError(f"{source}: joints {', '.join(map(repr, seen))} close a loop; a URDF is a tree")
     return by_child
 
 
@@ -225,8 +267,6 @@ def _movable(j, source: str) -> np.ndarray:
     if j.mimic is not None:
         raise RobotFileError(f"{source}: joint {j.name!r} mimics another joint; not supported in a chain")
     axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, dtype=np.float64).reshape(-1)
-    if axis.shape != (3,):
-        raise RobotFileError(f"{source}: joint {j.name!r} has axis {axis.tolist()}; an axis is three numbers x y z")
     n = np.linalg.norm(axis)
     if not (np.isfinite(n) and n > 0):
         raise RobotFileError(f"{source}: joint {j.name!r} has axis {axis.tolist()}; a movable joint needs a direction")
@@ -291,8 +331,6 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
     pending = np.eye(4)
     for j in joints:
         T = _mm(j.origin)
-        if not np.isfinite(T).all():
-            raise RobotFileError(f"{source}: joint {j.name!r} has a non-finite <origin>")
         if j.type == "fixed":
             pending = pending @ T
             continue

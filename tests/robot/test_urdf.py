@@ -323,7 +323,42 @@ BAD = {
         '<robot name="r"><link name="a"/><link name="b"/>'
         '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 1"/>'
         '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>',
-        "joint 'j2' has axis [0.0, 1.0]; an axis is three numbers x y z",
+        "line 1: joint 'j2', <axis xyz='0 1'>: 2 number(s), not 3",
+    ),
+    "origin of two numbers": (
+        '<robot name="r"><link name="a"/><link name="b"/>\n'
+        '<joint name="j2" type="continuous"><parent link="a"/><child link="b"/><origin xyz="0.3 0"/></joint></robot>',
+        "line 2: joint 'j2', <origin xyz='0.3 0'>: 2 number(s), not 3",
+    ),
+    "a decimal comma": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j2" type="continuous"><parent link="a"/><child link="b"/><origin rpy="0 0,5 0"/></joint></robot>',
+        "joint 'j2', <origin rpy='0 0,5 0'>: not 3 number(s) (a decimal point, spaces)",
+    ),
+    "a xacro file not expanded": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="${L} 0 0"/>'
+        '<limit lower="${-pi}" upper="1" effort="1" velocity="1"/></joint></robot>',
+        "joint 'j2', <origin xyz='${L} 0 0'>: a xacro expression; expand the file first",
+    ),
+    "an origin not finite": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j2" type="continuous"><parent link="a"/><child link="b"/>'
+        '<origin xyz="0.3 inf 0"/></joint></robot>',
+        "joint 'j2', <origin xyz='0.3 inf 0'>: not finite",
+    ),
+    "a link not declared": (
+        '<robot name="r"><link name="a"/><link name="b"/>'
+        '<joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>'
+        '<joint name="j2" type="continuous"><parent link="b"/><child link="c"/></joint></robot>',
+        "joint 'j2': its child link 'c' is no <link> in the file",
+    ),
+    "joints that close a loop": (
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>'
+        '<joint name="j2" type="continuous"><parent link="b"/><child link="c"/></joint>'
+        '<joint name="j3" type="fixed"><parent link="c"/><child link="a"/></joint></robot>',
+        "close a loop; a URDF is a tree",
     ),
     "infinite limits": (
         '<robot name="r"><link name="a"/><link name="b"/>'
