@@ -682,6 +682,14 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
     if points is not None:
         out = out.select_points(points)
         q, pos, rows = out.q, out.measured, out.rows
+    never = [j for j in range(out.n_points) if np.isnan(out.measured[:, j]).all()]
+    if never:  # every fit would be singular in it: named by the file's numbers and columns
+        numbers = [out.numbers[j] for j in never]
+        raise DataError(
+            f"{src}: point(s) {', '.join(map(str, numbers))} ({'; '.join(', '.join(columns[k - 1]) for k in numbers)}) "
+            "empty in every row; leave them out (--points / points=)",
+            option="points",
+        )
     mixed_units(q, pos, robot, rows, src, jcols, out.point_numbers)
     return out
 

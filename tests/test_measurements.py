@@ -253,8 +253,14 @@ def test_lost_points_are_nan_and_a_row_without_any_is_dropped(tmp_path, panda):
     one = m.select_points([1])
     assert_array_equal(one.rows, [1, 2, 5]) and one.dropped_rows == (3, 4) and one.lost_points == []
     assert m.select_points([2, 3]).lost_points == [(2, 2)]
+    # a point empty in every row is named with its columns; chosen out, the file reads
+    unseen = _csv(tmp_path, _three_points(["", "", ""] + full[3:], ["", "", ""] + full[3:]), "b.csv")
+    with pytest.raises(DataError, match=r"b\.csv: point\(s\) 1 \(x1, y1, z1\) empty in every row"):
+        read_measurements(unseen, panda)
+    assert read_measurements(unseen, panda, points=[2, 3]).point_numbers == (2, 3)
+    lost_first = m.subset(np.array([False, False, True, False]))  # row 3: point 1 not seen
     with pytest.raises(DataError, match=r"point\(s\) \[1\] \(points\) were not seen in any row"):
-        read_measurements(_csv(tmp_path, _three_points(["", "", ""] + full[3:]), "b.csv"), panda).select_points([1])
+        lost_first.select_points([1])
 
 
 LOST_BAD = {
