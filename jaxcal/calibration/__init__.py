@@ -5,6 +5,7 @@
 from ._accuracy import position_std as position_std
 from ._checks import check_angles as check_angles
 from ._checks import check_units as check_units
+from ._core import base_set as base_set
 from ._core import generic_model as generic_model
 from ._core import kin_order as kin_order
 from ._core import nominal_model as nominal_model

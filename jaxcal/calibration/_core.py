@@ -584,18 +584,22 @@ def _analysed(model: Model, layout: Layout, q) -> tuple[np.ndarray, np.ndarray, 
     return tuple(np.asarray(a)[:K] for a in _nominal(model, layout, pad_poses(q, pose_bucket(K), 0)))
 
 
-def identify(J, layout: Layout, robot: Robot | None = None, *, rtol: float = 1e-8) -> Identifiability:
+def base_set(J, layout: Layout, robot: Robot | None = None, *, rtol: float = 1e-8) -> Identifiability:
     """Identifiability of every parameter of ``layout`` from the Jacobian ``J`` (:func:`analyse`),
     the frames offered first (they keep what they can absorb), then the DH errors or joint frames
-    (in :func:`kin_order` of ``robot``) and the joint compliances, then the camera. A URDF's joint
-    frames are then exchanged for better separated ones (``swappable`` of :func:`analyze`): their
-    order is a heuristic, a DH table's held parameters the textbook ones."""
+    (in :func:`kin_order` of ``robot``) and the joint compliances, then the camera. A URDF joint
+    origin's shifts and turns are then exchanged for better separated ones (``swappable`` of
+    :func:`analyze`): their order is a heuristic, a DH table's held parameters the textbook ones.
+    The joint offsets stay as the order keeps them: a joint's zero is the error a user looks for,
+    and the offsets candidate estimates the offsets in the set."""
     frames, cams = list(layout.frames), list(layout.cameras)
     order = kin_order(robot, layout)
-    swappable = order if robot is not None and robot.convention == "joint" else None
+    names = layout.names()
+    joint = robot is not None and robot.convention == "joint"
+    swappable = [i for i in order if not names[i].startswith("offset")] if joint else None
     J = np.asarray(J).reshape(-1, layout.size)
     kin = order + list(layout.compliances)
-    return analyze(J, layout.names(), rtol=rtol, priority=frames + kin + cams, swappable=swappable)
+    return analyze(J, names, rtol=rtol, priority=frames + kin + cams, swappable=swappable)
 
 
 def scaled_condition(J, base) -> float:
@@ -618,7 +622,7 @@ def reidentified(
     cond = scaled_condition(J, ident.base)
     if cond <= max_condition:
         return None
-    again = identify(J, layout, robot)
+    again = base_set(J, layout, robot)
     if set(again.base) == set(ident.base):
         return None
     names = layout.names()

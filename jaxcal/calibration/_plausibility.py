@@ -258,7 +258,7 @@ def _frames_only(
         else core.broadcast_model(Model(kin, np.zeros((n_points, 3)) if n_points else None), R)
     )
     J0 = core.analyse(core.member(ref, 0), lay, Q[0])[0]
-    ident = core.identify(J0, lay, robot)
+    ident = core.base_set(J0, lay, robot)
     base = set(ident.base)
     prior = np.array([0.0 if (i in base and i in lay.frames) else core.PIN for i in range(lay.size)])
     cfg = core.Config(lay, "lm", 50, 1e-8, 1e-8, "l2", shared_data=False)

@@ -356,7 +356,7 @@ def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: in
     q = np.asarray(check_q(robot, as_f64(q, "q")))
     if q.ndim != 2:
         raise DataError(f"q must have shape (K, {robot.n_joints}), got {q.shape}", option="q")
-    return core.identify(core.analyse(core.generic_model(robot, layout), layout, q)[0], layout, robot)
+    return core.base_set(core.analyse(core.generic_model(robot, layout), layout, q)[0], layout, robot)
 
 
 def calibrate(
@@ -416,7 +416,7 @@ def calibrate(
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     nominal_pos = core.nominal_positions(robot, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True, also=nominal_pos)
-    ident = core.identify(J0, layout, robot)
+    ident = core.base_set(J0, layout, robot)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
     # not the one-shot linear solve: a second solve from the first is another method's step
@@ -617,7 +617,7 @@ def calibrate_batch(
     J0 = core.analyse(core.member(ref, r0), layout, q[r0])[0]
     given_ident = ident
     if ident is None:  # on the poses it measured
-        ident = core.identify(J0[masks[r0] > 0], layout, robot)
+        ident = core.base_set(J0[masks[r0] > 0], layout, robot)
     # each data set's own lever, as calibrate gives it alone (the start models: the frames-only
     # fits of calibrate come later and move no lever a prior needs)
     lever = (
@@ -884,7 +884,7 @@ def _elimination_batch(robot, q, target, n_points, layout, opts) -> BatchResult:
     nonfinite = ~np.all(np.isfinite(x), axis=-1)
     x[nonfinite] = 0.0
     ok[nonfinite] = False
-    ident = core.identify(core.analyse(Model(robot.stripped()), layout, q[0])[0], layout, robot)
+    ident = core.base_set(core.analyse(Model(robot.stripped()), layout, q[0])[0], layout, robot)
     R, K = q.shape[:2]
     # judged on the first data set's poses, as the plan is: only where every data set has them (a
     # Monte Carlo study draws a design per robot); the literal variant solves each block whole

@@ -237,7 +237,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     nested = (len(candidates) > 1 or opts.params.strip() == "auto") and K <= opts.nested_max_poses
     return _Problem(
         robot, opts, data, q, target, n_points, rows, layout, candidates, detector,
-        core.identify(J0, layout, robot), cfg, run, held, F, everything, nested, groups,
+        core.base_set(J0, layout, robot), cfg, run, held, F, everything, nested, groups,
     )  # fmt: skip
 
 
@@ -630,7 +630,7 @@ def _wider(p: _Problem, fit: Model, sig):
     the robot's file, while the arm's are tilted by degrees. ``None`` otherwise. Only here, where
     the model is chosen from the data; :func:`jaxcal.calibrate` fits the set the nominal gives."""
     lin, J = _linear(p, fit, sig)
-    again = core.identify(J, p.layout, p.robot)
+    again = core.base_set(J, p.layout, p.robot)
     if again.rank <= p.ident.rank:
         return None
     if not core.scaled_condition(np.asarray(J).reshape(-1, p.layout.size), again.base) <= selection.MAX_CONDITION:

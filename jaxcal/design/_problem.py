@@ -2,13 +2,12 @@ r"""The design problem: the information a pose set gives about the identifiable 
 parameters of a calibration, and the three criteria computed from it.
 
 A calibration with weights ``W = diag(1 / sigma^2)`` estimates the base parameters (the columns
-the frames-first greedy walk of :func:`jaxcal.identifiability.analyze` keeps, as
-:func:`jaxcal.calibrate` does) with covariance bounded below by the Cramér–Rao bound
-``M(Q)^{-1}``, where ``M(Q) = sum_k J_b(q_k)^T W J_b(q_k)`` (+ a ridge prior's diagonal) and
-``J_b`` are the base columns of the identification Jacobian (paper eq. 10,
-:func:`jaxcal.model.jacobian`). The parameters are scaled so that every column has unit RMS
-weighted norm per pose over the validation set (mm and rad would otherwise weigh parameters
-arbitrarily). The criteria:
+:func:`jaxcal.calibration.base_set` keeps, as :func:`jaxcal.calibrate` does) with covariance
+bounded below by the Cramér–Rao bound ``M(Q)^{-1}``, where
+``M(Q) = sum_k J_b(q_k)^T W J_b(q_k)`` (+ a ridge prior's diagonal) and ``J_b`` are the base
+columns of the identification Jacobian (paper eq. 10, :func:`jaxcal.model.jacobian`). The
+parameters are scaled so that every column has unit RMS weighted norm per pose over the validation
+set (mm and rad would otherwise weigh parameters arbitrarily). The criteria:
 
 * ``d`` (D-optimal): ``log det M``, larger is better;
 * ``a`` (A-optimal): ``tr M^{-1}``, the summed variance of the scaled parameters;
@@ -33,9 +32,8 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import as_f64, jit
-from ..calibration import Options, generic_model, kin_order, lever, make_layout, nominal_model, parse_params
+from ..calibration import Options, base_set, generic_model, lever, make_layout, nominal_model, parse_params
 from ..errors import DataError
-from ..identifiability import analyze
 from ..kinematics import check_q
 from ..model import Layout, Model, apply, jacobian, predict, row_weights
 from ..robot import Robot
@@ -347,10 +345,9 @@ def design_problem(
         raise DataError(f"q_val must have shape (V, {robot.n_joints}) with V >= 1, got {q_val.shape}", option="q_val")
     J = reference(model, layout, q_val)[0]  # (V, rows, m)
 
-    # the identifiable set as calibrate finds it: frames offered first, then DH and compliances,
-    # then camera
+    # the identifiable set as calibrate finds it
     frames, cams, comps = list(layout.frames), list(layout.cameras), list(layout.compliances)
-    ident = analyze(J, layout.names(), priority=frames + kin_order(robot, layout) + comps + cams)
+    ident = base_set(J, layout, robot)
     spec = "all" if opts.params == "auto" else opts.params
     cand = parse_params(spec, robot, opts.ridge_mm, compliance=opts.compliance == "yes")[0]
     estimated = set(frames + cams + list(cand.dh) + (comps if cand.compliance else []))

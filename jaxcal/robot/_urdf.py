@@ -106,8 +106,10 @@ def _check_numbers(tree, path: Path) -> None:
     """Refuse a joint's numeric attribute that is not its count of numbers, naming the joint,
     the element and the line (yourdfpy's own error names none): a xacro file not expanded
     (``${...}``, ``$(...)``), a decimal comma, two numbers for three."""
-    for joint in tree.getroot().iter("joint"):
+    for joint in tree.getroot().findall("joint"):  # the robot's own: <gazebo> and others nest theirs
         for tag, attrs in NUMBERS.items():
+            if tag != "origin" and joint.get("type") == "fixed":  # a fixed joint's axis and limits: unread
+                continue
             for el in joint.findall(tag):
                 for attr, count in attrs.items():
                     text = el.get(attr)
@@ -152,13 +154,14 @@ def _tree(doc, source: str) -> dict:
                 "a URDF is a tree"
             )
         by_child[j.child] = j
-    for start in by_child:  # up from every link: a tree reaches a root within as many joints
-        seen, link = [], start
+    for start in by_child:  # up from every link: a tree reaches a root without meeting a link twice
+        met, link = [start], start
         while link in by_child:
-            seen.append(by_child[link].name)
             link = by_child[link].parent
-            if link == start:
-                raise RobotFileError(f"{source}: joints {', '.join(map(repr, seen))} close a loop; a URDF is a tree")
+            if link in met:
+                loop = ", ".join(repr(by_child[lk].name) for lk in met[met.index(link) :])
+                raise RobotFileError(f"{source}: joints {loop} close a loop; a URDF is a tree")
+            met.append(link)
     return by_child
 
 

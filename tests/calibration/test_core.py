@@ -17,7 +17,7 @@ def test_unconverged_members_and_only_those_are_fitted_again_by_lm():
     layout = Layout.of(robot, base=False, tool=False, n_points=0)
     models = core.broadcast_model(core.nominal_model(robot, layout), 3)
     J0 = core.analyse(core.member(models, 0), layout, q)[0]
-    base = set(core.identify(J0, layout).base)
+    base = set(core.base_set(J0, layout).base)
     prior = np.repeat(np.array([[0.0 if i in base else PIN for i in range(layout.size)]]), 3, 0)
     weights = np.repeat(core.weights_of(layout, np.array([[0.01, 1e-5]])), 3, 0)
     x_true = np.asarray(sim.x_true[0])[: layout.size]

@@ -111,7 +111,7 @@ def test_a_factory_style_file_reads_as_joint_frames(tmp_path, rng):
     ],
 )
 def test_other_robots_refused(tmp_path, robot, why):
-    with pytest.raises(RobotFileError, match="needs a six-joint revolute DH robot") as e:
+    with pytest.raises(RobotFileError, match="needs a six-joint revolute DH table") as e:
         ur_kinematics(robot)
     assert why in str(e.value)
     with pytest.raises(RobotFileError):

@@ -347,6 +347,14 @@ BAD = {
         '<origin xyz="0.3 inf 0"/></joint></robot>',
         "joint 'j2', <origin xyz='0.3 inf 0'>: not finite",
     ),
+    "a loop off the chain": (
+        '<robot name="r"><link name="a"/><link name="b"/><link name="x"/><link name="y"/><link name="z"/>'
+        '<joint name="jz" type="continuous"><parent link="x"/><child link="z"/></joint>'
+        '<joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>'
+        '<joint name="jx" type="continuous"><parent link="y"/><child link="x"/></joint>'
+        '<joint name="jy" type="continuous"><parent link="x"/><child link="y"/></joint></robot>',
+        "joints 'jx', 'jy' close a loop; a URDF is a tree",
+    ),
     "a link not declared": (
         '<robot name="r"><link name="a"/><link name="b"/>'
         '<joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>'
@@ -382,6 +390,21 @@ def test_bad_urdf_is_named(tmp_path, case):
     p.write_text(text)
     with pytest.raises(RobotFileError, match=re.escape(msg)):
         load_robot(p)
+
+
+def test_numbers_jaxcal_does_not_read_are_not_checked(tmp_path):
+    """A fixed joint's axis (the URDF readers ignore it) and the joints another element nests
+    (``<gazebo>``, ``<ros2_control>``) may hold what a joint of the chain may not."""
+    p = tmp_path / "r.urdf"
+    p.write_text(
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="j1" type="continuous"><parent link="a"/><child link="b"/></joint>'
+        '<joint name="f" type="fixed"><parent link="b"/><child link="c"/><origin xyz="0 0 0.1"/><axis xyz="0 0"/>'
+        "</joint>"
+        '<gazebo><joint name="j1"><origin xyz="${a} 0 0"/></joint></gazebo>'
+        '<ros2_control name="s" type="system"><joint name="j1"><limit lower="{-pi}"/></joint></ros2_control></robot>'
+    )
+    assert load_robot(p).joint_names == ("j1",)
 
 
 def test_dh_robot_is_not_written_as_urdf(tmp_path):
