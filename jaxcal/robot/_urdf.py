@@ -496,9 +496,13 @@ def urdf_text(
         _drop_ours(root)
         elements = {el.get("name"): el for el in root.findall("joint")}
         for i, nm in enumerate(robot.joint_names):
-            _set(elements[nm], "origin", _mm(by_name[nm].origin) @ _folded(robot, i))
+            # a joint the calibration left as it was keeps the file's own text
+            if np.any(np.asarray(robot.dh[i]) != 0.0):
+                _set(elements[nm], "origin", _mm(by_name[nm].origin) @ _folded(robot, i))
             # unit, as read: every reader then turns it the same way
-            _set(elements[nm], "axis", np.asarray(robot.axes)[i])
+            axis = None if by_name[nm].axis is None else np.asarray(by_name[nm].axis, float)
+            if axis is None or abs(np.linalg.norm(axis) - 1.0) > 1e-12:
+                _set(elements[nm], "axis", np.asarray(robot.axes)[i])
     else:
         doc = yourdfpy.Robot(name=robot.name)
         doc.links.append(yourdfpy.Link(name="base_link"))

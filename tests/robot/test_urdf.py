@@ -478,3 +478,25 @@ def test_a_continuous_joints_limits_given_in_the_file_are_its_readings_range(tmp
     check_angles(wide, q)  # radians over several turns, within the file's range
     for limit in ('<limit effort="1" velocity="1"/>', '<limit upper="5" effort="1" velocity="1"/>', ""):
         np.testing.assert_allclose(np.asarray(robot(limit).q_limits)[0], [-np.pi, np.pi])
+
+
+def test_a_joint_the_calibration_left_keeps_the_files_text(tmp_path):
+    """Only the joints whose parameters changed get a new ``<origin>``; a joint left as it was, and
+    a unit axis, keep the file's own text (no float noise: ``0.01`` stays ``0.01``)."""
+    from lxml import etree
+
+    nominal = tmp_path / "rich.urdf"
+    nominal.write_text(RICH, encoding="utf-8")
+    r = load_robot(nominal, base_link="base", tip_link="l2")
+    dh = np.zeros((2, 7))
+    dh[1, 1] = 0.5  # j2's origin moves 0.5 mm along its x
+    written = tmp_path / "cal.urdf"
+    save_model(Model(r.replace(dh=dh), np.ones((1, 3))), written, template=nominal, base_link="base", tip_link="l2")
+
+    def joint(path, name):
+        root = etree.parse(str(path)).getroot()
+        return next(el for el in root.findall("joint") if el.get("name") == name)
+
+    for tag in ("origin", "axis"):
+        assert joint(written, "j1").find(tag).attrib == joint(nominal, "j1").find(tag).attrib
+    assert joint(written, "j2").find("origin").attrib != joint(nominal, "j2").find("origin").attrib
