@@ -629,14 +629,17 @@ def joints_left_out(meas: Measurements, robot: Robot, movable: dict[str, str]) -
     return out
 
 
-def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, points=None) -> Measurements:
+def read_measurements(
+    path, robot: Robot, *, length_unit=None, angle_unit=None, points=None, drop_unseen: bool = False
+) -> Measurements:
     """Read a measurement CSV (module docstring) for ``robot``; returns mm and rad.
 
     ``length_unit`` (``"mm"`` or ``"m"``) and ``angle_unit`` (``"rad"`` or ``"deg"``) default to
     the robot file's units (``robot.units``). ``points``: only these measured points
     (:meth:`Measurements.select_points`), chosen before the unit checks, so that a point left out
-    (a marker lost and written as a sentinel) does not refuse the file. Raises
-    :class:`DataError` for malformed files.
+    (a marker lost and written as a sentinel) does not refuse the file. A point empty in every
+    row is refused by its columns, or with ``drop_unseen`` left out (a file read for its joint
+    values alone). Raises :class:`DataError` for malformed files.
     """
     lu, lu_name = unit_scale(length_unit, LENGTH_UNITS, "length_unit", robot.units[0])
     au, au_name = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", robot.units[1])
@@ -683,11 +686,14 @@ def read_measurements(path, robot: Robot, *, length_unit=None, angle_unit=None, 
         out = out.select_points(points)
         q, pos, rows = out.q, out.measured, out.rows
     never = [j for j in range(out.n_points) if np.isnan(out.measured[:, j]).all()]
-    if never:  # every fit would be singular in it: named by the file's numbers and columns
+    if never and drop_unseen:
+        out = out.select_points([j + 1 for j in range(out.n_points) if j not in never])
+        q, pos, rows = out.q, out.measured, out.rows
+    elif never:  # every fit would be singular in it: named by the file's numbers and columns
         numbers = [out.numbers[j] for j in never]
         raise DataError(
             f"{src}: point(s) {', '.join(map(str, numbers))} ({'; '.join(', '.join(columns[k - 1]) for k in numbers)}) "
-            "empty in every row; leave them out (--points / points=)",
+            "empty in every row; leave them out (--points)",
             option="points",
         )
     mixed_units(q, pos, robot, rows, src, jcols, out.point_numbers)

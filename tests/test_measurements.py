@@ -258,6 +258,7 @@ def test_lost_points_are_nan_and_a_row_without_any_is_dropped(tmp_path, panda):
     with pytest.raises(DataError, match=r"b\.csv: point\(s\) 1 \(x1, y1, z1\) empty in every row"):
         read_measurements(unseen, panda)
     assert read_measurements(unseen, panda, points=[2, 3]).point_numbers == (2, 3)
+    assert read_measurements(unseen, panda, drop_unseen=True).point_numbers == (2, 3)  # for its joints alone
     lost_first = m.subset(np.array([False, False, True, False]))  # row 3: point 1 not seen
     with pytest.raises(DataError, match=r"point\(s\) \[1\] \(points\) were not seen in any row"):
         lost_first.select_points([1])

@@ -73,7 +73,9 @@ def evaluate(
         src, header, _ = read_table(training, "")
         have = len(measurement_columns(header, src)[0])
         same = chosen if chosen is not None and max(chosen) <= have else None
-        train = read_measurements(training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same)
+        train = read_measurements(
+            training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same, drop_unseen=True
+        )
     rep = run(m, meas, training=train, ranges=None if nominal else read_training_ranges(model))
     if not nominal:  # the joints above the chain's base link, which move the whole chain
         above = base_link or (calibrated_chain(model) or (None,))[0]

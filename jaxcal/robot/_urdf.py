@@ -154,14 +154,16 @@ def _tree(doc, source: str) -> dict:
                 "a URDF is a tree"
             )
         by_child[j.child] = j
+    rooted: set[str] = set()  # links shown to reach a root: each link is walked past once
     for start in by_child:  # up from every link: a tree reaches a root without meeting a link twice
-        met, link = [start], start
-        while link in by_child:
+        met, link = {start: 0}, start
+        while link in by_child and link not in rooted:
             link = by_child[link].parent
             if link in met:
-                loop = ", ".join(repr(by_child[lk].name) for lk in met[met.index(link) :])
+                loop = ", ".join(repr(by_child[lk].name) for lk in list(met)[met[link] :])
                 raise RobotFileError(f"{source}: joints {loop} close a loop; a URDF is a tree")
-            met.append(link)
+            met[link] = len(met)
+        rooted.update(met)
     return by_child
 
 

@@ -270,3 +270,26 @@ def test_a_compliant_models_urdf_gives_the_error_other_readers_see(tmp_path, mon
     rigid = float(np.sqrt(np.mean(np.sum((np.array(seen) - points) ** 2, -1))))
     assert float(head["rigid_geometry_rms_mm_on_the_data"]) == pytest.approx(rigid, rel=1e-4)
     assert rigid > 5 * float(head["rms_mm_on_the_data_with_compliance"])
+
+
+def test_a_training_file_with_a_point_never_seen_is_read_for_its_joints(monkeypatch, capsys, split, tmp_path):
+    """``evaluate --training`` uses the training file's joint values alone: a point empty in every
+    row of it is left out there; as the data scored, the same file is refused by that point's
+    columns."""
+    header, *rows = (split / "train.csv").read_text().splitlines()
+    cols = header.split(",")
+    blank = [cols.index(c) for c in ("x3", "y3", "z3")]
+    lost = tmp_path / "lost3.csv"
+    kept = [",".join("" if i in blank else v for i, v in enumerate(r.split(","))) for r in rows]
+    lost.write_text("\n".join([header] + kept) + "\n")
+    from jaxcal import load_robot
+    from jaxcal.model import Model
+
+    model = tmp_path / "four.urdf"  # the nominal arm with four points on its tool
+    save_model(Model(load_robot(URDF), np.zeros((4, 3))), model, template=URDF)
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", model, split / "test.csv", "--training", lost)
+    assert code in (0, None), err
+    assert "out of training ranges" in out
+    code, out, err = run_cli(monkeypatch, capsys, "evaluate", model, lost)
+    said = " ".join(err.split())
+    assert code == 2 and "point(s) 3 (x3, y3, z3) empty in every row; leave them out (--points)" in said
