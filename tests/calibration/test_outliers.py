@@ -583,7 +583,7 @@ def test_faults_of_one_marker_at_a_range_end_are_not_taken_for_the_arm():
     the ends of q2's range are a region, counted in the figures. The arm without the sag, one
     point of each of those poses moved 3 mm (a marker slipped): the same poses are outliers, but
     their points do not move as one rigid body; they are named measurement faults, make no
-    region, and the held-out figure stays at the clean file's."""
+    region, and the held-out figure stays near the noise, as a clean file's."""
     three = ((30.0, -20.0, 120.0), (-60.0, 10.0, 90.0), (20.0, 70.0, 60.0))
     robot, q, sagging, _ = _sagging_ur5(1, K, three)
     rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q, sagging)).report
@@ -593,10 +593,10 @@ def test_faults_of_one_marker_at_a_range_end_are_not_taken_for_the_arm():
     _, _, clean, _ = _sagging_ur5(1, K, three, sag=False)
     slipped = clean.copy()
     slipped[rows - 1, 1] += [3.0, 0.0, 0.0]
-    base = jaxcal.calibrate_data(robot, jaxcal.Measurements(q, clean)).report
     rep = jaxcal.calibrate_data(robot, jaxcal.Measurements(q, slipped)).report
     assert set(rep["outlier_detection"]["not_rigid_rows"]) == set(rows.tolist())
     assert {o["row"] for o in rep["outliers"]} == set(rows.tolist())
     assert rep["outlier_detection"]["region"] is None
-    assert rep["heldout_rms_mm"] < 1.5 * base["heldout_rms_mm"]
+    # a clean file's: the noise of three points (0.02 mm per coordinate) and a little more
+    assert rep["heldout_rms_mm"] < 3 * np.sqrt(3) * NOISE
     assert any("do not move as one rigid body" in n for n in rep["notes"])
