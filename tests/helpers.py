@@ -226,3 +226,64 @@ def urdf_points(urdf, names, q, frame_from: str, frame_to: str, point=np.zeros(3
         T = np.asarray(urdf.get_transform(frame_to=frame_to, frame_from=frame_from))
         out.append((T[:3, :3] @ point + T[:3, 3]) * 1e3)
     return np.array(out)
+
+
+TILTED_JOINTS = (
+    ("0 0 1", "0 0 0.3"), ("1 0 0", "0.2 0 0.1"), ("0.999 0.014 0.045", "0 0.25 0"), ("0 1 0", "0.1 0 0.2"),
+    ("0 0 1", "0 0.1 0.15"),
+)  # fmt: skip
+"""(axis, origin xyz in m) of a made-up arm's revolute joints, the third's axis a little off x
+(a humanoid's elbow in example-robot-data has such an axis)."""
+
+
+def tilted_arm(n: int = 5) -> str:
+    """The URDF text of the first ``n`` joints of :data:`TILTED_JOINTS`, links ``l0 .. ln``, every
+    origin turned by rpy (0.1, -0.2, 0.3), limits +-2 rad."""
+    joints = TILTED_JOINTS[:n]
+    links = "".join(f'<link name="l{i}"/>' for i in range(len(joints) + 1))
+    text = "".join(
+        f'<joint name="j{i + 1}" type="revolute"><parent link="l{i}"/><child link="l{i + 1}"/>'
+        f'<origin xyz="{xyz}" rpy="0.1 -0.2 0.3"/><axis xyz="{axis}"/>'
+        f'<limit lower="-2" upper="2" effort="1" velocity="1"/></joint>'
+        for i, (axis, xyz) in enumerate(joints)
+    )
+    return f'<robot name="r">{links}{text}</robot>'
+
+
+def tilted_arm_links(folder, seed: int):
+    """The five-joint :func:`tilted_arm`, every origin moved by up to 3 mm and 3 mrad (seeded), three
+    points on its tip link measured by yourdfpy on the moved file (0.01 mm noise, 60 postures,
+    a tracker frame 1 m off), calibrated by :func:`jaxcal.calibrate` and written as URDF into
+    ``folder``. **Returns** ``(result, worst mm, worst deg)``: the largest distance and turn of a
+    link's frame in the written file from the moved file's, read by yourdfpy, over five postures."""
+    from pathlib import Path
+
+    import jaxcal
+
+    folder = Path(folder)
+    nominal = folder / "arm.urdf"
+    nominal.write_text(tilted_arm(5))
+    rng = np.random.default_rng(seed)
+    (folder / "true.urdf").write_text(urdf_perturbed(nominal.read_text(), rng, 3e-3, 3e-3))
+    truth = load_urdf(folder / "true.urdf")
+    names, _ = urdf_chain(truth, "l0", "l5")
+    frame = random_transform(rng, 1000.0)  # the tracker's, mm
+    q = rng.uniform(-2, 2, (60, len(names)))
+    on_tip = ([0.05, 0, 0.02], [0, 0.04, 0.03], [-0.03, -0.02, 0.06])  # m
+    moved = [urdf_points(truth, names, q, "l0", "l5", np.array(v)) for v in on_tip]
+    p = np.stack([m @ frame[:3, :3].T + frame[:3, 3] for m in moved], 1)
+    r = jaxcal.calibrate(jaxcal.load_robot(nominal), q, p + rng.normal(scale=0.01, size=p.shape))
+    jaxcal.save_model(r.model, folder / "cal.urdf", template=nominal)
+    written = load_urdf(folder / "cal.urdf")
+    mm = np.diag([1e3, 1e3, 1e3, 1.0])
+    far = turn = 0.0
+    for qk in q[:5]:
+        truth.update_cfg(dict(zip(names, qk)))
+        written.update_cfg(dict(zip(names, qk)))
+        for link in [f"l{i}" for i in range(1, 6)]:
+            T_true = frame @ mm @ truth.get_transform(link, "l0") @ np.linalg.inv(mm)
+            T_cal = mm @ written.get_transform(link, "jaxcal_measurement_frame") @ np.linalg.inv(mm)
+            far = max(far, float(np.linalg.norm(T_true[:3, 3] - T_cal[:3, 3])))
+            c = (np.trace(T_true[:3, :3].T @ T_cal[:3, :3]) - 1) / 2
+            turn = max(turn, float(np.degrees(np.arccos(np.clip(c, -1, 1)))))
+    return r, far, turn
