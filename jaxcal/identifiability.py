@@ -20,8 +20,8 @@ is deterministic.
   heuristic): the set is then improved by swaps among those columns while a fixed column's
   combination carries more than :data:`DOMINANCE` times a kept one (the "maxvol" exchange).
   A parameter held while a near twin is kept would otherwise have its true error show in the
-  twin, amplified (a joint offset of 0.1 rad for a 3 mm shift held at 0): the points are fitted
-  alike, but the links between them are written far from the arm.
+  twin, amplified (a shift held at 0 showing as a turn many times its size): the points are
+  fitted alike, but the links between them are written far from the arm.
 * A fixed parameter still moves the data; its effect is absorbed by base parameters. To first
   order the base estimate is `C @ x_true` with `C[:, base] = I`, `C[:, fixed] = beta`,
   `beta = lstsq(J_base, J_fixed)`; `"d2 + d3"` means the estimate of `d2` is really
