@@ -457,8 +457,9 @@ def _hint_note(p, doc: dict, detection: dict) -> str:
     )
 
 
-def _outlier_section(p, fr, det, last, fin: dict, h: dict, reg) -> dict:
-    """The outliers found and how (docs/conventions.md#outliers); ``reg`` where they lie together."""
+def _outlier_section(p, fr, det, last, fin: dict, h: dict, reg, faults) -> dict:
+    """The outliers found and how (docs/conventions.md#outliers); ``reg`` where they lie together,
+    ``faults`` the poses whose points do not move as one rigid body."""
     opts, rot = p.opts, p.n_points == 0
     return {
         "outliers": outliers.describe(
@@ -485,6 +486,7 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict, reg) -> dict:
             "taken_back_rows": [int(r) for r in p.rows[det.flags[0] & p.valid]] if not opts.keep_outliers else [],
             # outliers together in one part of a joint's range: scored in the held-out figures
             "region": _region_doc(p, reg, _rms(h["pe"][p.valid & ~(reg.flags if reg is not None else False)])),
+            "not_rigid_rows": [int(r) for r in p.rows[faults]],
         },
         "lost_points": [{"row": r, "point": j} for r, j in getattr(p.data, "lost_points", [])],
         "dropped_rows": [int(r) for r in getattr(p.data, "dropped_rows", ())],
@@ -508,20 +510,22 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         last.flags[0], last.sigmas[0], pos_mm, p.rows, opts.max_outlier_fraction, rotation_deg=rot_deg
     )
     swap = ""
+    # the points the model predicts, where flagged poses of several points are looked at
+    pred = predict(f.model, q) if p.n_points > 1 and last.flags[0].any() else None
     if many:
         many += outliers.zeros_note(p.target, p.n_points, last.flags[0])
         if p.n_points > 1:
             noise = float(last.scale[0, 0] * fr.sig[-1, 0])
             swap = outliers.swaps_note(
-                predict(f.model, q), p.target, last.flags[0], noise, p.rows, getattr(p.data, "point_numbers", ())
+                pred, p.target, last.flags[0], noise, p.rows, getattr(p.data, "point_numbers", ())
             )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
     qu = unwrapped(robot, q)  # a continuous joint on the arc it visited
     # a pose whose points do not move together is a measurement fault, whatever joint range it is in
     faults = np.zeros(len(q), bool)
-    if p.n_points >= 3 and last.flags[0].any():
-        faults = outliers.not_rigid(predict(f.model, q), p.target, last.flags[0], opts.outlier_sigmas)
+    if p.n_points >= 3 and pred is not None:
+        faults = outliers.not_rigid(pred, p.target, last.flags[0], opts.outlier_sigmas)
     arm = last.flags[0] & ~faults
     reg = outliers.region(qu, arm)
     hint = None
@@ -583,8 +587,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         + list(p.notes)
         + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
     }
-    rep |= _outlier_section(p, fr, det, last, fin, h, reg)
-    rep["outlier_detection"]["not_rigid_rows"] = [int(r) for r in p.rows[faults]]
+    rep |= _outlier_section(p, fr, det, last, fin, h, reg, faults)
     if faults.any():
         rep["notes"].append(
             f"row(s) {', '.join(str(int(r)) for r in p.rows[faults])}: the points do not move as one rigid body "
