@@ -93,6 +93,26 @@ def measurement_csv(q, poses, *, position_only=False, rng=None, sigma_mm=0.0, si
     return "\n".join(lines) + "\n"
 
 
+def ur5_factory_doc(rng, pos_m=3e-4, rot_rad=3e-3):
+    """A UR kinematics document (PyYAML's dict) of a UR5 as its factory calibration writes one:
+    UR's published nominal origins (d1, a2, a3, d4, d5, d6), each moved off the DH form by seeded
+    Gaussian errors (metres, radians). Written without jaxcal."""
+    d1, a2, a3, d4, d5, d6 = 0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823
+    nominal = {
+        "shoulder": (0, 0, d1, 0, 0, 0),
+        "upper_arm": (0, 0, 0, np.pi / 2, 0, 0),
+        "forearm": (a2, 0, 0, 0, 0, 0),
+        "wrist_1": (a3, 0, d4, 0, 0, 0),
+        "wrist_2": (0, -d5, 0, np.pi / 2, 0, 0),
+        "wrist_3": (0, d6, 0, -np.pi / 2, 0, 0),
+    }
+    kin = {}
+    for key, v in nominal.items():
+        v = np.asarray(v, float) + np.r_[rng.normal(0, pos_m, 3), rng.normal(0, rot_rad, 3)]
+        kin[key] = dict(zip(("x", "y", "z", "roll", "pitch", "yaw"), map(float, v)))
+    return {"kinematics": {**kin, "hash": "calib_12345"}}
+
+
 def ur_yaml_fk(doc, q):
     """Frames of ``wrist_3_link`` in ``base_link_inertia`` (``(K, 4, 4)``, metres) from a UR
     kinematics document (PyYAML's dict): each joint's origin ``xyz`` and URDF roll-pitch-yaw

@@ -138,8 +138,9 @@ def calibrate(
     outputs |= {"out_ur_kinematics": out_ur_kinematics, "out_dh": out_dh, "report": report}
     check_outputs(outputs, {"robot": robot, "data": data})
     nominal = load_robot_arg(robot, base_link, tip_link)
+    ur_chain = Path(robot).suffix.lower() in (".yaml", ".yml")  # read as UR's own chain: written back as one
     if out_ur_kinematics is not None:
-        check_ur(nominal, "out_ur_kinematics")
+        check_ur(nominal, "out_ur_kinematics", ur_chain=ur_chain)
     if out_dh is not None:
         check_dh(nominal, "out_dh")
     if out_ur_kinematics is not None and out_ur_kinematics.suffix.lower() not in (".yaml", ".yml"):
@@ -293,7 +294,7 @@ def calibrate(
 
             for p in calibration_figures(res, plots):
                 console.print(f"plot written to {p}", soft_wrap=True, highlight=False, markup=False)
-        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid)
+        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain)
     console.file.write(said.get())
 
 
@@ -325,7 +326,7 @@ def _rigid_comment(bent: tuple[float, float], readers: str) -> dict:
     }
 
 
-def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid) -> None:
+def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain) -> None:
     """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
     import numpy as np
 
@@ -345,7 +346,7 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid)
                 "rigid_geometry_rms_mm_on_the_data": without,
                 "heldout_rms_mm_with_compliance": held,
             }
-        base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment)
+        base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment, ur_chain=ur_chain)
         console.print(
             f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):",
             soft_wrap=True,

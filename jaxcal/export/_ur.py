@@ -24,6 +24,14 @@ upper_arm ``roll = alpha_1``, forearm ``x = a_2``, ...
   link's ``Tx(a_6) Rx(alpha_6)`` (zero for UR's table; the tool carries it otherwise).
 
 Both are written as comments at the top of the file and returned by :func:`ur_kinematics`.
+
+## Joint frames
+A robot read from a UR kinematics file whose origins are off the DH form (UR's factory
+calibrations) is a joint-frame robot whose chain is UR's own, ``base_link_inertia`` to
+``wrist_3_link``: each entry is then the joint's corrected origin with its offset turned in
+(``O_i E_i Rz(offset_i)``), read off the chain at zero joint values. A URDF's chain starts at its
+``base_link``, a turn of pi about z from ``base_link_inertia``, so joint frames are written only
+where the caller says the chain is UR's (``ur_chain``; the command does for a ``.yaml`` robot).
 """
 
 from __future__ import annotations
@@ -35,28 +43,35 @@ import numpy as np
 
 from .._io import write_atomic
 from ..errors import RobotFileError
-from ..kinematics import mdh_link, to_mdh
+from ..kinematics import fk_frames, mdh_link, to_mdh
 from ..lie import matrix_to_rpy
 from ..robot import UR_KEYS, UR_ORIGINS, Robot
 
 
-def check_ur(robot: Robot, option: str | None = None) -> None:
-    """Raise :class:`jaxcal.RobotFileError` unless ``robot`` is a DH robot with six revolute
-    joints, the arms a UR kinematics file describes."""
+def check_ur(robot: Robot, option: str | None = None, *, ur_chain: bool = False) -> None:
+    """Raise :class:`jaxcal.RobotFileError` unless ``robot`` is an arm a UR kinematics file
+    describes: six revolute joints, as a DH table or (``ur_chain``: its chain is UR's own, as
+    :func:`jaxcal.robot.read_ur_kinematics` reads one) joint frames turning about their z."""
     why = ""
-    if robot.convention == "joint":
-        why = (
-            "it is described by joint frames (a URDF, or a UR kinematics file whose origins are not in DH form, "
-            "as factory calibrations are), not a DH table"
-        )
-    elif robot.n_joints != 6:
+    if robot.n_joints != 6:
         why = f"it has {robot.n_joints} joints, not 6"
     elif "P" in robot.joint_types:
         why = f"joint {robot.joint_types.index('P') + 1} is prismatic"
+    elif robot.convention == "joint" and not ur_chain:
+        why = (
+            "it is described by joint frames whose first is not known to be UR's base: a URDF's chain starts at its "
+            "base_link, a turn of pi about z from base_link_inertia (a robot read from a UR kinematics file, "
+            "factory calibrations included, is written back: the command does it for a .yaml robot file, "
+            "save_ur_kinematics with ur_chain=True)"
+        )
+    elif robot.convention == "joint":
+        off = np.flatnonzero(np.abs(np.asarray(robot.axes) - [0.0, 0.0, 1.0]).max(axis=1) > 1e-12)
+        if off.size:
+            why = f"joint {off[0] + 1} turns about {np.asarray(robot.axes)[off[0]].tolist()} of its origin, not z"
     if why:
         raise RobotFileError(
-            f"{option or 'a UR kinematics file'} needs a six-joint revolute DH table (UR's, or any such); "
-            f"{robot.name!r} is not: {why}",
+            f"{option or 'a UR kinematics file'} needs a six-joint revolute arm as a DH table (UR's, or any such) "
+            f"or as UR's own joint frames; {robot.name!r} is not: {why}",
             option=option,
         )
 
@@ -73,27 +88,36 @@ def _said(T) -> str:
     return f"xyz [{', '.join(f'{x!r}' for x in v[:3])}] m, rpy [{', '.join(f'{x!r}' for x in v[3:])}] rad"
 
 
-def ur_kinematics(robot: Robot) -> tuple[dict, np.ndarray, np.ndarray]:
+def _entries(robot: Robot) -> np.ndarray:
+    """``(6, 4, 4)`` each joint's origin in its parent link, the joint's turn left out (mm)."""
+    if robot.convention == "joint":  # the chain at zero joint values: O_i E_i Rz(offset_i), base left out
+        T = np.asarray(fk_frames(robot.replace(base=np.eye(4)), np.zeros(6)))
+        return np.concatenate([T[:1], np.linalg.inv(T[:-1]) @ T[1:]])
+    # the MDH link Rx(alpha) Tx(a) Rz(theta) Tz(d) is the origin Tx(a) Rx(alpha) Tz(d) Rz(theta)
+    return np.stack([np.asarray(mdh_link(*row)) for row in np.asarray(to_mdh(robot).dh)])
+
+
+def ur_kinematics(robot: Robot, *, ur_chain: bool = False) -> tuple[dict, np.ndarray, np.ndarray]:
     """``(document, base, tool)``: the UR kinematics document of ``robot`` (metres, radians; the
     module docstring's mapping) and the two transforms (mm) it does not hold: the measurement
-    frame -> ``base`` and ``tool0`` -> the tool point or frame (the TCP)."""
-    check_ur(robot)
-    mdh = to_mdh(robot)
-    entries = {}
-    for key, row in zip(UR_ORIGINS, np.asarray(mdh.dh)):
-        # the MDH link Rx(alpha) Tx(a) Rz(theta) Tz(d) is the origin Tx(a) Rx(alpha) Tz(d) Rz(theta)
-        entries[key] = dict(zip(UR_KEYS, _xyz_rpy(np.asarray(mdh_link(*row)))))
+    frame -> ``base`` and ``tool0`` -> the tool point or frame (the TCP). ``ur_chain``: a
+    joint-frame robot's chain is UR's own (module docstring, "Joint frames")."""
+    check_ur(robot, ur_chain=ur_chain)
+    entries = {key: dict(zip(UR_KEYS, _xyz_rpy(T))) for key, T in zip(UR_ORIGINS, _entries(robot))}
     digest = hashlib.sha256(repr(sorted((k, tuple(v.values())) for k, v in entries.items())).encode()).digest()
     doc = {"kinematics": {**entries, "hash": f"calib_{int.from_bytes(digest[:8], 'big')}"}}
-    return doc, np.asarray(mdh.base), np.asarray(mdh.tool)
+    outer = robot if robot.convention == "joint" else to_mdh(robot)
+    return doc, np.asarray(outer.base), np.asarray(outer.tool)
 
 
-def ur_kinematics_text(robot: Robot, *, comment: dict | None = None) -> tuple[str, np.ndarray, np.ndarray]:
+def ur_kinematics_text(
+    robot: Robot, *, comment: dict | None = None, ur_chain: bool = False
+) -> tuple[str, np.ndarray, np.ndarray]:
     """``(text, base, tool)``: :func:`ur_kinematics` as YAML, headed by comments that say what it
     is and give the base and tool it does not hold (``comment``: more ``key: value`` lines)."""
     import yaml  # imported when needed: only the UR files use it
 
-    doc, base, tool = ur_kinematics(robot)
+    doc, base, tool = ur_kinematics(robot, ur_chain=ur_chain)
     head = [
         f"UR kinematics of {robot.name}, written by jaxcal for ur_description / ur_robot_driver "
         "(kinematics_params_file)",
@@ -107,10 +131,13 @@ def ur_kinematics_text(robot: Robot, *, comment: dict | None = None) -> tuple[st
     return "".join(f"# {line}\n" for line in head) + body, base, tool
 
 
-def save_ur_kinematics(robot: Robot, path, *, comment: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Write ``robot`` (a six-joint revolute DH robot in UR's convention, lengths mm) as a UR
-    kinematics file, atomically; **returns** ``(base, tool)``, the transforms (mm) the file does
-    not hold (module docstring). Read it back with :func:`jaxcal.load_robot`.
+def save_ur_kinematics(
+    robot: Robot, path, *, comment: dict | None = None, ur_chain: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Write ``robot`` (a six-joint revolute DH robot, lengths mm; or, with ``ur_chain``, one read
+    from a UR kinematics file as joint frames and calibrated) as a UR kinematics file,
+    atomically; **returns** ``(base, tool)``, the transforms (mm) the file does not hold (module
+    docstring). Read it back with :func:`jaxcal.load_robot`.
 
     **Raises** :class:`jaxcal.RobotFileError` for any other robot, or a path not ending in
     ``.yaml``/``.yml`` (how :func:`jaxcal.load_robot` knows the file)."""
@@ -120,6 +147,6 @@ def save_ur_kinematics(robot: Robot, path, *, comment: dict | None = None) -> tu
         )
     if Path(path).suffix.lower() not in (".yaml", ".yml"):
         raise RobotFileError(f"{path}: a UR kinematics file is YAML and its name ends in .yaml (or .yml)")
-    text, base, tool = ur_kinematics_text(robot, comment=comment)
+    text, base, tool = ur_kinematics_text(robot, comment=comment, ur_chain=ur_chain)
     write_atomic(path, text)
     return base, tool

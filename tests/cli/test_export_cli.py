@@ -8,7 +8,7 @@ import csv
 import numpy as np
 import pytest
 import yaml
-from helpers import UR5_TRACKER, measurement_csv, pairwise_distances, run_cli, ur5_tracker, ur_yaml_fk
+from helpers import UR5_TRACKER, measurement_csv, pairwise_distances, run_cli, ur5_factory_doc, ur5_tracker, ur_yaml_fk
 
 import jaxcal
 import jaxcal.calibration
@@ -105,8 +105,8 @@ def _no_fit(*a, **kw):
 @pytest.mark.parametrize(
     "robot, flag, msg",
     [
-        ("panda", "--out-ur-kinematics", "needs a six-joint revolute DH table (UR's, or any such); 'panda' is not"),
-        ("tiago", "--out-ur-kinematics", "described by joint frames (a URDF, or a UR kinematics file whose"),
+        ("panda", "--out-ur-kinematics", "needs a six-joint revolute arm as a DH table (UR's, or any such) or as UR's"),
+        ("tiago", "--out-ur-kinematics", "it has 8 joints, not 6"),
         ("tiago", "--out-dh", "is described by joint frames (a URDF), not a DH table"),
     ],
 )
@@ -192,3 +192,49 @@ def test_a_compliant_models_ur_file_gives_its_rigid_geometrys_error(tmp_path, mo
     rigid = float(np.sqrt(np.mean(np.sum((ends[:, :3, 3] - points) ** 2, -1))))
     assert float(head["rigid_geometry_rms_mm_on_the_data"]) == pytest.approx(rigid, rel=1e-4)
     assert rigid > 5 * float(head["heldout_rms_mm_with_compliance"])  # what the file alone does not reach
+
+
+def test_a_factory_calibrated_ur_file_calibrated_again_is_written_back(tmp_path, monkeypatch, capsys):
+    """A UR5 factory calibration file (joint frames) and tracker data of an arm that has since
+    moved off it: the UR file the command writes, composed with NumPy and the tool it prints,
+    predicts the arm's points at new joint values within the training ranges to noise level,
+    where the factory file errs by millimetres. A URDF's chain, whose first frame is not UR's
+    base, is refused (``test_robots_refused_before_fitting``)."""
+    rng = np.random.default_rng(8)
+    factory = ur5_factory_doc(rng)
+    (tmp_path / "factory.yaml").write_text(yaml.safe_dump(factory))
+    truth = {"kinematics": {k: v for k, v in factory["kinematics"].items()}}
+    moved = ur5_factory_doc(rng)["kinematics"]  # the arm's drift since: a second set of errors
+    nominal = ur5_factory_doc(rng, 0.0, 0.0)["kinematics"]
+    for k in moved:
+        if isinstance(moved[k], dict):
+            truth["kinematics"][k] = {c: factory["kinematics"][k][c] + moved[k][c] - nominal[k][c] for c in moved[k]}
+    lo, hi = np.array([-3.0, -2.6, -2.6, -3.0, -3.0, -3.0]), np.array([3.0, -0.5, 2.6, 3.0, 3.0, 3.0])
+    q = rng.uniform(lo, hi, (60, 6))
+    B = np.eye(4)
+    B[:3, 3] = [1500.0, -300.0, 200.0]
+    tcp = np.array([10.0, 20.0, 80.0, 1.0])
+    chain = ur_yaml_fk(truth, q)
+    chain[:, :3, 3] *= 1000.0
+    points = np.einsum("kij,j->ki", B @ chain, tcp)[:, :3]
+    poses = np.tile(np.eye(4), (len(q), 1, 1))
+    poses[:, :3, 3] = points
+    (tmp_path / "data.csv").write_text(measurement_csv(q, poses, position_only=True, rng=rng, sigma_mm=0.02))
+    code, out, err = run_cli(
+        monkeypatch, capsys, "calibrate", tmp_path / "factory.yaml", tmp_path / "data.csv", "--length-unit", "mm",
+        "--folds", "3", "--params", "all", "--out-ur-kinematics", tmp_path / "cal.yaml",
+    )  # fmt: skip
+    assert code in (0, None), err
+    said = " ".join(out.split()).split("tool (tool0 -> TCP): xyz ")[1].split(" mm")[0]
+    tool = np.r_[np.array(said.split(", "), float), 1.0]
+    new = rng.uniform(lo, hi, (200, 6))
+    truth_chain, cal_chain, factory_chain = (
+        ur_yaml_fk(d, new) for d in (truth, yaml.safe_load((tmp_path / "cal.yaml").read_text()), factory)
+    )
+
+    def distances(chain, p):  # of the tool point, mm (the chains are in metres)
+        return pairwise_distances(np.einsum("kij,j->ki", chain, p * [1e-3, 1e-3, 1e-3, 1.0])[:, :3] * 1000.0)
+
+    want = distances(truth_chain, tcp)
+    assert np.abs(distances(cal_chain, tool) - want).max() < 0.15
+    assert np.abs(distances(factory_chain, tcp) - want).max() > 2.0  # what the fit had to find

@@ -5,7 +5,7 @@ presets give UR's published nominal files; the file reads back; other robots are
 import numpy as np
 import pytest
 import yaml
-from helpers import dh_fk, pairwise_distances, random_dh, random_transform, ur_yaml_fk
+from helpers import dh_fk, pairwise_distances, random_dh, random_transform, ur5_factory_doc, ur_yaml_fk
 
 import jaxcal
 from jaxcal import RobotFileError, preset
@@ -102,16 +102,45 @@ def test_a_factory_style_file_reads_as_joint_frames(tmp_path, rng):
     np.testing.assert_allclose(np.asarray(jaxcal.fk(back, q)), want, atol=1e-9)
 
 
+def test_a_factory_calibration_calibrated_again_is_written_back(tmp_path, rng):
+    """A factory-style file read as joint frames, its corrections and offsets changed as a
+    calibration changes them: the YAML written with ``ur_chain`` gives, computed from the file
+    alone, the robot's end poses with the returned base and tool, and reads back as the same
+    arm. Without ``ur_chain`` (a URDF's chain starts at base_link, pi from UR's base) it is
+    refused, as is a joint turning about another axis than its origin's z."""
+    (tmp_path / "f.yaml").write_text(yaml.safe_dump(ur5_factory_doc(rng)))
+    robot = jaxcal.load_robot(tmp_path / "f.yaml")
+    assert robot.convention == "joint"
+    dh = np.c_[rng.normal(0, 0.01, 6), rng.normal(0, 0.5, (6, 3)), rng.normal(0, 0.005, (6, 3))]
+    cal = robot.replace(dh=dh, base=random_transform(rng, 500.0), tool=random_transform(rng, 80.0))
+    with pytest.raises(RobotFileError, match="not known to be UR's base.*ur_chain=True"):
+        save_ur_kinematics(cal, tmp_path / "out.yaml")
+    assert not (tmp_path / "out.yaml").exists()
+    base, tool = save_ur_kinematics(cal, tmp_path / "out.yaml", ur_chain=True)
+    doc = yaml.safe_load((tmp_path / "out.yaml").read_text())
+    q = rng.uniform(-np.pi, np.pi, (200, 6))
+    chain = ur_yaml_fk(doc, q)
+    chain[:, :3, 3] *= 1000.0  # m -> mm
+    np.testing.assert_allclose(base @ chain @ tool, np.asarray(jaxcal.fk(cal, q)), atol=1e-9)
+    back = jaxcal.load_robot(tmp_path / "out.yaml")
+    np.testing.assert_allclose(base @ np.asarray(jaxcal.fk(back, q)) @ tool, np.asarray(jaxcal.fk(cal, q)), atol=1e-9)
+    axes = np.array(cal.axes)
+    axes[2] = [0.0, np.sin(0.01), np.cos(0.01)]
+    tilted = cal.replace(axes=axes)
+    with pytest.raises(RobotFileError, match="joint 3 turns about .* of its origin, not z"):
+        save_ur_kinematics(tilted, tmp_path / "t.yaml", ur_chain=True)
+
+
 @pytest.mark.parametrize(
     "robot, why",
     [
         (preset("panda"), "it has 7 joints, not 6"),
         (preset("ur5").replace(joint_types=("R", "R", "P", "R", "R", "R")), "joint 3 is prismatic"),
-        (jaxcal.to_joint(preset("ur5")), "described by joint frames (a URDF, or a UR kinematics file whose origins"),
+        (jaxcal.to_joint(preset("ur5")), "joint frames whose first is not known to be UR's base"),
     ],
 )
 def test_other_robots_refused(tmp_path, robot, why):
-    with pytest.raises(RobotFileError, match="needs a six-joint revolute DH table") as e:
+    with pytest.raises(RobotFileError, match="needs a six-joint revolute arm as a DH table") as e:
         ur_kinematics(robot)
     assert why in str(e.value)
     with pytest.raises(RobotFileError):
