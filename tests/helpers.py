@@ -93,12 +93,19 @@ def measurement_csv(q, poses, *, position_only=False, rng=None, sigma_mm=0.0, si
     return "\n".join(lines) + "\n"
 
 
-def ur5_factory_doc(rng, pos_m=3e-4, rot_rad=3e-3):
-    """A UR kinematics document (PyYAML's dict) of a UR5 as its factory calibration writes one:
-    UR's published nominal origins (d1, a2, a3, d4, d5, d6), each moved off the DH form by seeded
-    Gaussian errors (metres, radians). Written without jaxcal."""
-    d1, a2, a3, d4, d5, d6 = 0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823
-    nominal = {
+UR_DH = {
+    "ur5": (0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823),
+    "ur10e": (0.1807, -0.6127, -0.57155, 0.17415, 0.11985, 0.11655),
+}
+"""UR's published nominal DH (m, rad): d1, a2, a3, d4, d5, d6; alpha = pi/2, 0, 0, pi/2, -pi/2, 0."""
+
+
+def ur_nominal_origins(name):
+    """UR's nominal kinematics file, entry by entry (x, y, z, roll, pitch, yaw; m, rad): shoulder
+    z = d1, upper_arm roll = alpha1, forearm x = a2, wrist_1 x = a3 and z = d4, wrist_2 y = -d5
+    and roll = pi/2, wrist_3 y = d6 and a turn by alpha5 = -pi/2 about x."""
+    d1, a2, a3, d4, d5, d6 = UR_DH[name]
+    return {
         "shoulder": (0, 0, d1, 0, 0, 0),
         "upper_arm": (0, 0, 0, np.pi / 2, 0, 0),
         "forearm": (a2, 0, 0, 0, 0, 0),
@@ -106,8 +113,14 @@ def ur5_factory_doc(rng, pos_m=3e-4, rot_rad=3e-3):
         "wrist_2": (0, -d5, 0, np.pi / 2, 0, 0),
         "wrist_3": (0, d6, 0, -np.pi / 2, 0, 0),
     }
+
+
+def ur5_factory_doc(rng, pos_m=3e-4, rot_rad=3e-3):
+    """A UR kinematics document (PyYAML's dict) of a UR5 as its factory calibration writes one:
+    UR's nominal origins, each moved off the DH form by seeded Gaussian errors (metres,
+    radians). Written without jaxcal."""
     kin = {}
-    for key, v in nominal.items():
+    for key, v in ur_nominal_origins("ur5").items():
         v = np.asarray(v, float) + np.r_[rng.normal(0, pos_m, 3), rng.normal(0, rot_rad, 3)]
         kin[key] = dict(zip(("x", "y", "z", "roll", "pitch", "yaw"), map(float, v)))
     return {"kinematics": {**kin, "hash": "calib_12345"}}

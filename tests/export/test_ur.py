@@ -5,17 +5,20 @@ presets give UR's published nominal files; the file reads back; other robots are
 import numpy as np
 import pytest
 import yaml
-from helpers import dh_fk, pairwise_distances, random_dh, random_transform, ur5_factory_doc, ur_yaml_fk
+from helpers import (
+    UR_DH,
+    dh_fk,
+    pairwise_distances,
+    random_dh,
+    random_transform,
+    ur5_factory_doc,
+    ur_nominal_origins,
+    ur_yaml_fk,
+)
 
 import jaxcal
 from jaxcal import RobotFileError, preset
 from jaxcal.export import save_ur_kinematics, ur_kinematics
-
-# UR's published nominal DH (m, rad): d1, a2, a3, d4, d5, d6; alpha = pi/2, 0, 0, pi/2, -pi/2, 0
-UR_DH = {
-    "ur5": (0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823),
-    "ur10e": (0.1807, -0.6127, -0.57155, 0.17415, 0.11985, 0.11655),
-}
 
 
 @pytest.mark.parametrize("name", list(UR_DH))
@@ -23,17 +26,9 @@ def test_presets_write_urs_nominal_file(tmp_path, name):
     """UR's nominal files, entry by entry: shoulder z = d1, upper_arm roll = alpha1, forearm
     x = a2, wrist_1 x = a3 and z = d4, wrist_2 y = -d5 and roll = pi/2, wrist_3 y = d6 and a
     turn by alpha5 = -pi/2 about x (UR writes it as rpy (pi/2, pi, pi))."""
-    d1, a2, a3, d4, d5, d6 = UR_DH[name]
     save_ur_kinematics(preset(name), tmp_path / "k.yaml")
     kin = yaml.safe_load((tmp_path / "k.yaml").read_text())["kinematics"]
-    expect = {
-        "shoulder": (0, 0, d1, 0, 0, 0),
-        "upper_arm": (0, 0, 0, np.pi / 2, 0, 0),
-        "forearm": (a2, 0, 0, 0, 0, 0),
-        "wrist_1": (a3, 0, d4, 0, 0, 0),
-        "wrist_2": (0, -d5, 0, np.pi / 2, 0, 0),
-        "wrist_3": (0, d6, 0, -np.pi / 2, 0, 0),
-    }
+    expect = ur_nominal_origins(name)
     for key, vals in expect.items():
         got = [kin[key][k] for k in ("x", "y", "z", "roll", "pitch", "yaw")]
         np.testing.assert_allclose(got, vals, atol=1e-12, err_msg=key)
