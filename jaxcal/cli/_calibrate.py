@@ -132,13 +132,16 @@ def calibrate(
     from ..export import check_dh, check_ur
     from ..measurements import joints_left_out, read_measurements
     from ..model import Model, save_model
-    from ..robot import calibrated_chain, read_movable_joints, save_robot
+    from ..robot import PRESETS, UR_BASE, calibrated_chain, read_movable_joints, save_robot
 
     outputs = {"json_out": json_out, "out_robot": out_robot, "out_model": out_model, "plots": plots}
     outputs |= {"out_ur_kinematics": out_ur_kinematics, "out_dh": out_dh, "report": report}
     check_outputs(outputs, {"robot": robot, "data": data})
     nominal = load_robot_arg(robot, base_link, tip_link)
-    ur_chain = Path(robot).suffix.lower() in (".yaml", ".yml")  # read as UR's own chain: written back as one
+    # a chain in UR's own frames, from base_link_inertia (UR's base), is written back as a UR file
+    from_ur = Path(robot).suffix.lower() in (".yaml", ".yml")
+    recorded = calibrated_chain(robot) if robot not in PRESETS else None
+    ur_chain = from_ur or UR_BASE in (base_link, recorded and recorded[0])
     if out_ur_kinematics is not None:
         check_ur(nominal, "out_ur_kinematics", ur_chain=ur_chain)
     if out_dh is not None:
@@ -157,7 +160,7 @@ def calibrate(
             )
         if path is not None and (path.suffix.lower() in (".urdf", ".xml")) != (nominal.convention == "joint"):
             kind = (
-                "a URDF robot is written as URDF (.urdf, .xml)"
+                "a joint-frame robot (a URDF, or a UR factory calibration) is written as URDF (.urdf, .xml)"
                 if nominal.convention == "joint"
                 else "a DH robot is written as TOML (.toml); for a URDF, convert the calibrated one with "
                 "jaxcal.to_joint and jaxcal.save_robot (docs/using-the-result.md)"
@@ -274,7 +277,8 @@ def calibrate(
             bent = rigid() if Path(path).suffix.lower() in (".urdf", ".xml") else None
             save_model(
                 model, path, comment=comment if bent is None else comment | _rigid_comment(bent, "URDF readers"),
-                template=urdf, base_link=base_link, tip_link=tip_link, training_ranges=res.training_ranges,
+                template=urdf, base_link=UR_BASE if from_ur else base_link, tip_link=tip_link,
+                training_ranges=res.training_ranges,
                 point_numbers=numbers,
             )  # fmt: skip
             console.print(f"calibrated model written to {path}", soft_wrap=True, highlight=False, markup=False)
@@ -367,7 +371,7 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid,
         if res.model.n_points > 1:
             console.print(
                 f"  the {res.model.n_points} measured points are not in it either (tool0 is the TCP there): "
-                f"--out-robot CAL.toml keeps them",
+                f"--out-robot CAL.{'urdf' if res.robot.convention == 'joint' else 'toml'} keeps them",
                 highlight=False,
             )
     if out_dh is not None:

@@ -59,15 +59,21 @@ def check_ur(robot: Robot, option: str | None = None, *, ur_chain: bool = False)
         why = f"joint {robot.joint_types.index('P') + 1} is prismatic"
     elif robot.convention == "joint" and not ur_chain:
         why = (
-            "it is described by joint frames whose first is not known to be UR's base: a URDF's chain starts at its "
-            "base_link, a turn of pi about z from base_link_inertia (a robot read from a UR kinematics file, "
-            "factory calibrations included, is written back: the command does it for a .yaml robot file, "
+            "it is described by joint frames whose first is not known to be UR's base: a URDF's chain often starts "
+            "at base_link, a turn of pi about z from UR's base_link_inertia (the command writes a chain read from a "
+            "UR kinematics file, factory calibrations included, or from a URDF's base_link_inertia (--base-link); "
             "save_ur_kinematics with ur_chain=True)"
         )
     elif robot.convention == "joint":
         off = np.flatnonzero(np.abs(np.asarray(robot.axes) - [0.0, 0.0, 1.0]).max(axis=1) > 1e-12)
+        yaw = float(np.arctan2(*_entries(robot)[0, 1::-1, 0])) if not off.size else 0.0
         if off.size:
             why = f"joint {off[0] + 1} turns about {np.asarray(robot.axes)[off[0]].tolist()} of its origin, not z"
+        elif abs(yaw) > np.pi / 2:  # UR's base and base_link are pi apart; a factory calibration moves mrad
+            why = (
+                f"its first joint's origin is turned by {yaw:.3f} rad about z: the chain starts at base_link, not at "
+                "UR's base (base_link_inertia); read the chain from base_link_inertia"
+            )
     if why:
         raise RobotFileError(
             f"{option or 'a UR kinematics file'} needs a six-joint revolute arm as a DH table (UR's, or any such) "

@@ -19,6 +19,7 @@ from ._robot import LENGTH_UNITS as LENGTH_UNITS
 from ._robot import Robot as Robot
 from ._toml import robot_from_dict as robot_from_dict
 from ._toml import robot_to_dict as robot_to_dict
+from ._ur import UR_BASE as UR_BASE
 from ._ur import UR_JOINT_NAMES as UR_JOINT_NAMES
 from ._ur import UR_KEYS as UR_KEYS
 from ._ur import UR_ORIGINS as UR_ORIGINS

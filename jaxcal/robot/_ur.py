@@ -44,6 +44,8 @@ UR_JOINT_NAMES = (
     "wrist_3_joint",
 )
 UR_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
+UR_BASE = "base_link_inertia"
+"""The link a kinematics file's chain starts at (UR's ``base``); ``base_link`` is a turn of pi about z from it."""
 DH_FORM_TOL = 1e-9
 """Largest departure (m, rad) of an origin from ``Tx(a) Rx(alpha) Tz(d) Rz(theta)`` read as a DH row."""
 

@@ -507,8 +507,8 @@ def urdf_text(
                 _set(elements[nm], "axis", np.asarray(robot.axes)[i])
     else:
         doc = yourdfpy.Robot(name=robot.name)
-        doc.links.append(yourdfpy.Link(name="base_link"))
-        parent = "base_link"
+        parent = base_link or "base_link"  # the chain's first frame, as the caller names it
+        doc.links.append(yourdfpy.Link(name=parent))
         lim, given = np.asarray(robot.q_limits), robot.limits_given()
         for i, nm in enumerate(robot.joint_names):
             child = f"link_{i + 1}"
@@ -530,7 +530,7 @@ def urdf_text(
                 )
             )
             parent = child
-        base_link, tip_link, nominal_tool = "base_link", parent, np.eye(4)
+        base_link, tip_link, nominal_tool = doc.links[0].name, parent, np.eye(4)
         root = yourdfpy.URDF(robot=doc, build_scene_graph=False, load_meshes=False).write_xml().getroot()
 
     def fixed(parent, child, T):

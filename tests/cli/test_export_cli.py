@@ -198,8 +198,9 @@ def test_a_factory_calibrated_ur_file_calibrated_again_is_written_back(tmp_path,
     """A UR5 factory calibration file (joint frames) and tracker data of an arm that has since
     moved off it: the UR file the command writes, composed with NumPy and the tool it prints,
     predicts the arm's points at new joint values within the training ranges to noise level,
-    where the factory file errs by millimetres. A URDF's chain, whose first frame is not UR's
-    base, is refused (``test_robots_refused_before_fitting``)."""
+    where the factory file errs by millimetres. The URDF it writes starts at base_link_inertia
+    and is written back too; a URDF's chain not said to start there is refused
+    (``test_robots_refused_before_fitting``)."""
     rng = np.random.default_rng(8)
     factory = ur5_factory_doc(rng)
     (tmp_path / "factory.yaml").write_text(yaml.safe_dump(factory))
@@ -223,6 +224,14 @@ def test_a_factory_calibrated_ur_file_calibrated_again_is_written_back(tmp_path,
     code, out, err = run_cli(
         monkeypatch, capsys, "calibrate", tmp_path / "factory.yaml", tmp_path / "data.csv", "--length-unit", "mm",
         "--folds", "3", "--params", "all", "--out-ur-kinematics", tmp_path / "cal.yaml",
+        "--out-model", tmp_path / "m.urdf",
+    )  # fmt: skip
+    assert code in (0, None), err
+    # its URDF names the chain's first frame as UR does, so that it too is written back as a UR file
+    assert '<parent link="base_link_inertia"/>' in (tmp_path / "m.urdf").read_text()
+    code, _, err = run_cli(
+        monkeypatch, capsys, "calibrate", tmp_path / "m.urdf", tmp_path / "data.csv", "--length-unit", "mm",
+        "--folds", "3", "--params", "frames", "--out-ur-kinematics", tmp_path / "again.yaml",
     )  # fmt: skip
     assert code in (0, None), err
     said = " ".join(out.split()).split("tool (tool0 -> TCP): xyz ")[1].split(" mm")[0]

@@ -101,8 +101,9 @@ def test_a_factory_calibration_calibrated_again_is_written_back(tmp_path, rng):
     """A factory-style file read as joint frames, its corrections and offsets changed as a
     calibration changes them: the YAML written with ``ur_chain`` gives, computed from the file
     alone, the robot's end poses with the returned base and tool, and reads back as the same
-    arm. Without ``ur_chain`` (a URDF's chain starts at base_link, pi from UR's base) it is
-    refused, as is a joint turning about another axis than its origin's z."""
+    arm. Without ``ur_chain`` (a URDF's chain often starts at base_link, pi from UR's base) it is
+    refused, as are a joint turning about another axis than its origin's z and, with it, a chain
+    whose first origin is turned by about pi (one from base_link)."""
     (tmp_path / "f.yaml").write_text(yaml.safe_dump(ur5_factory_doc(rng)))
     robot = jaxcal.load_robot(tmp_path / "f.yaml")
     assert robot.convention == "joint"
@@ -124,6 +125,12 @@ def test_a_factory_calibration_calibrated_again_is_written_back(tmp_path, rng):
     tilted = cal.replace(axes=axes)
     with pytest.raises(RobotFileError, match="joint 3 turns about .* of its origin, not z"):
         save_ur_kinematics(tilted, tmp_path / "t.yaml", ur_chain=True)
+    # the same chain from base_link, a turn of pi about z before UR's base: ROS would add its own
+    origins = np.array(cal.origins)
+    origins[0] = np.diag([-1.0, -1.0, 1.0, 1.0]) @ origins[0]
+    with pytest.raises(RobotFileError, match="turned by -?3.1.. rad about z: the chain starts at base_link"):
+        save_ur_kinematics(cal.replace(origins=origins), tmp_path / "t.yaml", ur_chain=True)
+    assert not (tmp_path / "t.yaml").exists()
 
 
 @pytest.mark.parametrize(
