@@ -29,9 +29,10 @@ Both are written as comments at the top of the file and returned by :func:`ur_ki
 A robot read from a UR kinematics file whose origins are off the DH form (UR's factory
 calibrations) is a joint-frame robot whose chain is UR's own, ``base_link_inertia`` to
 ``wrist_3_link``: each entry is then the joint's corrected origin with its offset turned in
-(``O_i E_i Rz(offset_i)``), read off the chain at zero joint values. A URDF's chain starts at its
-``base_link``, a turn of pi about z from ``base_link_inertia``, so joint frames are written only
-where the caller says the chain is UR's (``ur_chain``; the command does for a ``.yaml`` robot).
+(``O_i E_i Rz(offset_i)``), read off the chain at zero joint values. A URDF's chain often starts
+at its ``base_link``, a turn of pi about z from ``base_link_inertia``, so joint frames are written
+only where the caller says the chain is UR's (``ur_chain``; the command says so for a UR file and
+for a URDF chain from ``base_link_inertia``), and a first origin turned by about pi is refused.
 """
 
 from __future__ import annotations
