@@ -298,7 +298,8 @@ def calibrate(
 
             for p in calibration_figures(res, plots):
                 console.print(f"plot written to {p}", soft_wrap=True, highlight=False, markup=False)
-        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain)
+        like = robot if from_ur else None  # the UR file calibrated: its angles' branches are kept
+        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain, like)
     console.file.write(said.get())
 
 
@@ -330,8 +331,9 @@ def _rigid_comment(bent: tuple[float, float], readers: str) -> dict:
     }
 
 
-def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain) -> None:
-    """The forms other tools load (:mod:`jaxcal.export`), each written atomically."""
+def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain, like) -> None:
+    """The forms other tools load (:mod:`jaxcal.export`), each written atomically; the UR file's angles
+    follow ``like``'s, the UR file calibrated (:func:`jaxcal.export.ur_kinematics`)."""
     import numpy as np
 
     from ..export import save_dh_table, save_report, save_ur_kinematics
@@ -350,7 +352,7 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid,
                 "rigid_geometry_rms_mm_on_the_data": without,
                 "heldout_rms_mm_with_compliance": held,
             }
-        base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment, ur_chain=ur_chain)
+        base, tool = save_ur_kinematics(robot, out_ur_kinematics, comment=comment, ur_chain=ur_chain, like=like)
         console.print(
             f"UR kinematics written to {out_ur_kinematics}; not in it (set them where you use it):",
             soft_wrap=True,

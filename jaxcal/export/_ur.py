@@ -46,7 +46,7 @@ from .._io import write_atomic
 from ..errors import RobotFileError
 from ..kinematics import fk_frames, mdh_link, to_mdh
 from ..lie import matrix_to_rpy
-from ..robot import UR_KEYS, UR_ORIGINS, Robot
+from ..robot import UR_KEYS, UR_ORIGINS, Robot, read_ur_kinematics
 
 
 def check_ur(robot: Robot, option: str | None = None, *, ur_chain: bool = False) -> None:
@@ -83,11 +83,29 @@ def check_ur(robot: Robot, option: str | None = None, *, ur_chain: bool = False)
         )
 
 
-def _xyz_rpy(T) -> list[float]:
-    """A transform (mm) as ``x, y, z`` (m) and roll, pitch, yaw (rad)."""
+def _xyz_rpy(T, like=None) -> list[float]:
+    """A transform (mm) as ``x, y, z`` (m) and roll, pitch, yaw (rad); with ``like`` (a roll,
+    pitch, yaw), the same rotation written as near it as it goes: of the two triples of a
+    rotation, each angle moved by whole turns, the nearer."""
     T = np.asarray(T)
-    v = [float(x) / 1000.0 for x in T[:3, 3]] + [float(x) for x in np.asarray(matrix_to_rpy(T[:3, :3]))]
+    rpy = np.asarray(matrix_to_rpy(T[:3, :3]), float)
+    if like is not None:
+        like = np.asarray(like, float)
+        twins = [rpy, rpy + [np.pi, 0.0, np.pi] - [0.0, 2 * rpy[1] - np.pi, 0.0]]  # (r + pi, pi - p, y + pi)
+        turned = [c + 2 * np.pi * np.round((like - c) / (2 * np.pi)) for c in twins]
+        rpy = min(turned, key=lambda c: float(np.abs(c - like).sum()))
+    v = [float(x) / 1000.0 for x in T[:3, 3]] + [float(x) for x in rpy]
     return [x + 0.0 for x in v]  # no -0.0
+
+
+def _angles_of(path) -> dict:
+    """Each entry's roll, pitch, yaw in a UR kinematics file (checked as :func:`jaxcal.load_robot`
+    reads it)."""
+    import yaml
+
+    read_ur_kinematics(path)  # a file that does not read is refused with its reason
+    kin = yaml.safe_load(Path(path).read_text(encoding="utf-8"))["kinematics"]
+    return {key: [float(kin[key][k]) for k in UR_KEYS[3:]] for key in UR_ORIGINS}
 
 
 def _said(T) -> str:
@@ -104,13 +122,16 @@ def _entries(robot: Robot) -> np.ndarray:
     return np.stack([np.asarray(mdh_link(*row)) for row in np.asarray(to_mdh(robot).dh)])
 
 
-def ur_kinematics(robot: Robot, *, ur_chain: bool = False) -> tuple[dict, np.ndarray, np.ndarray]:
+def ur_kinematics(robot: Robot, *, ur_chain: bool = False, like=None) -> tuple[dict, np.ndarray, np.ndarray]:
     """``(document, base, tool)``: the UR kinematics document of ``robot`` (metres, radians; the
     module docstring's mapping) and the two transforms (mm) it does not hold: the measurement
     frame -> ``base`` and ``tool0`` -> the tool point or frame (the TCP). ``ur_chain``: a
-    joint-frame robot's chain is UR's own (module docstring, "Joint frames")."""
+    joint-frame robot's chain is UR's own (module docstring, "Joint frames"). ``like``: a UR
+    kinematics file (the one calibrated) whose angles the written ones follow, the same
+    rotations written as near its numbers as they go, so that a diff shows what changed."""
     check_ur(robot, ur_chain=ur_chain)
-    entries = {key: dict(zip(UR_KEYS, _xyz_rpy(T))) for key, T in zip(UR_ORIGINS, _entries(robot))}
+    near = _angles_of(like) if like is not None else {}
+    entries = {key: dict(zip(UR_KEYS, _xyz_rpy(T, near.get(key)))) for key, T in zip(UR_ORIGINS, _entries(robot))}
     digest = hashlib.sha256(repr(sorted((k, tuple(v.values())) for k, v in entries.items())).encode()).digest()
     doc = {"kinematics": {**entries, "hash": f"calib_{int.from_bytes(digest[:8], 'big')}"}}
     outer = robot if robot.convention == "joint" else to_mdh(robot)
@@ -118,13 +139,13 @@ def ur_kinematics(robot: Robot, *, ur_chain: bool = False) -> tuple[dict, np.nda
 
 
 def ur_kinematics_text(
-    robot: Robot, *, comment: dict | None = None, ur_chain: bool = False
+    robot: Robot, *, comment: dict | None = None, ur_chain: bool = False, like=None
 ) -> tuple[str, np.ndarray, np.ndarray]:
     """``(text, base, tool)``: :func:`ur_kinematics` as YAML, headed by comments that say what it
     is and give the base and tool it does not hold (``comment``: more ``key: value`` lines)."""
     import yaml  # imported when needed: only the UR files use it
 
-    doc, base, tool = ur_kinematics(robot, ur_chain=ur_chain)
+    doc, base, tool = ur_kinematics(robot, ur_chain=ur_chain, like=like)
     head = [
         f"UR kinematics of {robot.name}, written by jaxcal for ur_description / ur_robot_driver "
         "(kinematics_params_file)",
@@ -139,12 +160,12 @@ def ur_kinematics_text(
 
 
 def save_ur_kinematics(
-    robot: Robot, path, *, comment: dict | None = None, ur_chain: bool = False
+    robot: Robot, path, *, comment: dict | None = None, ur_chain: bool = False, like=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Write ``robot`` (a six-joint revolute DH robot, lengths mm; or, with ``ur_chain``, one read
     from a UR kinematics file as joint frames and calibrated) as a UR kinematics file,
     atomically; **returns** ``(base, tool)``, the transforms (mm) the file does not hold (module
-    docstring). Read it back with :func:`jaxcal.load_robot`.
+    docstring). Read it back with :func:`jaxcal.load_robot`. ``like``: :func:`ur_kinematics`'s.
 
     **Raises** :class:`jaxcal.RobotFileError` for any other robot, or a path not ending in
     ``.yaml``/``.yml`` (how :func:`jaxcal.load_robot` knows the file)."""
@@ -154,6 +175,6 @@ def save_ur_kinematics(
         )
     if Path(path).suffix.lower() not in (".yaml", ".yml"):
         raise RobotFileError(f"{path}: a UR kinematics file is YAML and its name ends in .yaml (or .yml)")
-    text, base, tool = ur_kinematics_text(robot, comment=comment, ur_chain=ur_chain)
+    text, base, tool = ur_kinematics_text(robot, comment=comment, ur_chain=ur_chain, like=like)
     write_atomic(path, text)
     return base, tool

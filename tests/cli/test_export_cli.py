@@ -203,6 +203,7 @@ def test_a_factory_calibrated_ur_file_calibrated_again_is_written_back(tmp_path,
     (``test_robots_refused_before_fitting``)."""
     rng = np.random.default_rng(8)
     factory = ur5_factory_doc(rng)
+    factory["kinematics"]["wrist_1"]["yaw"] -= 2 * np.pi  # as real files have: the written one follows it
     (tmp_path / "factory.yaml").write_text(yaml.safe_dump(factory))
     truth = {"kinematics": {k: v for k, v in factory["kinematics"].items()}}
     moved = ur5_factory_doc(rng)["kinematics"]  # the arm's drift since: a second set of errors
@@ -247,3 +248,5 @@ def test_a_factory_calibrated_ur_file_calibrated_again_is_written_back(tmp_path,
     want = distances(truth_chain, tcp)
     assert np.abs(distances(cal_chain, tool) - want).max() < 0.15
     assert np.abs(distances(factory_chain, tcp) - want).max() > 2.0  # what the fit had to find
+    cal = yaml.safe_load((tmp_path / "cal.yaml").read_text())["kinematics"]
+    assert abs(cal["wrist_1"]["yaw"] - factory["kinematics"]["wrist_1"]["yaw"]) < 0.1

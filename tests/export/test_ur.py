@@ -204,3 +204,29 @@ def test_the_frames_it_does_not_hold_are_said_in_full_precision(tmp_path, rng):
         rpy = np.array(line.split("rpy [")[1].split("]")[0].split(", "), float)
         np.testing.assert_allclose(xyz, np.asarray(T)[:3, 3], rtol=0, atol=1e-9)
         np.testing.assert_allclose(Rotation.from_euler("xyz", rpy).as_matrix(), np.asarray(T)[:3, :3], atol=1e-14)
+
+
+def test_the_written_angles_follow_the_file_calibrated(tmp_path, rng):
+    """A factory file with a yaw a whole turn off and wrist_3 written as UR writes it, (pi/2, pi,
+    pi) rather than (-pi/2, 0, 0): with ``like`` the file the arm was read from, every written
+    angle lies near the file's own (a diff shows what the calibration changed) and the
+    kinematics are the same; without it, some angle jumps by about pi or a turn."""
+    doc = ur5_factory_doc(rng)
+    kin = doc["kinematics"]
+    kin["wrist_1"]["yaw"] -= 2 * np.pi
+    w = kin["wrist_3"]
+    w.update(roll=w["roll"] + np.pi, pitch=np.pi - w["pitch"], yaw=w["yaw"] + np.pi)
+    (tmp_path / "f.yaml").write_text(yaml.safe_dump(doc))
+    robot = jaxcal.load_robot(tmp_path / "f.yaml")
+    cal = robot.replace(dh=np.c_[rng.normal(0, 0.01, 6), rng.normal(0, 0.5, (6, 3)), rng.normal(0, 0.005, (6, 3))])
+    q = rng.uniform(-np.pi, np.pi, (50, 6))
+    angles = ("roll", "pitch", "yaw")
+    jumps = []
+    for like in (tmp_path / "f.yaml", None):
+        base, tool = save_ur_kinematics(cal, tmp_path / "out.yaml", ur_chain=True, like=like)
+        out = yaml.safe_load((tmp_path / "out.yaml").read_text())
+        chain = ur_yaml_fk(out, q)
+        chain[:, :3, 3] *= 1000.0
+        np.testing.assert_allclose(base @ chain @ tool, np.asarray(jaxcal.fk(cal, q)), atol=1e-9)
+        jumps.append(max(abs(out["kinematics"][k][a] - kin[k][a]) for k in kin if k != "hash" for a in angles))
+    assert jumps[0] < 0.1 and jumps[1] > 3.0, jumps
