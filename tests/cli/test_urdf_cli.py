@@ -148,7 +148,8 @@ def test_one_point_and_wrong_point_count(monkeypatch, capsys, split):
 def test_output_kind_is_checked_before_the_fit(monkeypatch, capsys, split):
     d = split
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--out-model", d / "x.toml")
-    assert code == 2 and "--out-model: a URDF robot is written as URDF (.urdf, .xml); nothing was computed" in err
+    msg = "--out-model: a joint-frame robot (a URDF, or a UR factory calibration) is written as URDF (.urdf, .xml)"
+    assert code == 2 and msg in err, err
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", d / "train.csv", "--out-model", d / "x.urdf")
     assert code == 2 and "a DH robot is written as TOML" in err and "jaxcal.to_joint" in " ".join(err.split())
 
