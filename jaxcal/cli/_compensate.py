@@ -14,7 +14,7 @@ NEAR_SHARE = 0.01
 frame's origin, where targets were missed, get a hint: metres read as millimetres?"""
 
 
-@app.command()
+@app.command(short_help="Joint commands that make the calibrated model reach the targets (damped Newton IK).")
 def compensate(
     calibrated: str = typer.Argument(
         ...,

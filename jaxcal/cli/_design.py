@@ -18,7 +18,7 @@ def _given(default: bool, **kw) -> dict:
     return {k: defaults[k] if v is None else v for k, v in kw.items() if v is not None or default}
 
 
-@app.command()
+@app.command(short_help="Design calibration poses (optimised, or chosen from a pool), compared with random ones.")
 def design(
     robot: str = typer.Argument(..., help=ROBOT_HELP),
     poses: int = typer.Option(..., "--poses", help="number of poses to design"),

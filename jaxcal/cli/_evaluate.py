@@ -14,7 +14,7 @@ def _fmt(v):
     return "-" if v is None else f"{v:.3f}"
 
 
-@app.command()
+@app.command(short_help="Predict a data file with a saved model (nothing re-fitted); errors in mm and deg.")
 def evaluate(
     model: Path = typer.Argument(..., help="a saved model (calibrate --out-model: URDF or TOML), or a " + ROBOT_HELP),
     data: Path = typer.Argument(..., help="measurement CSV, as for calibrate"),

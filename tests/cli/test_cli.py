@@ -374,6 +374,18 @@ def test_the_help_names_every_preset(monkeypatch, capsys, command):
         assert name in text, name
 
 
+def test_the_command_list_gives_each_command_a_short_summary(monkeypatch, capsys):
+    """``jaxcal --help`` lists each command with a line or two, not its whole description broken
+    where the docstring's lines end."""
+    code, out, _ = run_cli(monkeypatch, capsys, "--help")
+    assert code in (0, None)
+    box = out[out.index("Commands") :]
+    rows = [ln for ln in box.splitlines()[1:] if ln.startswith("│")]
+    names = [ln.split()[1] for ln in rows if ln[2] != " "]
+    assert {"calibrate", "compensate", "design", "evaluate"} <= set(names)
+    assert len(rows) <= 2 * len(names), box
+
+
 def test_a_library_warning_is_said_as_one_line_of_the_command(monkeypatch, capsys):
     """A warning from inside the library reaches the terminal as the command's own
     ``warning: ...`` line, not Python's ``file:line: UserWarning`` form."""
