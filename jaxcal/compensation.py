@@ -259,6 +259,9 @@ class Targets:
     poses: np.ndarray | None
     position_only: bool
     rows: np.ndarray
+    joint_columns: tuple[str, ...] = ()
+    """The file's joint column names in joint order (``q1..qN`` or the joint names; empty: none):
+    the commands written for it are headed the same, so they read back where the targets did."""
 
 
 def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Targets:
@@ -290,7 +293,9 @@ def read_targets(path, robot: Robot, *, length_unit=None, angle_unit=None) -> Ta
         poses[:, :3, 3] = values[:, k : k + 3] * lu
         if quat:
             poses[:, :3, :3] = quaternions_to_rotations(values[:, k + 3 :], rows, lines, src)
-    return Targets(q=q, poses=poses, position_only=bool(points) and not quat, rows=rows)
+    return Targets(
+        q=q, poses=poses, position_only=bool(points) and not quat, rows=rows, joint_columns=tuple(jcols or ())
+    )
 
 
 QUATERNION_HINT_DEG = 10.0

@@ -28,7 +28,11 @@ def compensate(
         help="nominal robot (file or preset): targets = where it puts the tool at the file's joint values, "
         "relative to its base (they move with the calibrated base frame)",
     ),
-    out: Path = typer.Option(None, help="write the compensated joint commands here (CSV)"),
+    out: Path = typer.Option(
+        None,
+        help="write the compensated joint commands here (CSV), headed as the targets' joint columns "
+        "(or the robot's joint names)",
+    ),
     length_unit: str = typer.Option(
         None, help="m | mm (default: the robot file's); also the unit of prismatic commands written to --out"
     ),
@@ -115,7 +119,9 @@ def compensate(
         au = unit_scale(angle_unit, ANGLE_UNITS, "angle_unit", cal.units[1])[0]
         scale = np.array([au if t == "R" else lu for t in cal.joint_types])
         flag_names = ["reached", "within_limits", "on_branch"]
-        header = list(cal.joint_names) + ["pos_residual_mm", "rot_residual_deg"][: 1 + rot] + flag_names
+        header = (
+            list(tg.joint_columns or cal.joint_names) + ["pos_residual_mm", "rot_residual_deg"][: 1 + rot] + flag_names
+        )
         lines = [",".join(header)]
         flags = np.stack([res.converged, res.within_limits, res.on_branch], -1).astype(int)
         for qk, ep, er, f in zip(res.q / scale, res.pos_residual_mm, res.rot_residual_deg, flags):

@@ -232,6 +232,30 @@ def test_the_largest_joint_correction_does_not_count_a_whole_turn(tmp_path, monk
     assert said < 0.1, said
 
 
+@pytest.mark.parametrize("columns", ["q", "j"])
+def test_compensate_writes_the_commands_under_the_targets_joint_columns(tmp_path, monkeypatch, capsys, columns):
+    """A robot whose joints are named ``j1..j6`` reads targets headed ``q1..q6`` or ``j1..j6``; the
+    commands written are headed as the targets were, so the file reads back where they did."""
+    import dataclasses
+
+    r = preset("paper-6r")
+    r = dataclasses.replace(r, joint_names=tuple(f"j{i}" for i in range(1, 7)))
+    save_robot(r, tmp_path / "cal.toml")
+    q = np.random.default_rng(4).uniform(-1.0, 1.0, (3, 6))
+    p = np.array(fk(r, q))[:, :3, 3]
+    names = [f"{columns}{i}" for i in range(1, 7)]
+    t = tmp_path / "targets.csv"
+    t.write_text(
+        ",".join(names + ["x", "y", "z"])
+        + "\n"
+        + "".join(",".join(repr(float(v)) for v in [*qk, *pk]) + "\n" for qk, pk in zip(q, p))
+    )
+    code, out, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "cal.toml", t, "--out", tmp_path / "o.csv")
+    assert code in (0, None), out + err
+    header = (tmp_path / "o.csv").read_text().splitlines()[0].split(",")
+    assert header[:6] == names
+
+
 def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys):
     """Position targets, one far beyond the reach: exit 1, the row is named, and the output file
     marks it (reached = 0) while the others are sent."""
