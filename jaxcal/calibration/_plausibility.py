@@ -6,9 +6,10 @@ what a geometric calibration produces (:func:`findings`). The thresholds, all op
 - ``max_residual_mm`` (default 1 % of the robot's reach, prismatic strokes as far as the data
   move them): the calibrated position RMS;
 - ``max_rotation_deg`` (2 deg): the calibrated rotation RMS, for poses;
-- ``max_length_change_mm`` (5 % of the reach): the largest change of a DH length;
-- ``max_angle_change_deg`` (20 deg): the largest change of a DH angle (offsets are first put in
-  (-180, 180]);
+- ``max_length_change_mm`` (5 % of the reach): the largest change of a DH length, or of a URDF
+  joint origin's shift;
+- ``max_angle_change_deg`` (20 deg): the largest change of a DH angle, or of a URDF joint's offset
+  or origin turn (offsets are first put in (-180, 180]);
 - ``max_camera_change`` (0.1): the largest camera unknown (:mod:`jaxcal.camera`; dimensionless:
   0.1 is a camera whose reported positions are off by 10 %).
 
@@ -109,11 +110,9 @@ def findings(stats: dict, x, layout: Layout, limits: Thresholds, *, free=None, s
             f"{limits.rotation_deg:.3g} deg (max_rotation_deg)"
         )
     names, units = layout.names(), layout.units()
-    # DH values only: a URDF joint frame's shift along its joint's axis is a near twin of the next
-    # joint's shift, so a good fit can carry large offsetting values there (its standard errors,
-    # below, still say whether the data determine them)
-    joint_frames = layout.n_kin > 0 and names[0].startswith("offset")
-    kin = [i for i in range(layout.n_kin) if (free is None or i in free) and not joint_frames]
+    # a URDF joint frame's values too: its base set is exchanged away from near twins, so values
+    # beyond the limits write links far from the arm, or fit a mistake (two joint columns swapped)
+    kin = [i for i in range(layout.n_kin) if free is None or i in free]
     lengths = [(abs(x[i]), names[i]) for i in kin if units[i] == "mm"]
     angles = [(abs(x[i]), names[i]) for i in kin if units[i] == "rad"]
     if lengths and max(lengths)[0] > limits.length_mm:
