@@ -33,6 +33,12 @@ def check_writable(path, what: str = "output") -> Path:
                 raise DataError(f"{what} {path}: {p} is a file, not a folder", option=what)
             if not os.access(p, os.W_OK | os.X_OK):
                 raise DataError(f"{what} {path}: folder {p} is not writable", option=what)
+            try:  # as root, os.access says yes to a read-only file system (/sys, a read-only mount)
+                fd, probe = tempfile.mkstemp(prefix=".jaxcal-probe.", dir=p)
+                os.close(fd)
+                os.unlink(probe)
+            except OSError as e:
+                raise DataError(f"{what} {path}: folder {p} is not writable ({e.strerror})", option=what) from None
             break
     return path
 
@@ -85,10 +91,16 @@ def all_or_nothing():
             temps.append(_temporary(target, data))
         for target, tmp in zip(targets, temps):
             os.replace(tmp, target)
-    except BaseException:
+    except BaseException as e:
         for tmp in temps:
             Path(tmp).unlink(missing_ok=True)
+        if isinstance(e, OSError):  # the disk filled up, or the folder changed since the check
+            raise _unwritten(e, targets[len(temps)] if len(temps) < len(targets) else e.filename) from None
         raise
+
+
+def _unwritten(e: OSError, path) -> DataError:
+    return DataError(f"{path}: could not be written ({e.strerror or e}); nothing was written")
 
 
 def write_atomic(path, data: str | bytes, *, now: bool = False) -> None:
@@ -101,8 +113,13 @@ def write_atomic(path, data: str | bytes, *, now: bool = False) -> None:
     staged = _STAGED.get()
     if staged is not None and not now:
         staged.append((Path(path), data))
-    else:
+    elif now:
         _write_now(path, data)
+    else:
+        try:
+            _write_now(path, data)
+        except OSError as e:
+            raise _unwritten(e, path) from None
 
 
 def write_figure(fig, path, **kwargs) -> None:

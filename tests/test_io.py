@@ -131,3 +131,52 @@ def test_a_cache_write_that_cannot_be_made_fails_as_an_os_error(tmp_path):
     with pytest.raises(OSError) as e:
         write_atomic(tmp_path / "afile" / "sub" / "k.bin", b"x", now=True)
     assert not isinstance(e.value, DataError)
+
+
+def test_a_folder_the_os_will_not_write_in_is_refused_before_anything_runs(tmp_path, monkeypatch, capsys):
+    """Where the folder's permissions say yes but no file can be made there (as root: a read-only
+    file system, /proc), the output is refused by the check before the fit, as a command's
+    one-line error (exit 2), not a traceback after it."""
+    import sys
+
+    import pytest
+    from helpers import run_cli
+
+    from jaxcal import DataError
+    from jaxcal._io import check_writable
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("/proc is Linux's")
+    with pytest.raises(DataError, match="folder /proc is not writable"):
+        check_writable("/proc/jaxcal-out.toml", "out")
+    data = tmp_path / "data.csv"
+    data.write_text("q1,q2,q3,q4,q5,q6,x,y,z\n" + "0,0,0,0,0,0,1,2,3\n" * 20)
+    code, _, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", data, "--out-robot", "/proc/jaxcal-out.toml")
+    assert code == 2 and " ".join(err.split()).startswith("error: --out-robot /proc/jaxcal-out.toml: folder /proc")
+
+
+def test_an_output_that_fails_as_it_is_written_is_an_error_naming_it_and_none_is_written(tmp_path, monkeypatch):
+    """The disk fills up after the check: the command's error names the file, and neither output
+    of the block is left, whole or half."""
+    import errno
+
+    import pytest
+
+    import jaxcal._io as io_
+    from jaxcal import DataError
+
+    made = io_._temporary
+
+    def full(path, data):
+        if path.name == "b.txt":
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        return made(path, data)
+
+    monkeypatch.setattr(io_, "_temporary", full)
+    with pytest.raises(DataError, match=r"b\.txt: could not be written \(No space left on device\)"):
+        with io_.all_or_nothing():
+            write_atomic(tmp_path / "a.txt", "a")
+            write_atomic(tmp_path / "b.txt", "b")
+    with pytest.raises(DataError, match=r"b\.txt: could not be written"):
+        write_atomic(tmp_path / "b.txt", "b")
+    assert list(tmp_path.iterdir()) == []
