@@ -403,6 +403,41 @@ def joint_tolerance(robot: Robot) -> np.ndarray:
     return np.where(np.array([t == "R" for t in robot.joint_types]), 1e-6, 1e-3)
 
 
+STILL_GRIDS = 10
+"""A joint whose values span at most this many posture grids (:func:`same_pose`: 1e-3 rad, 1 mm)
+over the data is held still, its spread an encoder's read-back of a joint not moved: the
+identifiable set is taken as if it never moved (:func:`identified`). Its jitter separates
+parameters only by amounts the noise swamps, and a fit that used it would write them anywhere
+along what the still joint leaves undetermined."""
+
+
+def still_span(robot: Robot) -> np.ndarray:
+    """``(n,)`` at most this spread over the data (rad; mm for a prismatic joint) is no motion."""
+    return STILL_GRIDS * same_pose(robot)
+
+
+def identification_poses(robot: Robot, q) -> np.ndarray:
+    """``q (..., K, n)`` with each joint that spreads at most :func:`still_span` over the poses set to
+    its median: the poses the identifiable set is decided on (``q`` itself where every joint moves)."""
+    q = np.asarray(q)
+    still = np.ptp(q, axis=-2) <= still_span(robot)
+    if not still.any():
+        return q
+    return np.where(still[..., None, :], np.median(q, axis=-2, keepdims=True), q)
+
+
+def identified(model: Model, layout: Layout, q, robot: Robot, J=None, poses=None) -> Identifiability:
+    """:func:`base_set` of ``model`` over the poses ``q`` (``poses``: the ones measured, a mask), a
+    joint that barely moves taken as still (:func:`identification_poses`); ``J``, the Jacobian at
+    ``q`` where the caller has it, serves when every joint moves."""
+    q = np.asarray(q)
+    q_id = identification_poses(robot, q)
+    if J is None or q_id is not q:
+        J = analyse(model, layout, q_id)[0]
+    J = np.asarray(J)
+    return base_set(J if poses is None else J[np.asarray(poses, bool)], layout, robot)
+
+
 def same_pose(robot: Robot) -> np.ndarray:
     """``(n,)`` the grid (rad; mm for a prismatic joint) on which joint vectors that round alike are
     one posture: 1e-4 rad moves a 1 m arm 0.1 mm, far below any two postures a calibration means
@@ -622,7 +657,7 @@ def reidentified(
     cond = scaled_condition(J, ident.base)
     if cond <= max_condition:
         return None
-    again = base_set(J, layout, robot)
+    again = identified(model, layout, q, robot, J=J)
     if set(again.base) == set(ident.base):
         return None
     names = layout.names()

@@ -335,13 +335,21 @@ def judge(
 
 
 def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
-    """A note per joint that never moves in the data: what depends on it is not identified, and
-    the model is only checked at that joint value."""
+    """A note per joint that never moves in the data, or only by an encoder's jitter
+    (:data:`._core.STILL_GRIDS`): what depends on it is not identified, and the model is only
+    checked at that joint value."""
     q = np.asarray(q)
+    exact, span = _still_joints(robot, q), np.ptp(q, axis=0)
+    unit = ["rad" if t == "R" else "mm" for t in robot.joint_types]
     return tuple(
-        f"joint {j + 1} ({robot.joint_names[j]}) never moves in the data (always {q[0, j]:.6g}): its "
-        f"parameters are not identified apart from its neighbours', and the model is only checked there"
-        for j in np.flatnonzero(_still_joints(robot, q))
+        f"joint {j + 1} ({robot.joint_names[j]}) never moves in the data "
+        + (
+            f"(always {q[0, j]:.6g})"
+            if exact[j]
+            else f"beyond {span[j]:.2g} {unit[j]} ({q[:, j].min():.6g} to {q[:, j].max():.6g}: taken as still)"
+        )
+        + ": its parameters are not identified apart from its neighbours', and the model is only checked there"
+        for j in np.flatnonzero(span <= core.still_span(robot))
     )
 
 
@@ -356,7 +364,7 @@ def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: in
     q = np.asarray(check_q(robot, as_f64(q, "q")))
     if q.ndim != 2:
         raise DataError(f"q must have shape (K, {robot.n_joints}), got {q.shape}", option="q")
-    return core.base_set(core.analyse(core.generic_model(robot, layout), layout, q)[0], layout, robot)
+    return core.identified(core.generic_model(robot, layout), layout, q, robot)
 
 
 def calibrate(
@@ -416,7 +424,7 @@ def calibrate(
     J0, pos0 = core.analyse(core.member(ref, 0), layout, q)
     nominal_pos = core.nominal_positions(robot, q)
     check_units(robot, q, target, n_points, batched=False, model_positions=pos0, robust=True, also=nominal_pos)
-    ident = core.base_set(J0, layout, robot)
+    ident = core.identified(core.member(ref, 0), layout, q, robot, J=J0)
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, fallback=True)
     prior = prior_of(layout, ident, cand, lever=selection.lever(J0, n_points))
     # not the one-shot linear solve: a second solve from the first is another method's step
@@ -617,7 +625,7 @@ def calibrate_batch(
     J0 = core.analyse(core.member(ref, r0), layout, q[r0])[0]
     given_ident = ident
     if ident is None:  # on the poses it measured
-        ident = core.base_set(J0[masks[r0] > 0], layout, robot)
+        ident = core.identified(core.member(ref, r0), layout, q[r0], robot, J=J0, poses=masks[r0] > 0)
     # each data set's own lever, as calibrate gives it alone (the start models: the frames-only
     # fits of calibrate come later and move no lever a prior needs)
     lever = (

@@ -194,7 +194,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     # more folds than poses is refused below, after whether the poses are enough at all
     fid = fold_ids(K, max(2, min(F, K)), opts.seed, groups)
     everything = np.ones(K, bool)
-    ends = selection.range_end_held(q, everything, groups=groups)
+    ends = selection.range_end_held(core.identification_poses(robot, q), everything, groups=groups)  # moved joints
     held = np.concatenate([np.stack([fid == o for o in range(F)]), ends])
     union = set().union(*(c.dh for c in candidates))
     n_train = K - int(np.bincount(fid).max())
@@ -237,7 +237,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     nested = (len(candidates) > 1 or opts.params.strip() == "auto") and K <= opts.nested_max_poses
     return _Problem(
         robot, opts, data, q, target, n_points, rows, layout, candidates, detector,
-        core.base_set(J0, layout, robot), cfg, run, held, F, everything, nested, groups,
+        core.identified(core.member(ref, 0), layout, q, robot, J=J0), cfg, run, held, F, everything, nested, groups,
     )  # fmt: skip
 
 
@@ -364,7 +364,7 @@ def _select(p: _Problem, lin: selection.Linear, J, train, seed: int) -> _Selecte
     penalised = np.zeros(p.layout.size, bool)
     penalised[: p.layout.n_kin] = True
     penalised[list(p.layout.compliances)] = True
-    rule = selection.Rule.of(lin, p.q, train, p.opts.folds, seed, p.groups)
+    rule = selection.Rule.of(lin, core.identification_poses(p.robot, p.q), train, p.opts.folds, seed, p.groups)
     # a point these poses never see (a marker seen at a few poses, all held out) moves nothing
     # here: held, not a singular column that fails every candidate
     free &= (np.diag(rule.A_all) > 0)[None]
@@ -630,7 +630,7 @@ def _wider(p: _Problem, fit: Model, sig):
     the robot's file, while the arm's are tilted by degrees. ``None`` otherwise. Only here, where
     the model is chosen from the data; :func:`jaxcal.calibrate` fits the set the nominal gives."""
     lin, J = _linear(p, fit, sig)
-    again = core.base_set(J, p.layout, p.robot)
+    again = core.identified(fit, p.layout, p.q, p.robot, J=J)
     if again.rank <= p.ident.rank:
         return None
     if not core.scaled_condition(np.asarray(J).reshape(-1, p.layout.size), again.base) <= selection.MAX_CONDITION:
