@@ -388,7 +388,8 @@ def measurement_columns(header, src: str, *, required: bool = True):
     quat = [c for c in QUAT_COLUMNS if c in header]
     if single and numbered:
         raise DataError(
-            f"{src}: both x, y, z and numbered point columns ({_names(sorted(map(str, numbered)))}); "
+            f"{src}: both x, y, z and numbered point columns "
+            f"({_names(c for j in sorted(numbered) for c in numbered[j].values())}); "
             f"use one scheme; {expected}"
         )
     if single:

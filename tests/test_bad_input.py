@@ -436,6 +436,10 @@ CSV = {
         [LINES[0].replace(",z", "")] + [r.rsplit(",", 1)[0] for r in LINES[1:]],
         "missing column(s) 'z'",
     ),
+    "x, y, z and numbered points": (
+        [LINES[0] + ",x1,y1,z1"] + [r + ",1.0,2.0,3.0" for r in LINES[1:]],
+        "both x, y, z and numbered point columns ('x1', 'y1', 'z1'); use one scheme",
+    ),
     "7 joint columns": (
         [LINES[0].replace("q6", "q6,q7")] + [r.replace(",", ",0.0,", 1) for r in LINES[1:]],
         "robot has 6 joints, file has q1..q7",

@@ -344,7 +344,10 @@ def test_a_pruning_the_linearisation_misjudged_is_undone(monkeypatch, exchanged)
         monkeypatch.setattr(jaxcal.identifiability, "DOMINANCE", np.inf)
     d = Path(__file__).resolve().parents[1] / "data" / "custom_arm"
     robot = load_robot(d / "custom.urdf", base_link="base_link", tip_link="flange")
-    res = calibrate_data(robot, read_measurements(d / "poses_train.csv", robot))
+    # the order's set writes a link 67 mm off the arm, beyond the default limit (the exchange is why)
+    far = {} if exchanged else dict(max_length_change_mm=250.0)
+    res = calibrate_data(robot, read_measurements(d / "poses_train.csv", robot), **far)
+    assert res.report["plausible"], res.report["implausible"]
     undone = any(n.startswith("not pruned: the selection would drop") for n in res.report["notes"])
     assert undone == (not exchanged)
     new = read_measurements(d / "truth_new.csv", robot)
