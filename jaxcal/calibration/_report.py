@@ -21,7 +21,7 @@ from . import _selection as selection
 from ._checks import joint_ranges, limit_notes, unwrapped
 from ._markers import drift, moved_point
 from ._param_sets import Candidate
-from ._single import estimated, judge, still_joint_notes
+from ._single import estimated, judge, narrow_joint_notes, still_joint_notes
 
 RULE = (
     f"lowest score, the RMS of the K-fold and range-end held-out errors (linearised); the simplest set within "
@@ -583,6 +583,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         or None,
         "likely_input_mistake": plausibility.names_a_cause(why),
         "notes": list(still_joint_notes(robot, q))
+        + list(narrow_joint_notes(robot, q))
         + list(limit_notes(robot, q[p.valid], p.rows[p.valid]))
         + list(p.notes)
         + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],

@@ -353,6 +353,32 @@ def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
     )
 
 
+NARROW_SHARE = 0.05
+"""A joint that moves over less than this share of its limits in the data (of a turn, for a
+revolute joint given none), more than a still joint's jitter, is named: the model is fitted, and
+checked by the range-end folds, only over that span."""
+
+
+def narrow_joint_notes(robot: Robot, q) -> tuple[str, ...]:
+    """A note per joint that moves over less than :data:`NARROW_SHARE` of its range: where the
+    arm goes beyond that span, the model extrapolates it, and the held-out figures do not say how
+    well (``evaluate`` warns of such postures)."""
+    q = np.asarray(q)
+    span, lim, given = np.ptp(q, axis=0), np.asarray(robot.q_limits), robot.limits_given()
+    revolute = np.array([t == "R" for t in robot.joint_types])
+    width = np.where(given, lim[:, 1] - lim[:, 0], 2 * np.pi)  # a revolute joint without limits: a turn
+    narrow = (given | revolute) & (span < NARROW_SHARE * width) & (span > core.still_span(robot))
+    scale = robot.joint_scale()  # the robot file's units, as the other joint notes give them
+    unit = [robot.units[1] if t == "R" else robot.units[0] for t in robot.joint_types]
+    return tuple(
+        f"joint {j + 1} ({robot.joint_names[j]}) moves over only {span[j] / scale[j]:.3g} {unit[j]} in the data "
+        f"({q[:, j].min() / scale[j]:.6g} to {q[:, j].max() / scale[j]:.6g}, {100 * span[j] / width[j]:.1f} % of "
+        f"{'its limits' if given[j] else 'a turn'}): the model is fitted and its held-out figures checked only "
+        "over that span; beyond it the model extrapolates by an error they do not show"
+        for j in np.flatnonzero(narrow)
+    )
+
+
 def identify(robot: Robot, q, options: Options | None = None, /, *, n_points: int = 0, **kw) -> Identifiability:
     """Identifiability of the parameters a calibration with these options would carry, over the
     poses ``q (K, n)`` at the nominal robot (frames offered first, as in :func:`calibrate`);
@@ -546,6 +572,7 @@ def calibrate(
         plausible=not why,
         implausible=why,
         notes=still_joint_notes(robot, q)
+        + narrow_joint_notes(robot, q)
         + limit_notes(robot, q[fitted], poses=np.flatnonzero(fitted))  # the poses fitted, indexed as outliers
         + ((reidentified,) if again is not None else ()),
     )

@@ -252,3 +252,18 @@ def test_a_joint_held_still_with_an_encoders_jitter_is_taken_as_still():
         for f in fits
     ]
     assert errs[1] < 1.5 * errs[0] + 0.1, errs
+
+
+def test_a_joint_moved_over_a_sliver_of_its_range_is_named():
+    """UR5 poses over the whole of every joint's turn but joint 2, over 0.012 rad: the note names
+    joint 2 and its span (the model is only checked there); the same poses with joint 2 over its
+    turn, or a robot file's limits that the span fills, give no such note."""
+    from jaxcal.calibration._single import narrow_joint_notes
+
+    ur5 = jaxcal.preset("ur5")
+    q = np.random.default_rng(7).uniform(-np.pi, np.pi, (30, 6))
+    (note,) = narrow_joint_notes(ur5, np.c_[q[:, :1], 0.5 + 0.012 * np.linspace(0, 1, 30), q[:, 2:]])
+    assert note.startswith("joint 2 (q2) moves over only 0.012 rad in the data (0.5 to 0.512, 0.2 % of a turn)")
+    assert narrow_joint_notes(ur5, q) == ()
+    tight = ur5.replace(q_limits=np.where(np.arange(6)[:, None] == 1, [[0.49, 0.52]], [[-np.pi, np.pi]]))
+    assert narrow_joint_notes(tight, np.c_[q[:, :1], 0.5 + 0.012 * np.linspace(0, 1, 30), q[:, 2:]]) == ()
