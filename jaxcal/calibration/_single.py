@@ -340,13 +340,14 @@ def still_joint_notes(robot: Robot, q) -> tuple[str, ...]:
     checked at that joint value."""
     q = np.asarray(q)
     exact, span = _still_joints(robot, q), np.ptp(q, axis=0)
-    unit = ["rad" if t == "R" else "mm" for t in robot.joint_types]
+    v = q / robot.joint_scale()  # the robot file's units, as the other joint notes give them
+    unit = [robot.units[1] if t == "R" else robot.units[0] for t in robot.joint_types]
     return tuple(
         f"joint {j + 1} ({robot.joint_names[j]}) never moves in the data "
         + (
-            f"(always {q[0, j]:.6g})"
+            f"(always {v[0, j]:.6g} {unit[j]})"
             if exact[j]
-            else f"beyond {span[j]:.2g} {unit[j]} ({q[:, j].min():.6g} to {q[:, j].max():.6g}: taken as still)"
+            else f"beyond {np.ptp(v[:, j]):.2g} {unit[j]} ({v[:, j].min():.6g} to {v[:, j].max():.6g}: taken as still)"
         )
         + ": its parameters are not identified apart from its neighbours', and the model is only checked there"
         for j in np.flatnonzero(span <= core.still_span(robot))

@@ -94,9 +94,11 @@ def calibrate(
     ),
     max_rotation_deg: float = typer.Option(_D.max_rotation_deg, help="plausibility: largest rotation RMS"),
     max_length_change_mm: float = typer.Option(
-        None, help="plausibility: largest DH length change (default: 5 % of the reach)"
+        None, help="plausibility: largest DH length or URDF joint origin shift change (default: 5 % of the reach)"
     ),
-    max_angle_change_deg: float = typer.Option(_D.max_angle_change_deg, help="plausibility: largest DH angle change"),
+    max_angle_change_deg: float = typer.Option(
+        _D.max_angle_change_deg, help="plausibility: largest DH angle, URDF joint offset or origin turn change"
+    ),
     max_camera_change: float = typer.Option(
         _D.max_camera_change, help="plausibility: largest camera unknown (0.1: positions off by 10 %)"
     ),
