@@ -17,8 +17,10 @@ ignored and listed in :attr:`Measurements.ignored`.
 **Lost points.** Without quaternions, a point whose three cells are all empty (or ``nan``) at a
 row was not seen there (an occluded marker): it is NaN in :attr:`Measurements.measured` and a
 calibration gives it no weight; the pose keeps its other points. A row with no point left is
-dropped (:attr:`Measurements.dropped_rows`). Some of a point's cells empty and others not, or a
-cell that is not a number, is an error naming the cell.
+dropped (:attr:`Measurements.dropped_rows`). With quaternions, a row whose seven measurement
+cells are all empty (or ``nan``: the camera did not find its target there) is dropped likewise.
+Some of a point's (or a pose's) cells empty and others not, or a cell that is not a number, is
+an error naming the cell.
 
 **Units follow the files**: lengths and angles are read in the robot file's units
 (``robot.units``, e.g. a URDF's metres) unless ``length_unit`` / ``angle_unit`` say otherwise;
@@ -426,8 +428,8 @@ def measurement_columns(header, src: str, *, required: bool = True):
 def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Float matrix of ``columns`` of the data records, with their row and line numbers;
     :class:`DataError` for ragged rows and bad numbers (other columns are not parsed).
-    ``points``: groups of columns (a point's x, y, z) that may be lost together: all three
-    empty or ``nan`` give NaN; some of them is an error naming the cell."""
+    ``points``: groups of columns (a point's x, y, z, or a pose's seven) that may be lost
+    together: all of them empty or ``nan`` give NaN; some of them is an error naming the cell."""
     idx = [header.index(c) for c in columns]
     groups = [[columns.index(c) for c in g] for g in points]
     values, rows, lines = [], [], []
@@ -453,9 +455,10 @@ def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray,
             gap = [j for j in g if math.isnan(out[j])]
             if gap and len(gap) < len(g):
                 given = ", ".join(repr(columns[j]) for j in g if j not in gap)
+                what, cells = ("point", "all three") if len(g) == 3 else ("pose", f"all {len(g)} of its cells")
                 raise DataError(
                     f"{where}, column {columns[gap[0]]!r}: {_missing(rec[idx[gap[0]]])}, but {given} of the same "
-                    f"point {'is' if len(g) - len(gap) == 1 else 'are'} not; a point not seen leaves all three empty"
+                    f"{what} {'is' if len(g) - len(gap) == 1 else 'are'} not; a {what} not seen leaves {cells} empty"
                 )
             lost.update(gap)
         for j, v in enumerate(out):
@@ -658,7 +661,9 @@ def read_measurements(
     )
     require_rows(records, src)
     ignored_ranges = _numeric_ranges(header, records, ignored)
-    values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=() if quat else columns)
+    # a pose not measured (the camera did not find the target) leaves its seven cells empty
+    groups = [columns[0] + quat] if quat else columns
+    values, rows, lines = parse_rows(records, header, jcols + pcols + (quat or []), src, points=groups)
     seen = (~np.isnan(values[:, n : n + len(pcols)]).reshape(len(values), len(columns), 3).any(-1)).any(-1)
     if not seen.any():
         raise DataError(f"{src}: no row has a measured point (every point cell is empty)")

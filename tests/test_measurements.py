@@ -288,6 +288,23 @@ def test_a_pose_file_keeps_refusing_empty_cells(tmp_path, panda):
         read_measurements(_csv(tmp_path, text, "e.csv"), panda)
 
 
+def test_a_pose_not_measured_is_dropped_and_a_partial_one_refused(tmp_path, panda):
+    """A camera that did not find its target leaves the row's seven cells empty (or nan): the row
+    is dropped and named, as a row of points none of which was seen; the others read unchanged.
+    Some of the seven empty is a damaged row, refused naming the cell."""
+    rows = [GOOD_ROW + ",0.1,0.2,0.3,1,0,0,0", GOOD_ROW + ",,,,,,,", GOOD_ROW + ",0.4,0.5,0.6,0,1,0,0"]
+    rows.append(GOOD_ROW + ",nan,NaN,nan,nan,nan,nan,nan")
+    rows.append(GOOD_ROW + ",0.7,0.8,0.9,0,0,0,1")
+    m = read_measurements(_csv(tmp_path, HEADER7 + ",qw,qx,qy,qz\n" + "\n".join(rows) + "\n"), panda, length_unit="m")
+    assert_array_equal(m.rows, [1, 3, 5]) and m.dropped_rows == (2, 4) and m.n_points == 0
+    assert_allclose(m.poses[:, :3, 3], [[100, 200, 300], [400, 500, 600], [700, 800, 900]], rtol=1e-15)
+    assert_allclose(m.poses[1, :3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-15)  # qx = 1: half a turn about x
+    text = HEADER7 + ",qw,qx,qy,qz\n" + GOOD_ROW + ",1,2,3,,,,\n"
+    partial = r"row 1 \(line 2\), column 'qw': empty value, but 'x', 'y', 'z' of the same pose"
+    with pytest.raises(DataError, match=partial):
+        read_measurements(_csv(tmp_path, text, "p.csv"), panda)
+
+
 # -- the real Franka data ---------------------------------------------------------------------
 
 

@@ -136,6 +136,5 @@ def lost_notes(meas, most: int = 10) -> None:
     if meas.dropped_rows:
         rows = ", ".join(map(str, meas.dropped_rows))
         which = f"point(s) {', '.join(map(str, meas.point_numbers))}" if meas.point_numbers else "points"
-        console.print(
-            f"[yellow]note:[/yellow] row(s) {rows} dropped: none of the {which} read was seen", highlight=False
-        )
+        why = "no pose measured there" if meas.n_points == 0 else f"none of the {which} read was seen"
+        console.print(f"[yellow]note:[/yellow] row(s) {rows} dropped: {why}", highlight=False)

@@ -1,6 +1,7 @@
 """The command line (through the real entry point `jaxcal.cli.main`): bad input gives one clear
 line and exit code 2; a unit mismatch is refused with its evidence; compensation output."""
 
+import json
 import re
 
 import numpy as np
@@ -290,8 +291,6 @@ def test_compensate_cli_marks_rows_it_cannot_send(tmp_path, monkeypatch, capsys)
 def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     """Three markers per pose on a DH robot: `--out-robot` writes the robot with its points, and
     `jaxcal evaluate` of that file alone reproduces the calibration's training error."""
-    import json
-
     r = preset("ur5")
     sim = simulate(r, n_poses=30, seed=5, sigma_pos=0.0, base=True, tool=True)
     T = np.asarray(sim.measured[0])
@@ -334,6 +333,25 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     code, out, err = run_cli(monkeypatch, capsys, "evaluate", "ur5", data, "--points", "1")
     assert code in (0, None), err
     assert "if this model was never calibrated" in " ".join((out + err).split())
+
+
+def test_a_pose_the_camera_did_not_measure_is_dropped_and_named(tmp_path, monkeypatch, capsys):
+    """Franka camera rows whose seven measurement cells are empty (or nan) are dropped: evaluate
+    names them and scores the other rows alone."""
+    from jaxcal.measurements import franka_csv_path
+
+    lines = franka_csv_path().read_text().splitlines()[:13]
+    for k, fill in ((3, ""), (8, "nan")):
+        lines[k] = ",".join(lines[k].split(",")[:7] + [fill] * 7)
+    data = tmp_path / "seen.csv"
+    data.write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli(
+        monkeypatch, capsys, "evaluate", "panda", data, "--length-unit", "m", "--json", tmp_path / "e.json"
+    )
+    assert code in (0, None), err
+    assert "row(s) 3, 8 dropped: no pose measured there" in " ".join((out + err).split())
+    ev = json.loads((tmp_path / "e.json").read_text())
+    assert ev["dropped_rows"] == [3, 8] and [p["row"] for p in ev["poses"]] == [1, 2, 4, 5, 6, 7, 9, 10, 11, 12]
 
 
 def test_an_output_that_is_an_input_or_another_output_is_refused(tmp_path, monkeypatch, capsys):
