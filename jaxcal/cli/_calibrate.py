@@ -111,7 +111,8 @@ def calibrate(
     out_model: Path = typer.Option(
         None,
         help="write the calibrated model here: URDF (.urdf, a URDF robot: the nominal file with the "
-        "corrections in its joints' origins, the measurement frame and the points as links) or TOML",
+        "corrections in its joints' origins, the measurement frame and the points as links) or, for a DH robot, "
+        "TOML",
     ),
     plots: Path = typer.Option(None, help="write plots into this folder"),
     out_ur_kinematics: Path = typer.Option(
