@@ -276,6 +276,11 @@ def options_of(options: Options | None, kw: dict) -> Options:
     return dataclasses.replace(base, **kw).checked()
 
 
+STRUCTURE_POSES = 200
+"""Poses uniform within the joint limits on which the base set (what a calibration of designed
+poses identifies) and the column scales are found."""
+
+
 def design_problem(
     robot: Robot,
     options: Options | None = None,
@@ -309,7 +314,10 @@ def design_problem(
       would hide that joint's parameters and make the criteria optimistic; at the origin of a
       known tool).
     * ``q_val (V, n)``: the validation poses; default ``n_val`` poses uniform within the joint
-      limits, drawn with ``seed``. They also fix the base set and the column scale.
+      limits, drawn with ``seed``. The base set, the column scale and the prior's levers are
+      those of :data:`STRUCTURE_POSES` (or ``n_val``, if more) such poses, whatever ``q_val``:
+      the parameters a calibration on the designed poses estimates, where the arm will work or
+      not.
     * ``params_from``: a ``jaxcal calibrate --json`` report (path or dict): design for the
       parameters that calibration estimated, with its prior, compliances, ``estimate_base`` and
       ``estimate_tool`` (:func:`jaxcal.design.report_options`); keywords given here win over
@@ -338,14 +346,18 @@ def design_problem(
         model = generic_model(robot, layout, DEFAULT_POINT_MM)
     else:
         model = eqx.tree_at(lambda m: m.points, nominal_model(robot, layout), jnp.asarray(points))
-    if q_val is None:
-        q_val = uniform_poses(robot, int(n_val), np.random.default_rng([int(seed), 1]))
+    # the arm's whole range: the set a calibration on designed poses identifies, and the scales;
+    # validation poses where the arm will work may move fewer joints, or be few
+    whole = uniform_poses(robot, max(int(n_val), STRUCTURE_POSES), np.random.default_rng([int(seed), 1]))
+    given = q_val is not None
+    if not given:
+        q_val = whole[: int(n_val)]
     q_val = np.asarray(check_q(robot, as_f64(q_val, "q_val")))
     if q_val.ndim != 2 or q_val.shape[0] < 1:
         raise DataError(f"q_val must have shape (V, {robot.n_joints}) with V >= 1, got {q_val.shape}", option="q_val")
-    J = reference(model, layout, q_val)[0]  # (V, rows, m)
+    J = reference(model, layout, whole)[0]  # (N, rows, m)
 
-    # the identifiable set as calibrate finds it
+    # the identifiable set as calibrate finds it on poses over the whole range
     frames, cams, comps = list(layout.frames), list(layout.cameras), list(layout.compliances)
     ident = base_set(J, layout, robot)
     spec = "all" if opts.params == "auto" else opts.params
@@ -359,14 +371,16 @@ def design_problem(
     w = np.asarray(row_weights(layout, sp, sr))
     Jb = J[..., list(base)]
     scale = 1.0 / np.sqrt(np.mean(np.sum((Jb * w[:, None]) ** 2, axis=1), axis=0))
-    # the calibration's physically scaled prior, its levers over the validation poses (a
-    # calibration takes them over its own poses, the ones being designed)
+    # the calibration's physically scaled prior, its levers over the whole range (a calibration
+    # takes them over its own poses, the ones being designed)
     lev = lever(J, layout.n_points)
     kinematic = set(range(layout.n_kin)) | set(comps)
     prior = np.array([cand.prior_weight(lev[i]) if i in kinematic else 0.0 for i in base]) ** 2 * scale**2
     # validation: the position rows of every measured point (the tool origin for poses), averaged
     # over points and poses
-    G = (Jb[:, :3] if layout.n_points == 0 else Jb) * scale
+    Jv = reference(model, layout, q_val)[0] if given else J[: len(q_val)]
+    Jv = Jv[..., list(base)]
+    G = (Jv[:, :3] if layout.n_points == 0 else Jv) * scale
     S = np.einsum("vrb,vrc->bc", G, G) / (len(q_val) * max(layout.n_points, 1))
     lam, U = np.linalg.eigh((S + S.T) / 2)
     F = np.sqrt(np.clip(lam, 0.0, None))[:, None] * U.T

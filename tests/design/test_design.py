@@ -75,6 +75,28 @@ def test_criteria_are_the_crlb_computed_apart(robot, problem):
     np.testing.assert_allclose(got["validation_rms_mm"], expected, rtol=1e-9)
 
 
+def test_few_or_narrow_validation_poses_keep_the_parameters_a_calibration_estimates(robot, problem):
+    """Validation poses say where the arm will work, not what a calibration of the designed poses
+    estimates: with three of them, or with joints 1, 4 and 5 held still, the base set is the one
+    the whole range gives, and the validation RMS is the CRLB of that set (computed apart)
+    propagated to those poses. Taken from them, the set lost parameters and the design claimed
+    errors a calibration does not reach."""
+    sp, sr = 0.02, 2e-5
+    q = _random_q(robot, N, 5)
+    held = _random_q(robot, 40, 7)
+    held[:, [0, 3, 4]] = [0.3, -0.4, 1.1]
+    for qv in (_random_q(robot, 3, 6), held):
+        pb = design.design_problem(robot, q_val=qv, seed=1, **FRAMES_KNOWN)
+        assert pb.base_names() == problem.base_names()
+        J = np.asarray(identification_jacobian(robot, np.concatenate([q, qv])))
+        ident = analyze(J[:N], robot.param_names())  # the designed poses identify the whole set
+        assert ident.base_names == pb.base_names()
+        cov = crlb(J[:N], row_sigmas(N, sigma_pos_mm=sp, sigma_rot_rad=sr), ident)
+        G = J[N:, :3][..., list(ident.base)]
+        expected = np.sqrt(np.mean(np.einsum("vrb,bc,vrc->v", G, cov, G)))
+        np.testing.assert_allclose(design.evaluate(pb, q)["validation_rms_mm"], expected, rtol=1e-9)
+
+
 def test_design_respects_limits_spread_and_region(robot):
     """Narrow joint limits, a minimum spread and a box for the tool: all hold, and the design
     beats random poses of the same count on its criterion. The poses stay 2 % of each range
@@ -322,14 +344,16 @@ def test_params_from_the_committed_franka_report():
 
 def test_ridge_prior_is_physically_scaled(robot, problem):
     """With ridge_mm the design's prior is the calibration's, weight lever / ridge_mm, the lever
-    the RMS position change per unit of each parameter over the validation poses (from
+    the RMS position change per unit of each parameter over poses uniform within the limits (from
     error_model's Jacobian; exactly 1 for a length): in the scaled information, (lever * scale /
     ridge)^2, and information() adds it to the poses' information."""
+    from jaxcal.design._problem import STRUCTURE_POSES
+
     ridge = 0.5
     pb = design.design_problem(robot, n_val=60, seed=1, ridge_mm=ridge, **FRAMES_KNOWN)
     assert pb.base_names() == problem.base_names()
-    lim = np.asarray(robot.q_limits)  # the problems' validation poses (seed 1)
-    qv = lim[:, 0] + np.random.default_rng([1, 1]).uniform(size=(60, 6)) * (lim[:, 1] - lim[:, 0])
+    lim = np.asarray(robot.q_limits)  # the problems' poses over the whole range (seed 1)
+    qv = lim[:, 0] + np.random.default_rng([1, 1]).uniform(size=(STRUCTURE_POSES, 6)) * (lim[:, 1] - lim[:, 0])
     J = np.asarray(identification_jacobian(robot, qv))[:, :3][..., list(pb.base)]  # position rows
     lever = np.sqrt(np.mean(np.sum(J**2, 1), 0))
     lengths = [i for i, n in enumerate(pb.base_names()) if n[0] in "ad" and not n.startswith("alpha")]
