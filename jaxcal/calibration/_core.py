@@ -680,15 +680,13 @@ def _normals(models: Model, layout: Layout, q, real):
     return jax.vmap(one)(models, q, real)
 
 
-def singular_at_fit(
-    models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], base, max_condition: float, memory_mb: float,
-    masks=None,
-) -> np.ndarray:  # fmt: skip
-    """``(R,)`` which members' set ``base`` is not separable at their fit ``models`` (leading
-    axis) on their poses ``q`` of ``masks (R, K)`` (default all), as :func:`reidentified` judges
-    one fit: the column-scaled condition above ``max_condition``. One compiled program over
-    chunks within ``memory_mb`` (the normal matrix of every parameter; the set's columns taken
-    and scaled here)."""
+def scaled_normals(
+    models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], base, memory_mb: float, masks=None
+) -> Float[np.ndarray, "R b b"]:  # fmt: skip
+    """``(R, b, b)`` each member's normal matrix of the columns ``base`` at ``models`` (leading axis)
+    on its poses ``q`` of ``masks (R, K)`` (default all), each column scaled to unit norm. One
+    compiled program over chunks within ``memory_mb`` (the normal matrix of every parameter; the
+    set's columns taken and scaled here)."""
     R, K = np.shape(q)[:2]
     Kb = pose_bucket(K)
     c = members_per_call(R, memory_mb * 2**20 // (4 * Kb * layout.rows * layout.size * 8))  # a Jacobian, copies
@@ -699,10 +697,34 @@ def singular_at_fit(
         N = np.asarray(_normals(take(models, idx), layout, qp[idx], real[idx]))[: R - start][:, cols][:, :, cols]
         d = np.maximum(np.sqrt(np.abs(np.diagonal(N, axis1=1, axis2=2))), 1e-300)
         out.append(N / d[:, :, None] / d[:, None, :])
-    N = np.concatenate(out)
+    return np.concatenate(out)
+
+
+def _eigenvalues(N) -> tuple[np.ndarray, np.ndarray]:
     bad = ~np.all(np.isfinite(N), axis=(1, 2))
-    ev = np.linalg.eigvalsh(np.where(bad[:, None, None], np.eye(N.shape[-1]), N))
+    return bad, np.linalg.eigvalsh(np.where(bad[:, None, None], np.eye(N.shape[-1]), N))
+
+
+def singular_at_fit(
+    models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], base, max_condition: float, memory_mb: float,
+    masks=None,
+) -> np.ndarray:  # fmt: skip
+    """``(R,)`` which members' set ``base`` is not separable at their fit ``models`` (leading
+    axis) on their poses ``q`` of ``masks (R, K)`` (default all), as :func:`reidentified` judges
+    one fit: the column-scaled condition above ``max_condition`` (:func:`scaled_normals`)."""
+    bad, ev = _eigenvalues(scaled_normals(models, layout, q, base, memory_mb, masks))
     return bad | ~(ev[:, 0] > 0) | (ev[:, -1] > max_condition**2 * ev[:, 0])
+
+
+def separable_counts(
+    models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], base, max_condition: float, memory_mb: float,
+    masks=None,
+) -> np.ndarray:  # fmt: skip
+    """``(R,)`` how many directions of the columns ``base`` each member's poses separate at
+    ``models``: the column-scaled normal matrix's eigenvalues within ``max_condition`` squared of
+    its largest (0 for a member whose Jacobian is not finite)."""
+    bad, ev = _eigenvalues(scaled_normals(models, layout, q, base, memory_mb, masks))
+    return np.where(bad, 0, np.sum(ev * max_condition**2 > ev[:, -1:], axis=-1))
 
 
 def kin_order(robot: Robot | None, layout: Layout) -> list[int]:

@@ -598,10 +598,13 @@ def calibrate_batch(
     measurements with the same leading axis. One compiled, vmapped solve run in chunks within
     ``memory_mb`` (no Python loop over data sets inside a chunk), each chunk's data sets shared
     over ``devices`` (``"all"``, a count, or ``None`` for the default device alone;
-    :func:`jaxcal.sharding.select_devices`). The identifiable set comes from the data set that
-    moves the most joints through the most distinct poses (the first of those) unless ``ident`` is
+    :func:`jaxcal.sharding.select_devices`). The identifiable set comes from the data set whose
+    poses separate the most parameters, then move the most joints through the most distinct poses
+    (the first of those) unless ``ident`` is
     given; a data set that cannot identify it (a joint still in it alone, too few distinct poses) is
-    named in ``problems`` and not converged, and members that Gauss-Newton does not converge are
+    named in ``problems`` and not converged, as is one whose poses cannot separate it (joints moved
+    together: the set's column-scaled condition at its start beyond
+    :data:`.selection.MAX_CONDITION`), and members that Gauss-Newton does not converge are
     fitted again by Levenberg-Marquardt, as in :func:`calibrate`; members whose fit ran where
     the set is not separable (an arm far from its file) are fitted again with the set
     identifiable at their fit (``rechosen``). A given ``ident`` is the caller's: only too few
@@ -634,10 +637,8 @@ def calibrate_batch(
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
     wanted += list(layout.compliances) if cand.compliance else []
     check_enough_poses(K, layout, len(wanted) if K < 2 else 0)
-    still, distinct = _still_joints(robot, q), core.distinct_poses(q, core.same_pose(robot))
-    # the identifiable set from the data set that moves the most joints through the most distinct
-    # poses: one degenerate data set must not take parameters from the others
-    r0 = int(np.lexsort((-distinct, still.sum(-1), copied))[0])
+    # a joint whose encoder only jitters is still, as calibrate takes it (core.still_span)
+    still, distinct = np.ptp(q, axis=-2) <= core.still_span(robot), core.distinct_poses(q, core.same_pose(robot))
     check_enough_poses(K, layout, core.generic_rank(core.generic_model(robot, layout), layout, K, wanted))
     cfg = core.Config(layout, opts.method, opts.max_steps, opts.rtol, opts.atol, opts.loss, shared_data=False)
     nominal = core.broadcast_model(nominal_model(robot, layout), R)
@@ -650,6 +651,12 @@ def calibrate_batch(
         return core.start_models(robot.stripped(), layout, q, target, masks, shared=False)
 
     ref = start(masks)
+    # the identifiable set from the data set that separates the most directions of the parameters
+    # wanted, then moves the most joints through the most distinct poses: one degenerate data set
+    # (a joint still, joints moved together) must not take parameters from the others
+    q_id = core.identification_poses(robot, q)
+    counts = core.separable_counts(ref, layout, q_id, wanted, selection.MAX_CONDITION, opts.memory_mb, masks)
+    r0 = int(np.lexsort((-distinct, still.sum(-1), -counts, copied))[0])
     J0 = core.analyse(core.member(ref, r0), layout, q[r0])[0]
     given_ident = ident
     if ident is None:  # on the poses it measured
@@ -665,8 +672,11 @@ def calibrate_batch(
     mine = given_ident is None
     alone = (still & ~still[r0] & mine) | still.all(-1, keepdims=True)  # no joint moving: it identifies nothing
     measured = masks.sum(-1).astype(int)
-    problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), measured)
+    problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), measured, np.ptp(q, -2))
     problems = tuple(u or p for u, p in zip(unfit, problems))
+    if mine:  # poses that move every joint yet cannot separate the set (joints moved together)
+        tied = core.singular_at_fit(ref, layout, q, ident.base, selection.MAX_CONDITION, opts.memory_mb, masks)
+        problems = tuple(p or (TIED if t else "") for p, t in zip(problems, tied))
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
     reweigh = n_points == 0 and not given and opts.method != "linear"  # as calibrate
@@ -844,14 +854,28 @@ def _lost_filled(q, target, n_points: int):
     return q[rows, src], target[rows, src], masks, unfit
 
 
-def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_poses) -> tuple[str, ...]:
+TIED = (
+    "its poses do not separate the parameters the batch estimates (their column-scaled condition is beyond "
+    f"{selection.MAX_CONDITION:.0e} at the start: joints moved together?); calibrate it alone for the set its poses "
+    "identify"
+)
+
+
+def _batch_problems(robot: Robot, still, distinct, rows: int, needed: int, n_poses, span) -> tuple[str, ...]:
     """Why each data set cannot identify the ``needed`` parameters of the batch's set ("" where it
-    can): the joints ``still (R, n)`` that never move in it alone (all of them: no joint moves), or
-    too few ``distinct`` poses among the ``n_poses (R,)`` it measured."""
+    can): the joints ``still (R, n)`` that never move in it alone (all of them: no joint moves;
+    ``span (R, n)`` their spreads, an encoder's jitter named), or too few ``distinct`` poses among
+    the ``n_poses (R,)`` it measured."""
+    lim, unit = core.still_span(robot), ["rad" if t == "R" else "mm" for t in robot.joint_types]
     out = [""] * len(still)
     for r in np.flatnonzero(still.any(-1) | (distinct * rows < needed)):  # the data sets with a problem
         moves = not still[r].all()
-        why = [f"joint {j + 1} ({robot.joint_names[j]}) never moves" for j in np.flatnonzero(still[r]) if moves]
+        why = [
+            f"joint {j + 1} ({robot.joint_names[j]}) never moves"
+            + (f" beyond {lim[j]:.2g} {unit[j]}" if span[r, j] else "")
+            for j in np.flatnonzero(still[r])
+            if moves
+        ]
         why += [] if moves else ["no joint moves"]
         if distinct[r] * rows < needed:
             eq, k = distinct[r] * rows, n_poses[r]
