@@ -612,7 +612,10 @@ def calibrate_batch(
     non-finite values is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN.
     A pose with no point measured (NaN) is left out of its data set's fits; a data set that never
     measured one of the points is named in ``problems`` (that point's place cannot be estimated
-    from it), and the other data sets are fitted as without it."""
+    from it), and the other data sets are fitted as without it. Each member is judged as
+    :func:`calibrate` judges its fit (``implausible``: the plausibility limits, and more outliers
+    than ``max_outlier_fraction``); with ``strict`` any such member raises
+    :class:`jaxcal.ImplausibleFitError` naming it."""
     devs = select_devices(devices)
     opts = make_options(options, kw, elimination=True)
     q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
@@ -744,8 +747,26 @@ def calibrate_batch(
     share = flags.sum(-1) / np.maximum(masks.sum(-1), 1)  # of the poses it measured
     free = (np.asarray(prior) < PIN) & ~failed[:, None]
     kept = masks * ~flags if not opts.keep_outliers else masks
-    why = _implausible(robot, opts, q, layout, x, b, kept.astype(bool), free, n_points, nonfinite)
+    why = list(_implausible(robot, opts, q, layout, x, b, kept.astype(bool), free, n_points, nonfinite))
+    for r in np.flatnonzero((share > opts.max_outlier_fraction) & ~failed):  # as calibrate judges its outliers
+        m = masks[r] > 0
+        rot = None if n_points else np.degrees(np.asarray(b["rot_err"][r]))[m]
+        pos = outliers.pose_position_mm(b["pos_err"][r])[m]
+        many = outliers.too_many(
+            flags[r][m], det.sigmas[r][m], pos, np.flatnonzero(m), opts.max_outlier_fraction, rotation_deg=rot
+        )
+        why[r] = "; ".join(w for w in (why[r], many) if w)
     why = tuple("" if c else w for c, w in zip(copied, why))
+    if opts.strict and any(why):
+        bad = [r for r, w in enumerate(why) if w]
+        raise ImplausibleFitError(
+            f"{len(bad)} of {R} data sets are not plausible calibrations (strict): data set {bad[0]}: {why[bad[0]]}"
+            + (
+                f"; and data sets {', '.join(map(str, bad[1:8]))}{', ...' if len(bad) > 8 else ''}"
+                if len(bad) > 1
+                else ""
+            )
+        )
     return BatchResult(
         x=x,
         converged=ok,
