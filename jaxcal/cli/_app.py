@@ -77,6 +77,11 @@ def load_robot_arg(robot: str, base_link: str | None = None, tip_link: str | Non
     from ..robot import PRESETS, load_robot, preset
 
     if robot in PRESETS:
+        if base_link is not None or tip_link is not None:
+            from ..errors import DataError
+
+            option = "base_link" if base_link is not None else "tip_link"
+            raise DataError(f"{robot}: a preset; base_link and tip_link choose the chain of a URDF file", option=option)
         return preset(robot)
     return load_robot(robot, base_link=base_link, tip_link=tip_link)
 

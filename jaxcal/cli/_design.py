@@ -93,6 +93,15 @@ def design(
     if points and position_only is False:  # a point is measured by its position alone
         raise DataError("--point designs for measured points (positions alone): drop --full-pose", option="point")
     n_points = len(points) if points else int(bool(position_only))
+    if params_from is not None and position_only is None and not points:  # measured as the report's data were
+        n_points = _report_points(params_from)
+        if n_points:
+            console.print(
+                f"measured: positions of {n_points} point(s) on the tool, as in the --params-from calibration "
+                "(--full-pose to design for poses; --point to give where they are)",
+                highlight=False,
+                markup=False,
+            )
     candidates = read_poses_for(pool, r, "pool")
     q_val = read_poses_for(validation, r, "validation")
     given = _given(params_from is None, estimate_base=estimate_base, estimate_tool=estimate_tool, params=params)
@@ -184,3 +193,18 @@ def design(
             write_atomic(json_out, json_text(summary))
             console.print(f"wrote {json_out}", soft_wrap=True, highlight=False, markup=False)
     console.file.write(said.get())
+
+
+def _report_points(path) -> int:
+    """How many points a ``calibrate --json`` report's data measured by position alone (0: poses,
+    or not a report: :func:`jaxcal.design.report_options` says why)."""
+    import json
+
+    try:
+        rep = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return 0
+    if not isinstance(rep, dict) or not rep.get("position_only"):
+        return 0
+    points = rep.get("points")
+    return int(points) if isinstance(points, int) and not isinstance(points, bool) and points >= 1 else 1

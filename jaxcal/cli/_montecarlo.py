@@ -97,8 +97,10 @@ def montecarlo(
     outliers: float = typer.Option(0.0, "--outliers", help="share of each robot's poses given a gross position error"),
     outlier_mm: str = typer.Option("3,6", "--outlier-mm", help="A,B: the gross errors' length, uniform in [A, B] mm"),
     keep_outliers: bool = typer.Option(False, "--keep-outliers", help="fit the outlier poses (default: left out)"),
-    point: str = typer.Option(
-        None, "--point", help="X,Y,Z: the measured point on the tool (mm, tool frame), as `design --point` took it"
+    point: list[str] = typer.Option(
+        None,
+        "--point",
+        help="X,Y,Z: the measured point on the tool (mm, tool frame), as `design --point` took it (one point)",
     ),
 ):
     """Calibrate N simulated robots; report speed, accuracy vs truth and vs the CRLB."""
@@ -117,6 +119,13 @@ def montecarlo(
             raise DataError(f"json_out {json_out}: is one of the study's own files in --out; write it elsewhere",
                             option="json_out")  # fmt: skip
     r = load_robot_arg(robot, base_link, tip_link)
+    if point and len(point) > 1:  # the study measures one point: the tool origin, put there
+        raise DataError(
+            f"--point given {len(point)} times: montecarlo measures one point on the tool; judge a design for "
+            "several points by each point alone, or with jaxcal.design's criteria",
+            option="point",
+        )
+    point = point[0] if point else None
     if point is not None:  # the study measures the tool origin: put it at the point
         if not position_only:
             raise DataError("--point: a measured point is measured by position alone; add --position-only",
@@ -157,6 +166,8 @@ def montecarlo(
         )
     files = {"calibration_poses_file": poses_file, "validation_poses_file": validation}
     out["conditions"] |= {k: str(v) for k, v in files.items() if v is not None}
+    if point is not None:
+        out["conditions"]["point_mm"] = [float(v) for v in at[:3, 3]]
     if not out["complete"]:
         console.print(
             f"stopped after {out['chunks_done']} of {out['chunks']} chunks ({out['robots_done']} robots): "

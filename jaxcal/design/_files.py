@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._io import write_atomic
+from ..calibration import check_angles
 from ..errors import DataError
 from ..kinematics import check_q
 from ..measurements import joint_columns, parse_rows, read_table, require_rows, unit_scale
@@ -27,7 +28,10 @@ def _scales(robot: Robot, length_unit, angle_unit) -> np.ndarray:
 
 def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.ndarray:
     """``(K, n)`` joint values (rad, mm) of a pose file; other columns are ignored. Units default
-    to the robot file's. Raises :class:`jaxcal.DataError` naming the file, row and column."""
+    to the robot file's. Values beyond the joint limits the robot file gives are refused (a joint
+    given none may turn beyond the range designs are drawn in; angles that look like degrees are
+    refused as a calibration's are). Raises :class:`jaxcal.DataError` naming the file, row and
+    column."""
     n = robot.n_joints
     src, header, records = read_table(path, f"expected a header row q1..q{n} (or the joint names)", "pose")
     cols = joint_columns(header, robot, src)
@@ -35,11 +39,13 @@ def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.n
     values = parse_rows(records, header, cols, src)[0]
     q = values * _scales(robot, length_unit, angle_unit)
     check_q(robot, q)
+    check_angles(robot, q, np.arange(1, len(q) + 1))  # degrees, where no limits tell them
     lim = np.asarray(robot.q_limits)
     # a value at a limit in degrees or metres converts to one a few ulps beyond it (designs end
-    # on the limits): within LIMIT_ULPS it is the limit
+    # on the limits): within LIMIT_ULPS it is the limit; a joint given no limits has none to keep
     tol = LIMIT_ULPS * np.spacing(np.maximum(np.abs(lim), 1.0))
-    bad = (q < lim[:, 0] - tol[:, 0]) | (q > lim[:, 1] + tol[:, 1])
+    given = robot.limits_given()
+    bad = given & ((q < lim[:, 0] - tol[:, 0]) | (q > lim[:, 1] + tol[:, 1]))
     if bad.any():
         k, j = np.argwhere(bad)[0]
         raise DataError(
@@ -48,7 +54,7 @@ def read_poses(path, robot: Robot, *, length_unit=None, angle_unit=None) -> np.n
             f"{lim[j, 1] / _scales(robot, length_unit, angle_unit)[j]:.6g}] ({int(bad.any(1).sum())} such row(s))",
             option="q",
         )
-    return np.clip(q, lim[:, 0], lim[:, 1])
+    return np.where(given, np.clip(q, lim[:, 0], lim[:, 1]), q)
 
 
 def write_poses(path, q, robot: Robot, *, length_unit=None, angle_unit=None) -> None:

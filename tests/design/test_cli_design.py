@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 from helpers import run_cli
 
+import jaxcal
+
 
 def test_design_then_montecarlo_on_its_poses(monkeypatch, capsys, tmp_path):
     # a long folder name with brackets: paths said whole, not wrapped or read as markup
@@ -177,22 +179,39 @@ def test_montecarlo_judges_a_design_in_its_conditions(monkeypatch, capsys, tmp_p
     far = ("--point", "0,0,3000", "--position-only")
     code, _, err = run_cli(monkeypatch, capsys, "montecarlo", "paper-6r", "--poses-file", poses, *common, *far)
     assert code in (0, None), err
-    assert json.loads(js.read_text())["conditions"]["given_poses_meet_conditions"] is False
+    c = json.loads(js.read_text())["conditions"]
+    assert c["given_poses_meet_conditions"] is False and c["point_mm"] == [0.0, 0.0, 3000.0]
     code, _, err = run_cli(monkeypatch, capsys, "montecarlo", "paper-6r", "--point", "0,0,30", "--robots", "3")
     assert code == 2 and "--position-only" in err
+    # the study measures one point: a second is refused, not dropped
+    two = ("--point", "0,0,30", "--point", "0,30,0", "--position-only", "--robots", "3")
+    code, _, err = run_cli(monkeypatch, capsys, "montecarlo", "paper-6r", *two)
+    assert code == 2 and "--point given 2 times" in " ".join(err.split())
 
 
 def test_pose_file_beyond_the_limits_and_a_spread_no_pose_set_meets(monkeypatch, capsys, tmp_path):
-    """A pool value beyond the joint limits is refused by its data row, line and column; a
-    minimum spread the poses in the box cannot keep names --min-spread, not a pool never given."""
+    """A pool value beyond the joint limits the robot file gives is refused by its data row, line
+    and column; a joint given none (the UR5 preset's) may turn beyond the range designs are drawn
+    in (+-pi), as a real UR5's does, and its value is read as it is; a minimum spread the poses in
+    the box cannot keep names --min-spread, not a pool never given."""
+    from jaxcal.design import read_poses
+
     pool = tmp_path / "pool.csv"
-    q = np.random.default_rng(7).uniform(-3.0, 3.0, (40, 6))
+    q = np.random.default_rng(7).uniform(-2.9, 2.9, (40, 6))
     q[5, 2] = 3.3  # data row 6, line 7
     pool.write_text("q1,q2,q3,q4,q5,q6\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in q))
     out = tmp_path / "p.csv"
-    code, _, err = run_cli(monkeypatch, capsys, "design", "ur5", "--poses", "8", "--out", out, "--pool", pool)
+    code, _, err = run_cli(monkeypatch, capsys, "design", "paper-6r", "--poses", "8", "--out", out, "--pool", pool)
     err = " ".join(err.split())
     assert code == 2 and "row 6 (line 7), column 'q3': 3.3 is outside the joint limits" in err, err
+    assert not out.exists()
+    assert read_poses(pool, jaxcal.preset("ur5"))[5, 2] == 3.3
+    degrees = tmp_path / "deg.csv"
+    degrees.write_text(
+        "q1,q2,q3,q4,q5,q6\n" + "".join(",".join(repr(float(v)) for v in r) + "\n" for r in np.degrees(q))
+    )
+    with pytest.raises(jaxcal.DataError, match="look like degrees"):
+        read_poses(degrees, jaxcal.preset("ur5"))
     code, _, err = run_cli(
         monkeypatch, capsys, "design", "ur5", "--poses", "8", "--out", out, "--region", "-900,-900,-200,900,900,900",
         "--min-spread", "9", "--random-sets", "5", "--starts", "1",
@@ -259,3 +278,22 @@ def test_a_pool_that_cannot_identify_the_parameters_is_refused(monkeypatch, caps
         monkeypatch, capsys, "design", "ur5", "--poses", "20", "--pool", tmp_path / "no.csv", "--out", out
     )
     assert code == 2 and "pose file not found" in err, err
+
+
+def test_params_from_a_position_only_report_designs_for_its_points(monkeypatch, capsys, tmp_path):
+    """A --params-from report of a calibration on positions of two markers: the design measures
+    two points by position, as that calibration did (it designed for full poses without a word),
+    and says so; --full-pose designs for poses."""
+    rep = tmp_path / "rep.json"
+    names = list(jaxcal.preset("paper-6r").param_names())
+    rep.write_text(json.dumps({"estimated_dh": names, "position_only": True, "points": 2, "estimate_tool": True}))
+    common = ("design", "paper-6r", "--poses", "8", "--params-from", rep, "--starts", "1", "--random-sets", "5")
+    code, out, err = run_cli(monkeypatch, capsys, *common, "--out", tmp_path / "p.csv", "--json", tmp_path / "p.json")
+    assert code in (0, None), err
+    assert "measured: positions of 2 point(s) on the tool, as in the --params-from calibration" in " ".join(out.split())
+    assert len(json.loads((tmp_path / "p.json").read_text())["points_mm"]) == 2
+    code, out, err = run_cli(
+        monkeypatch, capsys, *common, "--full-pose", "--out", tmp_path / "f.csv", "--json", tmp_path / "f.json"
+    )
+    assert code in (0, None), err
+    assert "positions of" not in out and not json.loads((tmp_path / "f.json").read_text()).get("points_mm")

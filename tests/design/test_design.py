@@ -558,3 +558,15 @@ def test_more_poses_than_the_gradient_design_can_hold_are_refused_up_front(probl
     for terabytes, refused before anything is drawn or compiled, with the most it allows."""
     with pytest.raises(DataError, match=r"n_poses: the gradient design of 100000 poses .* at most \d+ poses"):
         design.optimal_poses(problem, 100000)
+
+
+def test_a_pool_may_turn_a_joint_given_no_limits_beyond_the_design_range(robot, problem):
+    """A pool value beyond a joint's limits is refused where the robot file gives them; a joint
+    given none (its range only the one designs are drawn in) may turn beyond it, as a UR5's does."""
+    pool = _random_q(robot, 10, 9)
+    pool[3, 1] = 3.3  # beyond paper-6r's limits, +-2.97 rad
+    with pytest.raises(DataError, match="row 3, joint 2: 3.3 is outside the joint limits"):
+        design.select_poses(problem, pool, 11)
+    free = dataclasses.replace(problem, bounded=(True, False, True, True, True, True))
+    with pytest.raises(DataError, match="fewer than the 11 asked for"):  # past the limits' check
+        design.select_poses(free, pool, 11)
