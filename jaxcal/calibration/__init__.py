@@ -22,6 +22,7 @@ from ._single import calibrate as calibrate
 from ._single import calibrate_batch as calibrate_batch
 from ._single import identify as identify
 from ._single import make_layout as make_layout
+from ._single import still_joint_notes as still_joint_notes
 from ._workflow import DataCalibration as DataCalibration
 from ._workflow import calibrate_data as calibrate_data
 from ._workflow import fold_ids as fold_ids

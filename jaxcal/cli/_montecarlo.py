@@ -234,6 +234,12 @@ def montecarlo(
             f"taken: {out['max_steps_taken']}); the figures above include their estimates{pairs}",
             highlight=False,
         )
+    for note in out.get("still_joints") or ():
+        console.print(
+            f"[yellow]warning:[/yellow] calibration poses: {note}; the validation RMS includes the robots' errors in "
+            "what it holds, which the CRLB (of the parameters estimated) leaves out",
+            highlight=False,
+        )
     if out.get("crlb_efficiency_note"):
         console.print(f"[yellow]warning:[/yellow] {out['crlb_efficiency_note']}", highlight=False)
     if out["conditions"].get("given_poses_meet_conditions") is False:

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._config import as_f64
-from ..calibration import Options, calibrate_batch, identify
+from ..calibration import Options, calibrate_batch, identify, still_joint_notes
 from ..error_model import perturb
 from ..errors import DataError
 from ..identifiability import base_covariance, row_sigmas
@@ -470,6 +470,8 @@ def run_montecarlo(
         **acc.summary([ident.names[k] for k in base_idx], noisy),
         "machine": machine_info(),
     }
+    if q is not None:  # given poses that leave a joint still: every fit holds what only it separates
+        out_d["still_joints"] = list(still_joint_notes(robot, q))
     if folder is not None and out_d["complete"]:
         folder.write_summary(out_d)
     return out_d

@@ -338,3 +338,17 @@ def test_points_alone_are_scored_against_the_truths_own_coordinates():
         sigma_pos=0.0, sigma_rot=0.0,
     )  # fmt: skip
     assert out["converged_fraction"] == 1.0 and out["param_rms_error_max"] < 1e-6, out["param_rms_error"]
+
+
+def test_given_poses_that_leave_a_joint_still_are_warned_about():
+    """Calibration poses in which joint 3 only jitters (4e-4 rad): every fit holds what only that
+    joint separates, whose bias the CRLB leaves out; the summary names the joint. Poses in which
+    every joint moves name none."""
+    robot = jaxcal.preset("paper-6r")
+    lim = np.asarray(robot.q_limits)
+    rng = np.random.default_rng(4)
+    q = lim[:, 0] + rng.uniform(size=(20, 6)) * (lim[:, 1] - lim[:, 0])
+    assert run_montecarlo(robot, n_robots=4, q=q, seed=2, repeats=0)["still_joints"] == []
+    q[:, 2] = 0.3 + rng.uniform(-4e-4, 4e-4, 20)
+    notes = run_montecarlo(robot, n_robots=4, q=q, seed=2, repeats=0)["still_joints"]
+    assert len(notes) == 1 and notes[0].startswith("joint 3 (q3) never moves in the data beyond")
