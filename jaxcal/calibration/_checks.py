@@ -34,7 +34,8 @@ def as_target(
     on the tool per pose; a point lost at a pose is NaN in its three coordinates, and every
     pose keeps at least one) or poses ``(K, 4, 4)`` (``position_only=True`` keeps their
     translations); with a leading data-set axis when ``batched`` (where a data set may miss a
-    point, or have a pose of no point: :func:`lost_points`).
+    point, or have a pose of no point, or a pose NaN in its top three rows: not measured,
+    :func:`lost_points`).
     """
     if not isinstance(robot, Robot):
         raise DataError(f"robot must be a jaxcal.Robot, got {type(robot).__name__}", option="robot")
@@ -61,8 +62,12 @@ def as_target(
             f"{K + ('M', 3)} (M points per pose), one per row of q; got {measured.shape}",
             option="measured",
         )
-    lost = np.isnan(measured).all(-1) if kind != "poses" else np.zeros(measured.shape[:-1], bool)
-    gone, unseen = lost_points(measured) if kind != "poses" else (lost.all(-1), lost.all(-2))
+    if kind == "poses":  # a pose not measured is NaN in its rotation and translation
+        gone = np.isnan(measured[..., :3, :]).all((-1, -2))
+        lost, unseen = np.broadcast_to(gone[..., None], measured.shape[:-1]), gone.all(-1)
+    else:
+        lost = np.isnan(measured).all(-1)
+        gone, unseen = lost_points(measured)
     for name, arr in (("q", q), ("measured", np.where(lost[..., None], 0.0, measured))):
         bad = ~np.isfinite(arr)
         if bad.any():
@@ -88,11 +93,13 @@ def as_target(
     if gone.any() and not batched:
         idx = tuple(int(i) for i in np.argwhere(gone)[0])
         raise DataError(
-            f"measured{list(idx)}: no point measured at this pose (all NaN); leave the pose out", option="measured"
+            f"measured{list(idx)}: no {'pose' if kind == 'poses' else 'point'} measured at this pose (all NaN); "
+            "leave the pose out",
+            option="measured",
         )
     check_angles(robot, q, rows)
     if kind == "poses":
-        bad_row = np.abs(measured[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(-1) > 1e-9
+        bad_row = (np.abs(measured[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(-1) > 1e-9) & ~gone
         if bad_row.any():
             idx = tuple(int(i) for i in np.argwhere(bad_row)[0])
             raise DataError(

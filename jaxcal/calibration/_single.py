@@ -610,9 +610,10 @@ def calibrate_batch(
     identifiable at their fit (``rechosen``). A given ``ident`` is the caller's: only too few
     distinct poses are named, and there is neither retry. A data set whose solve gives
     non-finite values is reported (``nonfinite``, ``converged`` False) with ``x`` = 0, never NaN.
-    A pose with no point measured (NaN) is left out of its data set's fits; a data set that never
-    measured one of the points is named in ``problems`` (that point's place cannot be estimated
-    from it), and the other data sets are fitted as without it. Each member is judged as
+    A pose with no point measured (NaN), or a pose NaN in its top three rows, is left out of its
+    data set's fits; a data set that never measured one of the points is named in ``problems``
+    (that point's place cannot be estimated from it), and the other data sets are fitted as
+    without it. Each member is judged as
     :func:`calibrate` judges its fit (``implausible``: the plausibility limits, and more outliers
     than ``max_outlier_fraction``); with ``strict`` any such member raises
     :class:`jaxcal.ImplausibleFitError` naming it."""
@@ -859,13 +860,17 @@ def _lost_filled(q, target, n_points: int):
     whose results are discarded."""
     R, K = q.shape[:2]
     masks, unfit = np.ones((R, K)), [""] * R
-    if not n_points:
+    if n_points:
+        gone, unseen = lost_points(target)
+    else:  # a pose not measured: NaN in its top three rows
+        gone, unseen = np.isnan(target[..., :3, :]).all((-1, -2)), np.zeros((R, 0), bool)
+    if not gone.any() and not unseen.any():
         return q, target, masks, unfit
-    gone, unseen = lost_points(target)
+    what = "point" if n_points else "pose"
     bad = unseen.any(-1) | gone.all(-1)
     for r in np.flatnonzero(bad):  # the few data sets that cannot be fitted
         points = ", ".join(str(int(j) + 1) for j in np.flatnonzero(unseen[r]))
-        unfit[r] = f"point(s) {points} never measured" if not gone[r].all() else "no point measured at any pose"
+        unfit[r] = f"point(s) {points} never measured" if not gone[r].all() else f"no {what} measured at any pose"
     if bad.all():
         raise DataError(f"measured: no data set can be fitted: data set 0: {unfit[0]}", option="measured")
     src = np.where(gone, np.argmax(~gone, axis=1)[:, None], np.arange(K))  # a lost pose: the first measured

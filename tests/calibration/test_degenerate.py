@@ -227,6 +227,34 @@ def test_a_batch_data_set_that_lost_a_pose_or_never_saw_a_point_does_not_stop_th
     np.testing.assert_allclose(res.x[0], calibrate(ROBOT, q[0], pts[0], **kw).x, atol=1e-6)
 
 
+def test_a_batch_data_set_whose_camera_missed_a_pose_does_not_stop_the_others():
+    """Three data sets of full poses (paper-6r, NumPy FK): the second has one pose NaN (a camera
+    that did not find its target), the third none measured. The second is fitted as calibrate
+    fits it without that pose, the third named in problems; a single fit refuses the NaN pose,
+    naming it (the whole batch was refused)."""
+    from tests.helpers import dh_fk, random_transform
+
+    rng = np.random.default_rng(6)
+    dh0, lim = np.asarray(ROBOT.dh), np.asarray(ROBOT.q_limits)
+    q = lim[:, 0] + rng.uniform(size=(3, 30, 6)) * (lim[:, 1] - lim[:, 0])
+    T = np.stack(
+        [
+            dh_fk(dh0 + rng.normal(size=dh0.shape) * [0.005, 0.05, 0.05, 0.005], q[r], base=random_transform(rng),
+                  tool=random_transform(rng))
+            for r in range(3)
+        ]
+    )  # fmt: skip
+    T[..., :3, 3] += rng.normal(size=(3, 30, 3)) * 0.02
+    T[1, 7, :3] = np.nan
+    T[2] = np.nan
+    res = calibrate_batch(ROBOT, q, T)
+    assert res.problems == ("", "", "no pose measured at any pose") and list(res.converged) == [True, True, False]
+    keep = np.arange(30) != 7
+    np.testing.assert_allclose(res.x[1], calibrate(ROBOT, q[1, keep], T[1, keep]).x, atol=1e-6)
+    with pytest.raises(jaxcal.DataError, match=r"measured\[7\]: no pose measured at this pose"):
+        calibrate(ROBOT, q[1], T[1])
+
+
 def test_a_joint_held_still_with_an_encoders_jitter_is_taken_as_still():
     """A UR5 (DH errors, base and tool; NumPy FK, tests.helpers) measured at 40 poses with its joint
     4 held at 0.3 rad, read back with 1e-4 rad of jitter. The jitter separates nothing the noise
