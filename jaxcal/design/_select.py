@@ -19,6 +19,7 @@ one: :data:`SINGULAR`), each swapped set is factorised anew instead.
 from __future__ import annotations
 
 import time
+import warnings
 
 import equinox as eqx
 import jax
@@ -249,6 +250,14 @@ def select_poses(
     chosen, swaps, allowed = exchange(problem, cons, pool, n_poses, max_swaps)
     seconds = time.perf_counter() - t0
     q = pool[chosen]
+    distinct = len(np.unique(q, axis=0))
+    if distinct < n_poses:  # the pool's repeated rows: a repeat measures a posture again, no more
+        warnings.warn(
+            f"the pool has {len(np.unique(pool, axis=0))} distinct rows of {len(pool)}: the design repeats "
+            f"{n_poses - distinct} of its {n_poses} poses (measuring a posture again averages its noise, and "
+            "tells nothing of the arm elsewhere)",
+            stacklevel=2,
+        )
     values = values_of(measures_batch(problem, q[None])[0])
     if not np.isfinite(values["log_det"]):
         raise DataError(_unidentified(problem, pool[allowed], n_poses, len(pool)), option="pool")

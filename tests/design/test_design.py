@@ -201,6 +201,9 @@ def test_pool_selection_no_single_swap_improves(robot, problem):
         bad = pool.copy()
         bad[2, 2] = 4.0
         design.select_poses(problem, bad, N)
+    # a pool of 6 postures listed 5 times each: the design must repeat some, and says so
+    with pytest.warns(UserWarning, match=r"the pool has 6 distinct rows of 30: the design repeats 2 of its 8"):
+        design.select_poses(problem, np.tile(pool[:6], (5, 1)), N, n_random=50)
 
 
 def test_pool_selection_of_the_fewest_poses_that_identify_finds_the_best_set():
