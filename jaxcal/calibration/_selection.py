@@ -456,6 +456,8 @@ def _inverse(N):
 def condition(A, free) -> float:
     """Condition number of the normal matrix ``A`` of the ``free`` parameters, columns scaled."""
     N = np.asarray(A)[np.ix_(free, free)]
+    if not N.size:  # nothing estimated (frames known, and the candidate estimates only them)
+        return 1.0
     d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
     ev = np.linalg.eigvalsh(N / np.outer(d, d))
     return float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")

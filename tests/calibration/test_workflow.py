@@ -353,3 +353,24 @@ def test_a_pruning_the_linearisation_misjudged_is_undone(monkeypatch, exchanged)
     new = read_measurements(d / "truth_new.csv", robot)
     err = np.asarray(predict(res.model, new.q))[:, :3, 3] - new.measured[:, 0]
     assert np.sqrt(np.mean(np.sum(err**2, -1))) < 0.03  # noise-free truth; the data's noise 0.03 mm
+
+
+def test_known_frames_are_a_model_to_choose_from():
+    """Base and tool known (--no-estimate-base --no-estimate-tool): the simplest candidate has no
+    parameter at all, which the choice took the condition of (an IndexError, exit 1). Data of a
+    paper-6r with DH errors measured in its own base frame (NumPy FK): the default model is chosen
+    and predicts new poses of the true arm near the noise."""
+    r = preset("paper-6r")
+    rng = np.random.default_rng(11)
+    lim = np.asarray(r.q_limits)
+    q = lim[:, 0] + rng.uniform(size=(40, 6)) * (lim[:, 1] - lim[:, 0])
+    dh = np.asarray(r.dh) + rng.normal(size=(6, 4)) * [0.002, 0.3, 0.3, 0.002]
+    fk_np = lambda qq: dh_fk(dh, qq, convention=r.convention, base=r.base, tool=r.tool)[:, :3, 3]  # noqa: E731
+    points = fk_np(q) + rng.normal(0, 0.02, (40, 3))
+    res = calibrate_data(r, Measurements(q, points[:, None]), estimate_base=False, estimate_tool=False, folds=3)
+    assert res.report["converged"] and res.report["plausible"]
+    assert res.report["cv"][0]["name"] == "frames" and res.report["cv"][0]["free_parameters"] == 0
+    qv = lim[:, 0] + rng.uniform(size=(50, 6)) * (lim[:, 1] - lim[:, 0])
+    fit = res.robot
+    pred = dh_fk(np.asarray(fit.dh), qv, convention=fit.convention, base=fit.base, tool=fit.tool)[:, :3, 3]
+    assert np.sqrt(np.mean(np.sum((pred - fk_np(qv)) ** 2, -1))) < 0.1
