@@ -50,6 +50,7 @@ class Options:
     - ``ridge_mm`` (None): a prior on the parameters of an explicit ``params`` set, physically
       scaled: each parameter is expected to move the measured points by about this many mm
       (:meth:`Candidate.prior_weight`; an angle's prior is ``ridge_mm`` over its lever arm).
+      :func:`calibrate_data` refuses it with ``params="auto"``, which chooses its own prior.
     - ``estimate_base`` (True), ``estimate_tool`` (True): estimate the measurement frame -> robot
       base transform and the tool (a frame for poses, a point per measured point), starting
       from a closed-form guess. The base keeps what belongs to it: a DH error that the base or

@@ -448,6 +448,12 @@ def calibrate_data(robot: Robot, data, options: Options | None = None, /, *, pro
     figures over those and the outliers that lie together in one part of a joint's range.
     """
     opts = make_options(options, kw, camera_auto=True)
+    if opts.params == "auto" and opts.ridge_mm is not None:  # else ignored without a word
+        raise DataError(
+            f"ridge_mm {opts.ridge_mm:g}: a prior for an explicit params set (such as params='all'); params 'auto' "
+            "chooses its prior (0.3, 1, 3 mm or none) by cross-validation",
+            option="ridge_mm",
+        )
     p = _prepare(robot, data, opts, progress)
     fr = _frames(p)
     if not opts.keep_outliers:

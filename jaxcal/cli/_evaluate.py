@@ -7,7 +7,17 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import BASE_LINK_HELP, ROBOT_HELP, TIP_LINK_HELP, app, check_outputs, console, lost_notes, parse_points
+from ._app import (
+    BASE_LINK_HELP,
+    ROBOT_HELP,
+    TIP_LINK_HELP,
+    app,
+    check_outputs,
+    console,
+    load_robot_arg,
+    lost_notes,
+    parse_points,
+)
 
 
 def _fmt(v):
@@ -44,14 +54,17 @@ def evaluate(
     from ..robot import (
         PRESETS,
         calibrated_chain,
-        preset,
         read_movable_joints,
         read_point_numbers,
         read_training_ranges,
     )
 
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
-    m = Model(preset(str(model))) if nominal else load_model(model, base_link=base_link, tip_link=tip_link)
+    m = (
+        Model(load_robot_arg(str(model), base_link, tip_link))
+        if nominal
+        else load_model(model, base_link=base_link, tip_link=tip_link)
+    )
     chosen = None if points is None else parse_points(points)
     src, header, _ = read_table(data, "expected a header row of joint and measurement columns, as for calibrate")
     columns, quat = measurement_columns(header, src)

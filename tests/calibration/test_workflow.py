@@ -374,3 +374,12 @@ def test_known_frames_are_a_model_to_choose_from():
     fit = res.robot
     pred = dh_fk(np.asarray(fit.dh), qv, convention=fit.convention, base=fit.base, tool=fit.tool)[:, :3, 3]
     assert np.sqrt(np.mean(np.sum((pred - fk_np(qv)) ** 2, -1))) < 0.1
+
+
+def test_a_prior_given_with_the_automatic_choice_is_refused():
+    """ridge_mm is the prior of an explicit params set; with params 'auto' (which chooses its own)
+    it was ignored without a word."""
+    r = preset("paper-6r")
+    q = np.random.default_rng(1).uniform(-1.0, 1.0, (20, 6))
+    with pytest.raises(DataError, match=r"ridge_mm 0.5: a prior for an explicit params set"):
+        calibrate_data(r, Measurements(q, np.zeros((20, 1, 3))), ridge_mm=0.5)

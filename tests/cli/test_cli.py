@@ -450,10 +450,13 @@ def test_a_library_warning_is_said_as_one_line_of_the_command(monkeypatch, capsy
     assert warnings.showwarning is not None and "jaxcal" not in getattr(warnings.showwarning, "__module__", "")
 
 
-@pytest.mark.parametrize("command", [("info",), ("design", "--poses", "8", "--out", "never.csv")])
+@pytest.mark.parametrize(
+    "command", [("info",), ("design", "--poses", "8", "--out", "never.csv"), ("evaluate", "data.csv")]
+)
 def test_chain_links_given_with_a_preset_are_refused(monkeypatch, capsys, tmp_path, command):
     """--base-link / --tip-link choose a URDF's chain: with a preset they would be ignored."""
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "data.csv").write_text("q1,q2,q3,q4,q5,q6,x,y,z\n" + "0.1,0.2,0.3,0.4,0.5,0.6,100,200,300\n" * 3)
     code, _, err = run_cli(monkeypatch, capsys, command[0], "paper-6r", *command[1:], "--tip-link", "nothing")
     assert code == 2 and "a preset; base_link and tip_link choose the chain of a URDF file" in " ".join(err.split())
     assert not (tmp_path / "never.csv").exists()
