@@ -174,6 +174,7 @@ PY = {
         "needs method 'gn' or 'lm'",
     ),
     "calibrate loss_scale 0": (lambda: calibrate(ROBOT, Q, M, loss="huber", loss_scale=0.0), DataError, "loss_scale"),
+    "calibrate loss_scale with l2": (lambda: calibrate(ROBOT, Q, M, loss_scale=1.0), DataError, "loss 'l2' has none"),
     "calibrate robot not Robot": (lambda: calibrate("paper-6r", Q, M), DataError, "robot must be a jaxcal.Robot"),
     # calibrate_batch
     "batch unbatched q": (lambda: calibrate_batch(ROBOT, Q, M), DataError, r"\(R, K, n\)"),

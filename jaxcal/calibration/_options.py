@@ -71,7 +71,7 @@ class Options:
       would otherwise weight rounding errors).
     - ``loss`` (``"l2"``), ``loss_scale`` (None): ``huber`` or ``cauchy`` make the fit robust to
       outlier poses (iteratively reweighted), ``loss_scale`` the noise scale per row in units of
-      sigma (None: a robust estimate).
+      sigma (None: a robust estimate; refused with ``l2``, which has no scale).
 
     **Outliers** (:mod:`jaxcal.calibration._outliers`)
 
@@ -160,6 +160,11 @@ class Options:
             )
         if self.loss not in LOSSES:
             raise DataError(f"loss must be one of {', '.join(LOSSES)}, got {self.loss!r}", option="loss")
+        if self.loss == "l2" and self.loss_scale is not None:  # it would only set the outliers' noise scale
+            raise DataError(
+                f"loss_scale {self.loss_scale!r} is the scale of a robust loss (huber or cauchy); loss 'l2' has none",
+                option="loss_scale",
+            )
         if self.loss != "l2" and self.method not in ("gn", "lm"):
             raise DataError(
                 f"loss {self.loss!r} needs method 'gn' or 'lm' (iteratively reweighted), got {self.method!r}",
