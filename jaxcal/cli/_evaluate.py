@@ -7,17 +7,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ._app import (
-    BASE_LINK_HELP,
-    ROBOT_HELP,
-    TIP_LINK_HELP,
-    app,
-    check_outputs,
-    console,
-    load_robot_arg,
-    lost_notes,
-    parse_points,
-)
+from ._app import BASE_LINK_HELP, ROBOT_HELP, TIP_LINK_HELP, app, check_outputs, console, lost_notes, parse_points
 
 
 def _fmt(v):
@@ -58,6 +48,7 @@ def evaluate(
         read_point_numbers,
         read_training_ranges,
     )
+    from ._app import load_robot_arg  # a preset (refusing chain links), or a robot file
 
     nominal = not model.exists() and str(model) in PRESETS  # a preset: the nominal table, never calibrated
     m = (
