@@ -705,26 +705,28 @@ def _eigenvalues(N) -> tuple[np.ndarray, np.ndarray]:
     return bad, np.linalg.eigvalsh(np.where(bad[:, None, None], np.eye(N.shape[-1]), N))
 
 
+def inseparable(N: Float[np.ndarray, "R b b"], max_condition: float) -> np.ndarray:
+    """``(R,)`` which of :func:`scaled_normals`' matrices ``N`` have a condition above
+    ``max_condition`` (or are not finite): their parameters are not separable."""
+    bad, ev = _eigenvalues(N)
+    return bad | ~(ev[:, 0] > 0) | (ev[:, -1] > max_condition**2 * ev[:, 0])
+
+
+def separable_counts(N: Float[np.ndarray, "R b b"], max_condition: float) -> np.ndarray:
+    """``(R,)`` how many directions each of :func:`scaled_normals`' matrices ``N`` separates: its
+    eigenvalues within ``max_condition`` squared of its largest (0 where it is not finite)."""
+    bad, ev = _eigenvalues(N)
+    return np.where(bad, 0, np.sum(ev * max_condition**2 > ev[:, -1:], axis=-1))
+
+
 def singular_at_fit(
     models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], base, max_condition: float, memory_mb: float,
     masks=None,
 ) -> np.ndarray:  # fmt: skip
     """``(R,)`` which members' set ``base`` is not separable at their fit ``models`` (leading
     axis) on their poses ``q`` of ``masks (R, K)`` (default all), as :func:`reidentified` judges
-    one fit: the column-scaled condition above ``max_condition`` (:func:`scaled_normals`)."""
-    bad, ev = _eigenvalues(scaled_normals(models, layout, q, base, memory_mb, masks))
-    return bad | ~(ev[:, 0] > 0) | (ev[:, -1] > max_condition**2 * ev[:, 0])
-
-
-def separable_counts(
-    models: Model, layout: Layout, q: Float[np.ndarray, "R K n"], base, max_condition: float, memory_mb: float,
-    masks=None,
-) -> np.ndarray:  # fmt: skip
-    """``(R,)`` how many directions of the columns ``base`` each member's poses separate at
-    ``models``: the column-scaled normal matrix's eigenvalues within ``max_condition`` squared of
-    its largest (0 for a member whose Jacobian is not finite)."""
-    bad, ev = _eigenvalues(scaled_normals(models, layout, q, base, memory_mb, masks))
-    return np.where(bad, 0, np.sum(ev * max_condition**2 > ev[:, -1:], axis=-1))
+    one fit: the column-scaled condition above ``max_condition`` (:func:`inseparable`)."""
+    return inseparable(scaled_normals(models, layout, q, base, memory_mb, masks), max_condition)
 
 
 def kin_order(robot: Robot | None, layout: Layout) -> list[int]:

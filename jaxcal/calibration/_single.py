@@ -658,8 +658,8 @@ def calibrate_batch(
     # the identifiable set from the data set that separates the most directions of the parameters
     # wanted, then moves the most joints through the most distinct poses: one degenerate data set
     # (a joint still, joints moved together) must not take parameters from the others
-    q_id = core.identification_poses(robot, q)
-    counts = core.separable_counts(ref, layout, q_id, wanted, selection.MAX_CONDITION, opts.memory_mb, masks)
+    N = core.scaled_normals(ref, layout, core.identification_poses(robot, q), wanted, opts.memory_mb, masks)
+    counts = core.separable_counts(N, selection.MAX_CONDITION)
     r0 = int(np.lexsort((-distinct, still.sum(-1), -counts, copied))[0])
     J0 = core.analyse(core.member(ref, r0), layout, q[r0])[0]
     given_ident = ident
@@ -678,8 +678,9 @@ def calibrate_batch(
     measured = masks.sum(-1).astype(int)
     problems = _batch_problems(robot, alone, distinct, layout.rows, len(estimated(prior[0])), measured, np.ptp(q, -2))
     problems = tuple(u or p for u, p in zip(unfit, problems))
-    if mine:  # poses that move every joint yet cannot separate the set (joints moved together)
-        tied = core.singular_at_fit(ref, layout, q, ident.base, selection.MAX_CONDITION, opts.memory_mb, masks)
+    if mine:  # poses that move every joint yet cannot separate the set estimated (joints moved together)
+        sub = [k for k, i in enumerate(wanted) if i in set(ident.base)]
+        tied = core.inseparable(N[:, sub][:, :, sub], selection.MAX_CONDITION)
         problems = tuple(p or (TIED if t else "") for p, t in zip(problems, tied))
     run = dict(J0=J0, memory_mb=opts.memory_mb, progress=progress, devices=devs, fallback=mine)
     given = opts.sigma_pos_mm is not None and (n_points or opts.sigma_rot_rad is not None)
