@@ -78,7 +78,7 @@ def design(
     import numpy as np
 
     from .._io import all_or_nothing, json_text, write_atomic
-    from ..design import DEFAULT_POINT_MM, design_problem, optimal_poses, select_poses, write_poses
+    from ..design import DEFAULT_POINT_MM, design_problem, optimal_poses, report_points, select_poses, write_poses
     from ..errors import DataError
 
     COMMAND_FLAGS.update(
@@ -94,7 +94,7 @@ def design(
         raise DataError("--point designs for measured points (positions alone): drop --full-pose", option="point")
     n_points = len(points) if points else int(bool(position_only))
     if params_from is not None and position_only is None and not points:  # measured as the report's data were
-        n_points = _report_points(params_from)
+        n_points = report_points(params_from)
         if n_points:
             console.print(
                 f"measured: positions of {n_points} point(s) on the tool, as in the --params-from calibration "
@@ -193,18 +193,3 @@ def design(
             write_atomic(json_out, json_text(summary))
             console.print(f"wrote {json_out}", soft_wrap=True, highlight=False, markup=False)
     console.file.write(said.get())
-
-
-def _report_points(path) -> int:
-    """How many points a ``calibrate --json`` report's data measured by position alone (0: poses,
-    or not a report: :func:`jaxcal.design.report_options` says why)."""
-    import json
-
-    try:
-        rep = json.loads(Path(path).read_text())
-    except (OSError, ValueError):
-        return 0
-    if not isinstance(rep, dict) or not rep.get("position_only"):
-        return 0
-    points = rep.get("points")
-    return int(points) if isinstance(points, int) and not isinstance(points, bool) and points >= 1 else 1

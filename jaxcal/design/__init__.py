@@ -28,6 +28,7 @@ from ._problem import information as information
 from ._problem import loss as loss
 from ._problem import with_criterion as with_criterion
 from ._report import report_options as report_options
+from ._report import report_points as report_points
 from ._result import PoseDesign as PoseDesign
 from ._result import matching_count as matching_count
 from ._select import select_poses as select_poses

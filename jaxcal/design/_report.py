@@ -13,15 +13,8 @@ NOT_KINEMATIC = ("base_", "tool_", "point", "compliance")
 """Prefixes of a report's parameters that are not the robot's kinematic ones."""
 
 
-def report_options(report, robot: Robot) -> dict:
-    """The options of the calibration a ``jaxcal calibrate --json`` report (a path or the loaded
-    dict) describes: ``params``, the estimated kinematic parameters by name (``"frames"`` when
-    none was), and ``estimate_base``, ``estimate_tool``, ``compliance`` (``"yes"``/``"no"``) and
-    ``ridge_mm`` (the chosen set's prior) where the report says.
-
-    The names come from the report's ``estimated_dh`` list (else the kinematic names among its
-    ``parameters``). Raises :class:`jaxcal.DataError` (option ``params_from``) for a file that is
-    not such a report, or names ``robot`` does not have."""
+def _loaded(report) -> tuple[dict, str]:
+    """The report as a dict (read from a path) and how to name it in a message."""
     where = "params_from"
     if isinstance(report, (str, Path)):
         where = f"params_from: {report}"
@@ -33,6 +26,29 @@ def report_options(report, robot: Robot) -> dict:
             raise DataError(f"{where}: not JSON ({e})", option="params_from") from None
     if not isinstance(report, dict):
         raise DataError(f"{where}: expected a calibration report (a JSON object)", option="params_from")
+    return report, where
+
+
+def report_points(report) -> int:
+    """How many points the report's calibration measured by position alone (0: full poses), so a
+    design measures what that calibration did; :class:`jaxcal.DataError` as :func:`report_options`."""
+    report = _loaded(report)[0]
+    if not report.get("position_only"):
+        return 0
+    points = report.get("points")
+    return int(points) if isinstance(points, int) and not isinstance(points, bool) and points >= 1 else 1
+
+
+def report_options(report, robot: Robot) -> dict:
+    """The options of the calibration a ``jaxcal calibrate --json`` report (a path or the loaded
+    dict) describes: ``params``, the estimated kinematic parameters by name (``"frames"`` when
+    none was), and ``estimate_base``, ``estimate_tool``, ``compliance`` (``"yes"``/``"no"``) and
+    ``ridge_mm`` (the chosen set's prior) where the report says.
+
+    The names come from the report's ``estimated_dh`` list (else the kinematic names among its
+    ``parameters``). Raises :class:`jaxcal.DataError` (option ``params_from``) for a file that is
+    not such a report, or names ``robot`` does not have."""
+    report, where = _loaded(report)
     if "estimated_dh" in report:
         names = report["estimated_dh"]
     elif isinstance(report.get("parameters"), dict):
