@@ -75,7 +75,7 @@ class DesignProblem(eqx.Module):
     prismatic joint): a real arm faults at its hard limits, where an optimum tends to lie."""
     layout: Layout = eqx.field(static=True)
     base: tuple[int, ...] = eqx.field(static=True)
-    bounded: tuple[bool, ...] = eqx.field(static=True, default=())
+    bounded: tuple[bool, ...] = eqx.field(static=True)
     """Per joint: its limits are the robot file's (else :attr:`lower`, :attr:`upper` are only a
     range to design in, and a pool's or a pose file's values may lie beyond it)."""
 

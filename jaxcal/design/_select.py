@@ -233,7 +233,7 @@ def select_poses(
     if pool.ndim != 2 or pool.shape[1] != n:
         raise DataError(f"pool must have shape (P, {n}), got {pool.shape}", option="pool")
     lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
-    bounded = np.array(problem.bounded or [True] * n)  # a joint given no limits may turn further
+    bounded = np.array(problem.bounded)  # a joint given no limits may turn further
     bad = ~np.isfinite(pool) | (bounded & ((pool < lo) | (pool > hi)))
     if bad.any():
         k, j = np.argwhere(bad)[0]
