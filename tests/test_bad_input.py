@@ -166,6 +166,11 @@ PY = {
     "calibrate method": (lambda: calibrate(ROBOT, Q, M, method="newton"), DataError, "method must be one of"),
     "calibrate sigma nan": (lambda: calibrate(ROBOT, Q, M, sigma_pos_mm=float("nan")), DataError, "sigma_pos_mm"),
     "calibrate sigma negative": (lambda: calibrate(ROBOT, Q, M, sigma_rot_rad=-1e-3), DataError, "sigma_rot_rad"),
+    "calibrate rotation noise of positions": (
+        lambda: calibrate(ROBOT, Q, M[:, :3, 3], sigma_rot_rad=1e-4),
+        DataError,
+        "sigma_rot_rad 0.0001: the noise of measured rotations; the data are positions",
+    ),
     "calibrate max_steps 0": (lambda: calibrate(ROBOT, Q, M, max_steps=0), DataError, "max_steps"),
     "calibrate loss unknown": (lambda: calibrate(ROBOT, Q, M, loss="tukey"), DataError, "loss must be one of"),
     "calibrate loss with linear": (

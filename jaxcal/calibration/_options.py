@@ -68,7 +68,8 @@ class Options:
     - ``sigma_pos_mm``, ``sigma_rot_rad`` (None): measurement noise per coordinate, which weights
       position against rotation rows. None: estimated from the residual of the frames-only fit
       (the RMS per coordinate and per axis), at least 1e-3 mm and 1e-6 rad (noise-free data
-      would otherwise weight rounding errors).
+      would otherwise weight rounding errors). ``sigma_rot_rad`` with position data is refused: no
+      rotation was measured to weigh.
     - ``loss`` (``"l2"``), ``loss_scale`` (None): ``huber`` or ``cauchy`` make the fit robust to
       outlier poses (iteratively reweighted), ``loss_scale`` the noise scale per row in units of
       sigma (None: a robust estimate; refused with ``l2``, which has no scale).

@@ -493,6 +493,17 @@ def _outlier_section(p, fr, det, last, fin: dict, h: dict, reg, faults) -> dict:
     }
 
 
+def _limits_doc(limits) -> dict:
+    """The resolved plausibility limits under their options' names and units."""
+    return {
+        "max_residual_mm": float(limits.residual_mm),
+        "max_rotation_deg": float(limits.rotation_deg),
+        "max_length_change_mm": float(limits.length_mm),
+        "max_angle_change_deg": float(np.degrees(limits.angle_rad)),
+        "max_camera_change": float(limits.camera),
+    }
+
+
 def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibration:
     """The :class:`DataCalibration` of a run of :func:`jaxcal.calibrate_data` from its stages.
     ``named``: the poses to name as outliers (``keep_outliers``: those a run without the option
@@ -573,6 +584,10 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         "tool": frame_doc(f.model.robot.tool),
         "training_ranges": training_ranges(robot, q, p.valid, file_units=True),
         "training_ranges_units": list(robot.units),  # the robot file's, not the data's ("units")
+        # every option as given, and the plausibility limits as resolved for this robot and data:
+        # what a rerun needs, and what the fit was judged against
+        "options": dataclasses.asdict(opts),
+        "plausibility_limits": _limits_doc(plausibility.Thresholds.of(robot, opts, q)),
         "plausible": not why,
         # judged where the solver stopped: when that is not a solution, that comes first
         "implausible": (

@@ -194,6 +194,12 @@ def make_layout(
             f"the camera model {camera!r} needs full poses (the camera's axes); the data are position-only",
             option="camera",
         )
+    if n_points and opts.sigma_rot_rad is not None:  # else accepted and weighing nothing
+        raise DataError(
+            f"sigma_rot_rad {opts.sigma_rot_rad:g}: the noise of measured rotations; the data are positions "
+            "(no rotation measured), weighted by sigma_pos_mm alone",
+            option="sigma_rot_rad",
+        )
     if n_points > 1 and not opts.estimate_tool:
         raise DataError(
             f"{n_points} points per pose: their positions on the tool are unknown and must be "

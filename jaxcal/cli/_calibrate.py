@@ -78,7 +78,9 @@ def calibrate(
         None, help="position noise per coordinate, the fits' weight (default: the frames-only fit's residual)"
     ),
     sigma_rot_rad: float = typer.Option(
-        None, help="rotation noise per axis, the fits' weight (default: the position weight at the noise's ratio)"
+        None,
+        help="rotation noise per axis of full poses, the fits' weight (default: the position weight at the "
+        "noise's ratio)",
     ),
     max_steps: int = typer.Option(_D.max_steps, help="solver step limit"),
     rtol: float = typer.Option(_D.rtol, help="solver relative tolerance"),

@@ -1,6 +1,7 @@
 """The real-data workflow (`calibrate_data`) on simulated data: folds, the base/tool initial
 guess, the cross-validated choice of parameter set, camera models, recovery of the true robot."""
 
+import dataclasses
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -9,7 +10,7 @@ import pytest
 from helpers import dh_fk, random_transform, solve_keys
 from numpy.testing import assert_allclose, assert_array_equal
 
-from jaxcal import DataError, Measurements, fk, preset
+from jaxcal import DataError, Measurements, Options, fk, preset
 from jaxcal.calibration import calibrate_data, fold_ids
 from jaxcal.calibration._initial import initial_frames
 from jaxcal.error_model import perturb
@@ -367,8 +368,13 @@ def test_known_frames_are_a_model_to_choose_from():
     dh = np.asarray(r.dh) + rng.normal(size=(6, 4)) * [0.002, 0.3, 0.3, 0.002]
     fk_np = lambda qq: dh_fk(dh, qq, convention=r.convention, base=r.base, tool=r.tool)[:, :3, 3]  # noqa: E731
     points = fk_np(q) + rng.normal(0, 0.02, (40, 3))
-    res = calibrate_data(r, Measurements(q, points[:, None]), estimate_base=False, estimate_tool=False, folds=3)
+    kw = dict(estimate_base=False, estimate_tool=False, folds=3, max_residual_mm=7.0)
+    res = calibrate_data(r, Measurements(q, points[:, None]), **kw)
     assert res.report["converged"] and res.report["plausible"]
+    # the report holds every option as given (a rerun's), and the limits the fit was judged against
+    assert res.report["options"] == dataclasses.asdict(Options(**kw))
+    assert res.report["plausibility_limits"]["max_residual_mm"] == 7.0
+    assert res.report["plausibility_limits"]["max_angle_change_deg"] == pytest.approx(Options().max_angle_change_deg)
     assert res.report["cv"][0]["name"] == "frames" and res.report["cv"][0]["free_parameters"] == 0
     qv = lim[:, 0] + rng.uniform(size=(50, 6)) * (lim[:, 1] - lim[:, 0])
     fit = res.robot
