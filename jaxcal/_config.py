@@ -102,7 +102,8 @@ def as_f64(x, name: str = "array") -> jax.Array:
         np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer) or arr.dtype == np.bool_
     ):
         raise DataError(f"{name}: expected real numbers, got dtype {arr.dtype}")
-    return jnp.asarray(arr, dtype=jnp.float64)
+    # jnp.asarray may alias a float64 NumPy buffer on CPU: the caller's later writes would change it
+    return jnp.array(arr, dtype=jnp.float64, copy=True)
 
 
 def cache_folder() -> Path:

@@ -149,7 +149,8 @@ class Model(eqx.Module):
 
     def __init__(self, robot: Robot, points=None, camera_params=None, camera: str = "none"):
         self.robot = robot
-        self.points = jnp.zeros((0, 3)) if points is None else jnp.asarray(points, jnp.float64).reshape(-1, 3)
+        # a copy: jnp.asarray may alias the caller's NumPy buffer (as_f64)
+        self.points = jnp.zeros((0, 3)) if points is None else jnp.array(points, jnp.float64).reshape(-1, 3)
         self.camera = camera
         c = jnp.asarray(np.zeros(camera_size(camera)) if camera_params is None else camera_params, jnp.float64)
         self.camera_params = c.reshape(camera_size(camera))

@@ -49,7 +49,9 @@ def design(
         "choice); --params, --estimate-base/--estimate-tool given here win",
     ),
     noise_mm: float = typer.Option(0.02, "--noise-mm", help="position noise sigma (mm)"),
-    noise_rad: float = typer.Option(2e-5, "--noise-rad", help="rotation noise sigma (rad)"),
+    noise_rad: float = typer.Option(
+        None, "--noise-rad", help="rotation noise sigma (rad) of full poses (default 2e-5); none for positions"
+    ),
     starts: int = typer.Option(4, help="optimiser starts (gradient design)"),
     seed: int = typer.Option(0),
     min_spread: float = typer.Option(0.0, help=SPREAD_HELP),

@@ -254,6 +254,10 @@ def test_a_position_only_design_says_which_point_it_is_for(monkeypatch, capsys, 
     )  # fmt: skip
     assert code in (0, None), err
     assert "not given" not in stdout and json.loads(js.read_text())["points_mm"] == [[0.0, 40.0, 30.0]]
+    # a rotation noise weighs nothing in a design for positions: refused by its flag, nothing written
+    code, _, err = run_cli(monkeypatch, capsys, *common, "--noise-rad", "1e-4", "--out", tmp_path / "r.csv")
+    assert code == 2 and "--noise-rad" in err and "positions" in err, err
+    assert not (tmp_path / "r.csv").exists()
 
 
 def test_a_pool_that_cannot_identify_the_parameters_is_refused(monkeypatch, capsys, tmp_path):

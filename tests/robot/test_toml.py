@@ -8,7 +8,7 @@ import pytest
 import yourdfpy
 from numpy.testing import assert_allclose
 
-from jaxcal import Robot, RobotFileError, fk, load_robot, save_robot, to_joint
+from jaxcal import Model, Robot, RobotFileError, fk, load_robot, save_robot, to_joint
 from jaxcal.robot import PRESETS, preset
 
 PAPER_TOML = """
@@ -169,6 +169,31 @@ def test_constructor_does_not_mutate_inputs():
     r2 = r.with_dh_delta(jnp.ones((2, 4)))
     assert np.array_equal(dh, before) and np.array_equal(np.asarray(r.dh), before)
     assert np.array_equal(np.asarray(r2.dh), np.ones((2, 4)))
+
+
+def test_a_robot_keeps_its_own_copy_of_the_callers_arrays():
+    """A robot built from a NumPy table, frames and limits is not changed by the caller's later
+    writes to them (a notebook editing one buffer for several robots): JAX on CPU may alias a
+    float64 NumPy buffer, and the forward kinematics followed the edit."""
+
+    def aligned(a):  # on a 64-byte boundary, where JAX on CPU takes a NumPy buffer without a copy
+        buf = np.empty(np.size(a) + 8)
+        out = buf[(-buf.ctypes.data % 64) // 8 :][: np.size(a)].reshape(np.shape(a))
+        out[...] = a
+        return out
+
+    ur5 = preset("ur5")
+    dh, base, tool, lim = (aligned(a) for a in (ur5.dh, np.eye(4), np.eye(4), ur5.q_limits))
+    r = Robot(dh, base=base, tool=tool, q_limits=lim)
+    q = np.zeros((1, 6))
+    before = np.array(fk(r, q))
+    dh[1, 2] += 100.0
+    base[0, 3], tool[2, 3], lim[:] = 50.0, 7.0, 0.0
+    assert np.array_equal(np.asarray(fk(r, q)), before)
+    assert np.array_equal(np.asarray(r.q_limits), np.asarray(ur5.q_limits))
+    model = Model(r, points := aligned(np.ones((2, 3))))
+    points[:] = 9.0
+    assert np.array_equal(np.asarray(model.points), np.ones((2, 3)))
 
 
 def test_training_ranges_round_trip_in_the_files_units(tmp_path):
