@@ -9,6 +9,7 @@ from ._core import base_set as base_set
 from ._core import generic_model as generic_model
 from ._core import kin_order as kin_order
 from ._core import nominal_model as nominal_model
+from ._core import parallel_snapped as parallel_snapped
 from ._evaluate import evaluate as evaluate
 from ._options import GAUGE as GAUGE
 from ._options import JOINT_GAUGE as JOINT_GAUGE

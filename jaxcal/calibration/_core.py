@@ -426,14 +426,39 @@ def identification_poses(robot: Robot, q) -> np.ndarray:
     return np.where(still[..., None, :], np.median(q, axis=-2, keepdims=True), q)
 
 
+PARALLEL_RAD = 0.01
+"""Consecutive DH axes within this angle of parallel (``alpha`` near 0 or pi) are taken as
+parallel when the parameters to estimate are chosen (:func:`identified`). Where they are not
+exactly parallel, the common normal's place along them (``d``) moves ``1 / sin(alpha)`` times as
+far as the arm does: a calibrated table of a parallel-axis arm (``alpha`` a few mrad) would
+otherwise free the ``d`` the nominal holds, and a recalibration from it run ``d`` by metres."""
+
+
+def parallel_snapped(model: Model) -> Model:
+    """``model`` with its DH ``alpha`` within :data:`PARALLEL_RAD` of 0 or pi set to it exactly
+    (``model`` itself when none is, or for joint frames)."""
+    robot = model.robot
+    if robot.convention == "joint":
+        return model
+    dh = np.array(robot.dh)
+    exact = np.round(dh[:, 3] / np.pi) * np.pi
+    near = (np.abs(dh[:, 3] - exact) < PARALLEL_RAD) & (dh[:, 3] != exact)
+    if not near.any():
+        return model
+    dh[near, 3] = exact[near]
+    return eqx.tree_at(lambda m: m.robot.dh, model, jnp.asarray(dh))
+
+
 def identified(model: Model, layout: Layout, q, robot: Robot, J=None, poses=None) -> Identifiability:
     """:func:`base_set` of ``model`` over the poses ``q`` (``poses``: the ones measured, a mask), a
-    joint that barely moves taken as still (:func:`identification_poses`); ``J``, the Jacobian at
-    ``q`` where the caller has it, serves when every joint moves."""
+    joint that barely moves taken as still (:func:`identification_poses`) and nearly parallel DH
+    axes as parallel (:func:`parallel_snapped`); ``J``, the Jacobian at ``q`` where the caller has
+    it, serves when every joint moves and no axis is snapped."""
     q = np.asarray(q)
     q_id = identification_poses(robot, q)
-    if J is None or q_id is not q:
-        J = analyse(model, layout, q_id)[0]
+    snapped = parallel_snapped(model)
+    if J is None or q_id is not q or snapped is not model:
+        J = analyse(snapped, layout, q_id)[0]
     J = np.asarray(J)
     return base_set(J if poses is None else J[np.asarray(poses, bool)], layout, robot)
 

@@ -32,7 +32,16 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._config import as_f64, jit
-from ..calibration import Options, base_set, generic_model, lever, make_layout, nominal_model, parse_params
+from ..calibration import (
+    Options,
+    base_set,
+    generic_model,
+    lever,
+    make_layout,
+    nominal_model,
+    parallel_snapped,
+    parse_params,
+)
 from ..errors import DataError
 from ..kinematics import check_q
 from ..model import Layout, Model, apply, jacobian, predict, row_weights
@@ -362,7 +371,8 @@ def design_problem(
 
     # the identifiable set as calibrate finds it on poses over the whole range
     frames, cams, comps = list(layout.frames), list(layout.cameras), list(layout.compliances)
-    ident = base_set(J, layout, robot)
+    snapped = parallel_snapped(model)  # nearly parallel axes as parallel, as a calibration takes them
+    ident = base_set(J if snapped is model else reference(snapped, layout, whole)[0], layout, robot)
     spec = "all" if opts.params == "auto" else opts.params
     cand = parse_params(spec, robot, opts.ridge_mm, compliance=opts.compliance == "yes")[0]
     estimated = set(frames + cams + list(cand.dh) + (comps if cand.compliance else []))

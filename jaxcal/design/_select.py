@@ -223,7 +223,8 @@ def select_poses(
     **Returns** a :class:`PoseDesign` whose ``details["indices"]`` are the chosen pool rows.
 
     **Raises** :class:`jaxcal.DataError` for a pool with bad values or values beyond the joint
-    limits (naming the row and joint), or too few usable candidates.
+    limits the robot gives (naming the row and joint; a joint given none, such as a UR preset's,
+    turns as far as its values say), or too few usable candidates.
     """
     n_poses = count("n_poses", n_poses, 1)
     max_swaps = 10 * n_poses if max_swaps is None else count("max_swaps", max_swaps, 0)
