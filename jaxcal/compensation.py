@@ -328,17 +328,18 @@ def quaternion_note(calibrated: Robot, targets: Targets) -> str:
     )
 
 
-def orientation_note(n_points: int, targets: Targets, name: str) -> str:
-    """A warning for target orientations given to a model calibrated from measured points
-    (``n_points`` > 0, the model file ``name``): its tool's orientation is the nominal one, never
-    measured. Empty otherwise."""
-    if not n_points or targets.poses is None or targets.position_only:
-        return ""
-    return (
-        f"{name} was calibrated from measured points: its tool's orientation is the nominal one, not calibrated, "
-        "and the targets' orientations are met only as far as it is right (x, y, z targets alone compensate "
-        "the positions)"
-    )
+def check_orientation(n_points: int, targets: Targets, name: str) -> None:
+    """Refuse target orientations given to a model calibrated from measured points (``n_points``
+    > 0, the model file ``name``): its tool's orientation was never measured, and the commands
+    would be flagged as reaching orientations the arm may miss by degrees. Position targets (x,
+    y, z alone) compensate what it calibrated."""
+    if n_points and targets.poses is not None and not targets.position_only:
+        raise DataError(
+            f"{name} was calibrated from measured points: its tool's orientation was never measured (the nominal "
+            "one), so the targets' orientations cannot be reached to any known accuracy; give x, y, z targets "
+            "(drop qw, qx, qy, qz) to compensate the positions, or calibrate from measured poses",
+            option="targets",
+        )
 
 
 OTHER_TOOL_MM, OTHER_TOOL_DEG = 5.0, 2.0

@@ -263,7 +263,7 @@ def calibrate(
             if res.model.n_points == 1:
                 console.print(
                     "  its tool origin is the measured point; the tool's orientation was not measured (the nominal "
-                    "one), so the file marks the point (`points`) and pose targets warn",
+                    "one), so the file marks the point (`points`) and pose targets are refused",
                     highlight=False,
                 )
             if several:

@@ -52,8 +52,8 @@ def compensate(
     from .._io import write_atomic
     from ..compensation import (
         MAX_MOVE_DEG,
+        check_orientation,
         compensate_targets,
-        orientation_note,
         quaternion_note,
         read_targets,
         tool_note,
@@ -69,13 +69,10 @@ def compensate(
         urdf = Path(nominal).suffix.lower() in (".urdf", ".xml") and calibrated_chain(nominal) is None
         nom = load_robot_arg(nominal, *(chain if chain and urdf else (None, None)))
     tg = read_targets(targets, model.robot, length_unit=length_unit, angle_unit=angle_unit)
+    check_orientation(model.n_points, tg, str(calibrated))
     cal = _target_frame(model, calibrated, point, commands_only=tg.poses is None)
-    for note in (
-        orientation_note(model.n_points, tg, str(calibrated)),
-        tool_note(model.n_points, cal, nom, str(calibrated), commands_only=tg.poses is None),
-    ):
-        if note:
-            console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)
+    if note := tool_note(model.n_points, cal, nom, str(calibrated), commands_only=tg.poses is None):
+        console.print(f"[yellow]warning:[/yellow] {note}", highlight=False)
     poses, res = compensate_targets(cal, tg, nominal=nom)
     rot = not (tg.poses is not None and tg.position_only)  # position targets: no rotation was asked for
     table = Table(title=f"compensation of {len(res.q)} targets")

@@ -11,7 +11,7 @@ import pytest
 from helpers import dh_fk, run_cli
 
 import jaxcal
-from jaxcal.compensation import orientation_note, read_targets, tool_note
+from jaxcal.compensation import tool_note
 from jaxcal.measurements import write_measurements
 from jaxcal.simulation import simulate
 
@@ -163,13 +163,16 @@ def test_four_points_with_occluded_markers(tmp_path, monkeypatch, capsys):
     # row 20 has other points: the note says none of those read (point 1) was seen
     assert "row(s) 20, 25 dropped: none of the point(s) 1 read was seen" in " ".join(out.split())
     # the one point is the tool origin, marked so: a pose file is not scored as poses, and pose
-    # targets warn that the tool's orientation was not calibrated
+    # targets are refused (the tool's orientation was never measured: rows flagged as reaching
+    # orientations the arm misses by degrees), nothing written
     p1 = jaxcal.load_model(tmp_path / "p1.toml")
     assert p1.n_points == 1 and np.all(np.asarray(p1.points) == 0)
     targets = tmp_path / "poses.csv"
-    targets.write_text("x,y,z,qw,qx,qy,qz\n1,2,3,1,0,0,0\n")
-    note = orientation_note(p1.n_points, read_targets(targets, p1.robot), "p1.toml")
-    assert "its tool's orientation is the nominal one, not calibrated" in note
+    targets.write_text("x,y,z,qw,qx,qy,qz\n400,200,300,1,0,0,0\n")
+    out_csv = tmp_path / "c.csv"
+    code, _, err = run_cli(monkeypatch, capsys, "compensate", tmp_path / "p1.toml", targets, "--out", out_csv)
+    assert code == 2 and "tool's orientation was never measured" in " ".join(err.split()), err
+    assert not out_csv.exists()
     # joint commands alone: their targets are the nominal tool's, and the model's tool is point 1,
     # which the data put at the simulated tool: 50 mm from a nominal whose tool is 50 mm further
     ur5 = jaxcal.preset("ur5")
