@@ -175,6 +175,12 @@ def read_toml(path) -> tuple[Robot, np.ndarray | None]:
                 f"{path}: a JSON file, not a robot file (TOML, URDF or UR yaml): a calibrate --json report holds the "
                 "figures, not a model to load; give the file written by --out-robot or --out-model"
             ) from None
+        if path.suffix.lower() == ".csv":  # a data file, or the DH table calibrate --out-dh writes
+            raise RobotFileError(
+                f"{path}: a CSV file, not a robot file (TOML, URDF or UR yaml): a calibrate --out-dh table lists the "
+                "DH parameters to read, without the base and tool frames, joint types and limits a model holds; "
+                "give the file written by --out-robot or --out-model"
+            ) from None
         raise RobotFileError(f"{path}: not valid TOML: {e}") from None
     robot = robot_from_dict(doc, source=str(path))
     pts = doc.get("points", [])

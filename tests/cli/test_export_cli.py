@@ -65,6 +65,9 @@ def test_ur_kinematics_reproduce_the_calibrated_model(tmp_path, monkeypatch, cap
     rows = list(csv.DictReader((tmp_path / "dh.csv").open()))
     np.testing.assert_array_equal([float(r["calibrated"]) for r in rows], np.asarray(cal.dh).ravel())
     assert {r["convention"] for r in rows} == {"sdh"}
+    # given where a robot file goes, it is named for what it is (it was "not valid TOML")
+    with pytest.raises(jaxcal.RobotFileError, match="a calibrate --out-dh table lists the DH parameters"):
+        jaxcal.load_robot(tmp_path / "dh.csv")
     html = (tmp_path / "report.html").read_text()
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 3
     # evaluated alone, the UR file has neither frame: the command says so
