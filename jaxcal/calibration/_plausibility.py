@@ -217,6 +217,14 @@ CONVENTION_MISTAKES = {"sdh": "modified DH read as standard DH", "mdh": "standar
 on the data as given (:func:`diagnose`)."""
 
 
+FRAME_MISTAKES = {
+    "base": "the measurement frame held at the robot file's base (estimate_base off: --no-estimate-base)",
+    "tool": "the tool held at the robot file's (estimate_tool off: --no-estimate-tool)",
+}
+"""A frame the options hold known that the data put elsewhere (a tracker set up anew, another
+tool): tried by :func:`diagnose` with that frame estimated."""
+
+
 def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thresholds, *, memory_mb: float = 1024.0):
     """Test the likely input mistakes (module docstring), and for a DH table the other convention.
 
@@ -233,6 +241,11 @@ def diagnose(robot: Robot, q, target, n_points: int, layout: Layout, limits: Thr
         other = robot.replace(convention="mdh" if robot.convention == "sdh" else "sdh")
         names.append(CONVENTION_MISTAKES[robot.convention])
         res += _frames_only(other, Q[:1], T[:1], n_points, layout, memory_mb)
+    for frame, name in FRAME_MISTAKES.items():  # a frame held at the robot file's where the data are not
+        if not getattr(layout, frame):
+            both = {"base": layout.base, "tool": layout.tool} | {frame: True}
+            names.append(name)
+            res += _frames_only(robot, Q[:1], T[:1], n_points, Layout.of(robot, **both, n_points=n_points), memory_mb)
     ranked = sorted(((m, *r) for m, r in zip(names[1:], res[1:])), key=lambda t: badness(t[1], t[2], limits))
     return res[0], ranked
 
@@ -328,6 +341,12 @@ def explain(found: list[str], before, ranked, limits: Thresholds, *, cause: str 
                 f"frames-only RMS residual drops from {_fmt(*before)} to {_fmt(p, r)}). Check the data file's "
                 f"position columns; if they are right, a sign in the robot model (an alpha, a joint axis) makes "
                 f"it the mirror image of the arm measured"
+            )
+        if m in FRAME_MISTAKES.values():
+            return (
+                f"{head}{LIKELY}{m}: with it estimated the frames-only RMS residual drops from {_fmt(*before)} to "
+                f"{_fmt(p, r)}. The data are not measured in that frame (a tracker set up anew, another tool): "
+                f"estimate it, or give the frame the data were measured in"
             )
         if m in CONVENTION_MISTAKES.values():
             return (

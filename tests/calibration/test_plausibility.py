@@ -248,3 +248,21 @@ def test_a_dh_table_in_the_other_convention_is_named():
         assert f'(convention = "{truth}")' in res.implausible
         after = float(res.implausible.split(" to ")[-1].split(" mm")[0])
         assert after < 0.1  # the noise's 0.035 mm per point, with frames only
+
+
+def test_a_measurement_frame_held_where_the_data_are_not_is_named():
+    """Data measured by a tracker set up anew (another frame), calibrated with the base held at the
+    robot file's (--no-estimate-base): refused, and the cause named (it was "none of the likely
+    input mistakes explains it"). Positions from a NumPy FK in a turned, shifted frame."""
+    ur5 = jaxcal.preset("ur5")
+    rng = np.random.default_rng(3)
+    lim = np.asarray(ur5.q_limits)
+    q = rng.uniform(lim[:, 0], lim[:, 1], (30, 6))
+    frame = np.eye(4)
+    frame[:3, :3] = Rotation.from_euler("z", 0.7).as_matrix()
+    frame[:3, 3] = [1500.0, -800.0, 200.0]
+    points = (frame @ dh_fk(ur5.dh, q))[:, :3, 3] + rng.normal(0, 0.02, (30, 3))
+    with pytest.warns(jaxcal.CalibrationWarning):
+        res = jaxcal.calibrate(ur5, q, points, estimate_base=False)
+    assert not res.plausible
+    assert "Likely cause: the measurement frame held at the robot file's base" in res.implausible
