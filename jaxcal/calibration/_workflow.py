@@ -210,6 +210,9 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
             layout = rigid
     cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted(layout))
+    notes = ()
+    if opts.params.strip() == "auto" and n_train * layout.rows < needed:  # a small session: what it can fit
+        candidates, needed, notes = _within_reach(robot, layout, K, n_train * layout.rows, candidates)
     check_enough_poses(int(core.distinct_poses(q, core.same_pose(robot))), layout, needed, K)
     m = -(-needed // layout.rows)  # the poses a training set needs, and so the data with F folds
     least = next(k for k in itertools.count(m + 1) if k - -(-k // F) >= m)
@@ -238,7 +241,33 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     return _Problem(
         robot, opts, data, q, target, n_points, rows, layout, candidates, detector,
         core.identified(core.member(ref, 0), layout, q, robot, J=J0), cfg, run, held, F, everything, nested, groups,
+        notes,
     )  # fmt: skip
+
+
+def _within_reach(robot: Robot, layout: Layout, K: int, equations: int, candidates: list) -> tuple[list, int, tuple]:
+    """``(candidates, parameters, notes)``: the candidates of ``params`` auto whose parameters a
+    training set's ``equations`` can identify (the frames-only one first), the most any of them
+    needs, and a note naming those left out; all of them (and their largest need, which the
+    checks then refuse) when not even the simplest fits."""
+    model = core.generic_model(robot, layout)
+
+    def need(c):
+        cams = list(layout.cameras) if c.camera != "none" else []
+        comps = list(layout.compliances) if c.compliance else []
+        return core.generic_rank(model, layout, K, list(layout.frames) + cams + sorted(c.dh) + comps)
+
+    needs = [need(c) for c in candidates]
+    kept = [c for c, n in zip(candidates, needs) if n <= equations]
+    if not kept:
+        return candidates, max(needs), ()
+    left = [c.name for c, n in zip(candidates, needs) if n > equations]
+    note = (
+        f"params auto: a training set of cross-validation holds {equations} equations, fewer than "
+        f"{'these candidates need' if len(left) > 1 else 'this candidate needs'} ({'; '.join(left)}): "
+        f"{'they were' if len(left) > 1 else 'it was'} not tried; more poses let them be"
+    )
+    return kept, max(n for n in needs if n <= equations), (note,)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

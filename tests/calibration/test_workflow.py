@@ -389,3 +389,25 @@ def test_a_prior_given_with_the_automatic_choice_is_refused():
     q = np.random.default_rng(1).uniform(-1.0, 1.0, (20, 6))
     with pytest.raises(DataError, match=r"ridge_mm 0.5: a prior for an explicit params set"):
         calibrate_data(r, Measurements(q, np.zeros((20, 1, 3))), ridge_mm=0.5)
+
+
+def test_a_small_session_tries_the_candidates_it_can_fit():
+    """Eight poses of a UR5 whose joint offsets drifted (a recalibration session): params auto
+    refused them ("too few poses ... 27 parameters") although joint offsets alone fit them. The
+    candidates a training set cannot identify are left out and named. NumPy FK of the arm."""
+    r = preset("ur5")
+    rng = np.random.default_rng(8)
+    dh = np.asarray(r.dh).copy()
+    dh[:, 0] += rng.normal(0, 2e-3, 6)  # the offsets drifted
+    lim = np.asarray(r.q_limits)
+    q, qv = rng.uniform(lim[:, 0], lim[:, 1], (8, 6)), rng.uniform(lim[:, 0], lim[:, 1], (100, 6))
+    tool = np.eye(4)
+    tool[:3, 3] = [20.0, -10.0, 100.0]
+    points = lambda qq: dh_fk(dh, qq, tool=tool)[:, :3, 3]  # noqa: E731
+    res = calibrate_data(r, Measurements(q, (points(q) + rng.normal(0, 0.02, (8, 3)))[:, None]), compliance="no")
+    rep = res.report
+    assert rep["converged"] and rep["plausible"]
+    assert {c["name"] for c in rep["cv"]} == {"frames", "offsets"} and rep["choice"].startswith("offsets")
+    assert any("not tried" in n and "all, prior 1 mm" in n for n in rep["notes"])
+    pred = np.asarray(fk(res.robot, qv))[:, :3, 3]  # its tool is the measured point
+    assert np.sqrt(np.mean(np.sum((pred - points(qv)) ** 2, -1))) < 0.2
