@@ -177,27 +177,25 @@ class Measurements:
         return dataclasses.replace(self, q=self.q[idx], measured=self.measured[idx], rows=self.rows[idx])
 
     def select_points(self, points) -> "Measurements":
-        """Only the measured points numbered ``points`` (1-based, as the columns ``x1 .. xM``);
-        a pose none of whose selected points was seen is dropped (:attr:`dropped_rows`)."""
+        """Only the measured points numbered ``points`` (the file's numbers, as the columns ``x1 ..
+        xM``: :attr:`numbers`); a pose none of whose selected points was seen is dropped
+        (:attr:`dropped_rows`)."""
         if self.n_points == 0:
             raise DataError(f"{self.source}: measures poses, not points; points apply to x1,y1,z1 ... data")
         idx = [int(p) for p in np.atleast_1d(points)]
-        bad = [p for p in idx if not 1 <= p <= self.n_points]
+        numbers = self.numbers
+        bad = [p for p in idx if p not in numbers]
         if bad or not idx or len(set(idx)) != len(idx):
-            raise DataError(
-                f"{self.source}: {idx} (points) must be distinct point numbers in 1..{self.n_points}", option="points"
-            )
-        meas = self.measured[:, [p - 1 for p in idx]]
+            plain = numbers == tuple(range(1, self.n_points + 1))
+            have = f"1..{self.n_points}" if plain else ", ".join(map(str, numbers))
+            raise DataError(f"{self.source}: {idx} (points) must be distinct point numbers in {have}", option="points")
+        meas = self.measured[:, [numbers.index(p) for p in idx]]
         seen = ~np.isnan(meas).any(-1).all(-1)
         if not seen.any():
             raise DataError(f"{self.source}: point(s) {idx} (points) were not seen in any row", option="points")
         gone = tuple(int(r) for r in self.rows[~seen])
-        numbers = self.numbers
         out = dataclasses.replace(
-            self,
-            measured=meas,
-            dropped_rows=tuple(sorted(self.dropped_rows + gone)),
-            point_numbers=tuple(numbers[p - 1] for p in idx),
+            self, measured=meas, dropped_rows=tuple(sorted(self.dropped_rows + gone)), point_numbers=tuple(idx)
         )
         return out.subset(seen) if gone else out
 
@@ -380,7 +378,9 @@ def joint_columns(header, robot: Robot, src: str, *, required: bool = True) -> l
 
 def measurement_columns(header, src: str, *, required: bool = True):
     """``(position columns per point, quaternion columns or None)``: ``x, y, z`` (one point) or
-    ``x1..zM`` (M points), and ``qw, qx, qy, qz`` for full poses."""
+    ``x1..zM`` (the points numbered in the file, in order: a number without columns, a marker
+    the file leaves out, is none of them; :func:`point_numbers_of`), and ``qw, qx, qy, qz`` for
+    full poses."""
     expected = "expected x, y, z [qw, qx, qy, qz], or x1, y1, z1 ... xM, yM, zM"
     single = [c for c in POSITION_COLUMNS if c in header]
     numbered: dict[int, dict[str, str]] = {}
@@ -401,13 +401,11 @@ def measurement_columns(header, src: str, *, required: bool = True):
             )
         points = [list(POSITION_COLUMNS)]
     elif numbered:
-        M = max(numbered)
-        for j in range(1, M + 1):
-            have = numbered.get(j, {})
+        for j, have in sorted(numbered.items()):
             if len(have) < 3:
                 missing = [f"{a}{j}" for a in "xyz" if a not in have]
                 raise DataError(f"{src}: point {j}: missing column(s) {_names(missing)}; {expected}")
-        points = [[numbered[j][a] for a in "xyz"] for j in range(1, M + 1)]
+        points = [[numbered[j][a] for a in "xyz"] for j in sorted(numbered)]
     else:
         if required:
             raise DataError(f"{src}: missing column(s) 'x', 'y', 'z'; {expected}; {_header_read(header)}")
@@ -423,6 +421,11 @@ def measurement_columns(header, src: str, *, required: bool = True):
             f"{src}: quaternion columns need exactly one point (x, y, z); the file has {len(points)} points"
         )
     return points, (list(QUAT_COLUMNS) if quat else None)
+
+
+def point_numbers_of(points) -> tuple[int, ...]:
+    """The file's number of each point of :func:`measurement_columns` (``x, y, z``: 1)."""
+    return tuple(int(_POINT_RE.fullmatch(c[0]).group(2)) if _POINT_RE.fullmatch(c[0]) else 1 for c in points)
 
 
 def parse_rows(records, header, columns, src, *, points=()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -687,18 +690,20 @@ def read_measurements(
         ignored_ranges=ignored_ranges,
         units=(lu_name, au_name),
         dropped_rows=dropped,
+        point_numbers=() if quat or (nums := point_numbers_of(columns)) == tuple(range(1, len(nums) + 1)) else nums,
     )
     if points is not None:
         out = out.select_points(points)
         q, pos, rows = out.q, out.measured, out.rows
     never = [j for j in range(out.n_points) if np.isnan(out.measured[:, j]).all()]
     if never and drop_unseen:
-        out = out.select_points([j + 1 for j in range(out.n_points) if j not in never])
+        out = out.select_points([k for j, k in enumerate(out.numbers) if j not in never])
         q, pos, rows = out.q, out.measured, out.rows
     elif never:  # every fit would be singular in it: named by the file's numbers and columns
         numbers = [out.numbers[j] for j in never]
+        cols = dict(zip(point_numbers_of(columns), columns))
         raise DataError(
-            f"{src}: point(s) {', '.join(map(str, numbers))} ({'; '.join(', '.join(columns[k - 1]) for k in numbers)}) "
+            f"{src}: point(s) {', '.join(map(str, numbers))} ({'; '.join(', '.join(cols[k]) for k in numbers)}) "
             "empty in every row; leave them out (--points)",
             option="points",
         )

@@ -305,6 +305,27 @@ def test_a_pose_not_measured_is_dropped_and_a_partial_one_refused(tmp_path, pand
         read_measurements(_csv(tmp_path, text, "p.csv"), panda)
 
 
+def test_a_file_that_leaves_a_marker_out_keeps_the_others_numbers(tmp_path, panda):
+    """Markers 1 and 3 written, marker 2's columns left out (a file cut down to the markers a
+    session used): read as points 1 and 3, each chosen by its number (it was refused as "point 2:
+    missing column(s)"); a point with only some of its columns is still refused."""
+    head = "q1,q2,q3,q4,q5,q6,q7,x1,y1,z1,x3,y3,z3\n"
+    rows = [GOOD_ROW + ",1,2,3,30,20,10", GOOD_ROW + ",4,5,6,60,50,40", GOOD_ROW + ",7,8,9,90,80,70"]
+    m = read_measurements(_csv(tmp_path, head + "\n".join(rows) + "\n"), panda)
+    assert m.numbers == (1, 3) and m.n_points == 2
+    assert_array_equal(m.measured[:, 1], [[30, 20, 10], [60, 50, 40], [90, 80, 70]])
+    three = m.select_points([3])
+    assert three.numbers == (3,)
+    assert_array_equal(three.measured[:, 0], m.measured[:, 1])
+    with pytest.raises(DataError, match=r"must be distinct point numbers in 1, 3"):
+        m.select_points([2])
+    chosen = read_measurements(_csv(tmp_path, head + "\n".join(rows) + "\n", "c.csv"), panda, points=[3, 1])
+    assert chosen.numbers == (3, 1)
+    assert_array_equal(chosen.measured, m.measured[:, ::-1])
+    with pytest.raises(DataError, match=r"point 3: missing column\(s\) 'z3'"):
+        read_measurements(_csv(tmp_path, head.replace(",z3", "") + GOOD_ROW + ",1,2,3,4,5\n", "d.csv"), panda)
+
+
 # -- the real Franka data ---------------------------------------------------------------------
 
 

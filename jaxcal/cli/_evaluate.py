@@ -37,7 +37,7 @@ def evaluate(
 
     from .._io import json_text, write_atomic
     from ..calibration import evaluate as run
-    from ..measurements import joints_left_out, measurement_columns, read_measurements, read_table
+    from ..measurements import joints_left_out, measurement_columns, point_numbers_of, read_measurements, read_table
     from ..model import Model, load_model, model_points
 
     check_outputs({"json_out": json_out}, {"model": model, "data": data, "--training": training})
@@ -59,15 +59,15 @@ def evaluate(
     chosen = None if points is None else parse_points(points)
     src, header, _ = read_table(data, "expected a header row of joint and measurement columns, as for calibrate")
     columns, quat = measurement_columns(header, src)
-    in_file = 0 if quat else len(columns)  # a pose file has no points to choose
+    in_file = () if quat else point_numbers_of(columns)  # a pose file has no points to choose
     recorded = None if nominal else read_point_numbers(model)
     if recorded is not None and len(recorded) == m.n_points and in_file:
-        # the file's points the model was fitted on, by default; a file with fewer points than
-        # they name is another export, read as it is
-        chosen = chosen or (list(recorded) if max(recorded) <= in_file else None)
+        # the file's points the model was fitted on, by default; a file without the points they
+        # name is another export, read as it is
+        chosen = chosen or (list(recorded) if set(recorded) <= set(in_file) else None)
         m = m if chosen is None else model_points(m, recorded, chosen)
-    elif chosen is not None and 1 < m.n_points == in_file:  # the model's points are the file's
-        m = model_points(m, None, chosen)
+    elif chosen is not None and 1 < m.n_points == len(in_file):  # the model's points are the file's
+        m = model_points(m, in_file, chosen)
     # chosen before the unit checks, so that a point left out (a lost marker's sentinel) is not read
     meas = read_measurements(data, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=chosen)
     train = None
@@ -75,8 +75,8 @@ def evaluate(
         # only its joint values are used: the same points when it has them, so that the file calibrate
         # read with --points is read here (a sentinel in a point left out does not refuse it)
         src, header, _ = read_table(training, "")
-        have = len(measurement_columns(header, src)[0])
-        same = chosen if chosen is not None and max(chosen) <= have else None
+        have = set(point_numbers_of(measurement_columns(header, src)[0]))
+        same = chosen if chosen is not None and set(chosen) <= have else None
         train = read_measurements(
             training, m.robot, length_unit=length_unit, angle_unit=angle_unit, points=same, drop_unseen=True
         )

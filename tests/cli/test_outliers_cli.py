@@ -191,3 +191,17 @@ def test_four_points_with_occluded_markers(tmp_path, monkeypatch, capsys):
     row4 = next(p for p in ev["poses"] if p["row"] == 4)
     assert row4["error_mm"][1] is None and all(v is not None for v in row4["error_mm"][::2])
     assert np.isfinite(ev["position_rms_mm"]) and len(ev["lost_points"]) == 3
+    # the same file with marker 2's columns cut out: --points 1,3,4 read by their numbers, as from
+    # the whole file (it was refused: "point 2: missing column(s)")
+    header, *lines = data.read_text().splitlines()
+    keep = [i for i, c in enumerate(header.split(",")) if c not in ("x2", "y2", "z2")]
+    cut = tmp_path / "cut.csv"
+    cut.write_text("\n".join(",".join(r.split(",")[i] for i in keep) for r in [header, *lines]) + "\n")
+    for src, js in ((data, "e134.json"), (cut, "c134.json")):
+        code, _, err = run_cli(
+            monkeypatch, capsys, "evaluate", tmp_path / "m4.toml", src, "--points", "1,3,4", "--json", tmp_path / js
+        )  # fmt: skip
+        assert code in (0, None), err
+    whole, part = (json.loads((tmp_path / js).read_text()) for js in ("e134.json", "c134.json"))
+    assert [p["point"] for p in part["points"]] == [1, 3, 4]
+    assert part["position_rms_mm"] == pytest.approx(whole["position_rms_mm"], rel=1e-12)
