@@ -328,6 +328,29 @@ def quaternion_note(calibrated: Robot, targets: Targets) -> str:
     )
 
 
+FAR_FROM_COMMANDS = 0.1
+"""Targets whose median distance from where their commands put the calibrated tool is beyond
+this share of the reach get a hint when some are missed (:func:`frame_note`): a calibration moves
+the tool by millimetres, not by a tenth of the arm."""
+
+
+def frame_note(calibrated: Robot, targets: Targets) -> str:
+    """A hint for target positions far from where their commands put the calibrated tool
+    (median beyond :data:`FAR_FROM_COMMANDS` of the reach): given in another frame or unit.
+    Empty otherwise, and for targets without commands or positions."""
+    if targets.q is None or targets.poses is None:
+        return ""
+    at = np.asarray(fk(calibrated, jnp.asarray(targets.q)))[:, :3, 3]
+    d = float(np.median(np.linalg.norm(targets.poses[:, :3, 3] - at, axis=1)))
+    if d <= FAR_FROM_COMMANDS * calibrated.reach():
+        return ""
+    return (
+        f"the targets lie a median {d:.4g} mm from where their commands put the calibrated tool, where a "
+        "calibration moves it by millimetres: are they in the calibrated model's frame (its base, the measurement "
+        "frame it was fitted in) and units?"
+    )
+
+
 def check_orientation(n_points: int, targets: Targets, name: str) -> None:
     """Refuse target orientations given to a model calibrated from measured points (``n_points``
     > 0, the model file ``name``): its tool's orientation was never measured, and the commands

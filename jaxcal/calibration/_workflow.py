@@ -247,9 +247,9 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
 
 def _within_reach(robot: Robot, layout: Layout, K: int, equations: int, candidates: list) -> tuple[list, int, tuple]:
     """``(candidates, parameters, notes)``: the candidates of ``params`` auto whose parameters a
-    training set's ``equations`` can identify (the frames-only one first), the most any of them
-    needs, and a note naming those left out; all of them (and their largest need, which the
-    checks then refuse) when not even the simplest fits."""
+    training set's ``equations`` can identify, the most any of them needs, and a note naming
+    those left out; all of them and the simplest one's need (which the checks then refuse,
+    saying what the data must give at least) when not even that one fits."""
     model = core.generic_model(robot, layout)
 
     def need(c):
@@ -260,7 +260,7 @@ def _within_reach(robot: Robot, layout: Layout, K: int, equations: int, candidat
     needs = [need(c) for c in candidates]
     kept = [c for c, n in zip(candidates, needs) if n <= equations]
     if not kept:
-        return candidates, max(needs), ()
+        return candidates, min(needs), ()
     left = [c.name for c, n in zip(candidates, needs) if n > equations]
     note = (
         f"params auto: a training set of cross-validation holds {equations} equations, fewer than "

@@ -54,6 +54,7 @@ def compensate(
         MAX_MOVE_DEG,
         check_orientation,
         compensate_targets,
+        frame_note,
         quaternion_note,
         read_targets,
         tool_note,
@@ -138,8 +139,8 @@ def compensate(
             if tg.q is None
             else ""
         )
-        quaternion = quaternion_note(cal, tg)
-        hint += f"; {quaternion}" if quaternion else ""
+        for note in (quaternion_note(cal, tg), frame_note(cal, tg)):
+            hint += f"; {note}" if note else ""
         near = float(np.max(np.linalg.norm(np.asarray(poses)[:, :3, 3], axis=1)))
         if tg.q is None and near < NEAR_SHARE * cal.reach():  # a hint only: probes about a datum are fine
             hint += (
