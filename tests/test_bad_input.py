@@ -271,8 +271,13 @@ PY = {
         r"read the data with length_unit=\"m\"; or the robot file's lengths are not in mm: as written, the arm "
         r"reaches",
     ),
-    "calibrate_data fewer poses than folds": (  # the poses' count first: fewer folds would not help
+    "calibrate_data fewer poses than folds": (  # fewer folds would fit the frames (params auto tries those)
         lambda: jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(Q[:4], M[:4])),
+        DataError,
+        r"folds \(5\) more than the distinct postures \(4; rows repeating a posture are one\): use fewer folds",
+    ),
+    "calibrate_data fewer poses than the parameters": (  # the poses' count first: fewer folds would not help
+        lambda: jaxcal.calibrate_data(ROBOT, jaxcal.Measurements(Q[:4], M[:4]), params="all"),
         DataError,
         r"too few poses: 4 poses x 6 rows = 24 equations for \d+ parameters",
     ),
