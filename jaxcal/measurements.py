@@ -681,6 +681,8 @@ def read_measurements(
         meas[:, :3, :3] = quaternions_to_rotations(values[:, n + 3 :], rows, lines, src)
     else:
         meas = pos
+    numbers = () if quat else point_numbers_of(columns)
+    numbers = () if numbers == tuple(range(1, len(numbers) + 1)) else numbers  # 1..M: the default
     out = Measurements(
         q=q,
         measured=meas,
@@ -690,7 +692,7 @@ def read_measurements(
         ignored_ranges=ignored_ranges,
         units=(lu_name, au_name),
         dropped_rows=dropped,
-        point_numbers=() if quat or (nums := point_numbers_of(columns)) == tuple(range(1, len(nums) + 1)) else nums,
+        point_numbers=numbers,
     )
     if points is not None:
         out = out.select_points(points)

@@ -776,6 +776,11 @@ def generic_rank(model: Model, layout: Layout, n_poses: int, columns) -> int:
     """Rank of ``columns`` of the Jacobian on a generic pose set (seeded, uniform within the joint
     limits, at least 60 poses): what a pose set must identify to count as enough data. Evaluated
     in blocks of ``n_poses`` poses, so the data's compiled Jacobian serves."""
+    return generic_ranks(model, layout, n_poses, [columns])[0]
+
+
+def generic_ranks(model: Model, layout: Layout, n_poses: int, column_sets) -> list[int]:
+    """:func:`generic_rank` of each of ``column_sets``, on one Jacobian."""
     lim = np.asarray(model.robot.q_limits)
     rng = np.random.default_rng(0)
     n_poses = n_poses if n_poses > 0 else 60
@@ -783,8 +788,8 @@ def generic_rank(model: Model, layout: Layout, n_poses: int, columns) -> int:
     for _ in range(-(-60 // n_poses)):
         qg = lim[:, 0] + rng.uniform(size=(n_poses, len(lim))) * (lim[:, 1] - lim[:, 0])
         blocks.append(analyse(model, layout, qg)[0].reshape(-1, layout.size))
-    J = np.concatenate(blocks)[:, list(columns)]
-    return analyze(J, [str(c) for c in columns]).rank
+    J = np.concatenate(blocks)
+    return [analyze(J[:, list(cols)], [str(c) for c in cols]).rank for cols in column_sets]
 
 
 def relative_x(reference, layout: Layout, model: Model) -> np.ndarray:

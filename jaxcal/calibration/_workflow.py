@@ -250,14 +250,13 @@ def _within_reach(robot: Robot, layout: Layout, K: int, equations: int, candidat
     training set's ``equations`` can identify, the most any of them needs, and a note naming
     those left out; all of them and the simplest one's need (which the checks then refuse,
     saying what the data must give at least) when not even that one fits."""
-    model = core.generic_model(robot, layout)
 
-    def need(c):
+    def columns(c):
         cams = list(layout.cameras) if c.camera != "none" else []
         comps = list(layout.compliances) if c.compliance else []
-        return core.generic_rank(model, layout, K, list(layout.frames) + cams + sorted(c.dh) + comps)
+        return list(layout.frames) + cams + sorted(c.dh) + comps
 
-    needs = [need(c) for c in candidates]
+    needs = core.generic_ranks(core.generic_model(robot, layout), layout, K, [columns(c) for c in candidates])
     kept = [c for c, n in zip(candidates, needs) if n <= equations]
     if not kept:
         return candidates, min(needs), ()
