@@ -625,6 +625,12 @@ FEW_EFFICIENCY_ROBOTS = 30
 (``crlb_efficiency_note``, which the CLI prints as a warning)."""
 
 
+DOMINATED_SE = 0.5
+"""A parameter's efficiency whose relative standard error is beyond this rests on a few robots
+whose bounds dominate the sum (poses that barely separate it for them): the summary names it
+(``crlb_efficiency_note``), where ``sqrt(2 / n)`` is under 0.26 at 30 robots."""
+
+
 class _Sums:
     """Running sums over chunks, from which the summary follows (memory independent of the
     robot count)."""
@@ -679,6 +685,14 @@ class _Sums:
             out["crlb_efficiency_rel_se"] = float(np.nanmax(rel))
         if noisy:
             out["crlb_validation_pos_rms_mm"] = float(np.sqrt(self.crlb_val2 / n))
+        shaky = [k for k, v in out.get("crlb_efficiency_rel_se_each", {}).items() if v > DOMINATED_SE]
+        if noisy and self.n >= FEW_EFFICIENCY_ROBOTS and shaky:
+            out["crlb_efficiency_note"] = (
+                f"the CRLB efficiency of {', '.join(shaky)} rests on a few robots whose bounds dominate the sum "
+                f"(relative standard error up to {out['crlb_efficiency_rel_se']:.2g}): their poses barely separate "
+                "these parameters (a measured point near a joint's axis?), and each such figure is one or two "
+                "squared errors; the other parameters' figures hold"
+            )
         if noisy and self.n < FEW_EFFICIENCY_ROBOTS:
             out["crlb_efficiency_note"] = (
                 f"{self.n} robot(s): the CRLB efficiency "

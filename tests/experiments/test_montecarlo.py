@@ -279,6 +279,26 @@ def test_a_robot_whose_fit_left_out_nearly_every_pose_keeps_a_finite_bound(monke
     assert np.isfinite(out["crlb_validation_pos_rms_mm"]) and np.isfinite(out["crlb_efficiency_mean"])
 
 
+def test_a_parameter_whose_bound_a_few_robots_dominate_is_named():
+    """Forty robots, two parameters: one's bounds equal over the robots, the other's one robot's
+    bound a thousand times the rest (its poses barely separate it, as a marker on a joint's axis
+    does): the summary names the second, whose efficiency is one squared error. Its relative
+    standard error follows from the bounds: sqrt(2 sum c^2) / sum c."""
+    import jaxcal.experiments._montecarlo as mc
+
+    n = 40
+    c = np.ones((n, 2))
+    c[0, 1] = 1000.0
+    sums = mc._Sums(2)
+    sums.add({"err": np.sqrt(c), "val_rms": np.zeros(n), "converged": np.ones(n), "steps": np.ones(n), "crlb_var": c})
+    out = sums.summary(["even", "dominated"], noisy=True)
+    rel = np.sqrt(2 * np.sum(c**2, 0)) / np.sum(c, 0)
+    assert out["crlb_efficiency_rel_se_each"] == pytest.approx(dict(zip(["even", "dominated"], rel)))
+    assert rel[0] < mc.DOMINATED_SE < rel[1]
+    note = out["crlb_efficiency_note"]
+    assert "efficiency of dominated rests on a few robots" in note and "even" not in note
+
+
 def test_an_efficiency_from_too_few_robots_is_not_given_and_few_are_warned_about():
     """The bound over a mean of n squared errors is biased up by about n / (n - 2): no figure
     from one or two robots, and a note below thirty; the worst parameter is named. Four robots of
