@@ -69,7 +69,13 @@ REDETECT_SIGMA = 0.5
 """When leaving the outliers out brings the frames-only noise below this share of what it was,
 gross outliers (a lost marker written as 0, 0, 0; swapped labels) set the weights and pulled the
 reference the detection ran with: the caller detects again over every pose from the fit without
-them."""
+them (without the :data:`GROSS` ones alone, when those account for the drop)."""
+GROSS = 10.0
+"""Flagged poses beyond this many times their threshold are gross (hundreds of sigmas: a marker
+read as 0, 0, 0), the others a pose or two the arm or the tracker missed by a few sigmas. The
+detection again starts from the fit without the gross ones alone where leaving them out is what
+more than halves the noise: the outliers of the file without the gross rows, not those of a
+detection the gross rows pulled (which can take a clean pose for an outlier and keep one)."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -509,7 +509,16 @@ def _left_out(p: _Problem, fr: _Frames):
         first, p = fr, dataclasses.replace(p, valid=~det.flags[0])
         fr = _frames(p)
         if fr.sig[-1, 0] < outliers.REDETECT_SIGMA * first.sig[-1, 0]:  # gross outliers set the weights: once more
-            det = _outliers_found(dataclasses.replace(p, valid=np.ones(len(p.q), bool)), fr)
+            gross = det.flags[0] & (det.sigmas[0] > outliers.GROSS * det.threshold[0])
+            alone = None
+            if gross.any() and (gross != det.flags[0]).any():  # the gross ones alone may explain it
+                alone = _frames(dataclasses.replace(p, valid=~gross))
+                alone = alone if alone.sig[-1, 0] < outliers.REDETECT_SIGMA * first.sig[-1, 0] else None
+            if alone is not None:  # the outliers of the data without the gross ones, and those
+                det = _outliers_found(dataclasses.replace(p, valid=~gross), alone)
+                det = dataclasses.replace(det, flags=det.flags | gross[None])
+            else:
+                det = _outliers_found(dataclasses.replace(p, valid=np.ones(len(p.q), bool)), fr)
             p = dataclasses.replace(p, valid=~det.flags[0])
             fr = _frames(p)
     fr, p, lin, final, per_fold, fits = _weighed_fits(p, fr)

@@ -219,6 +219,24 @@ def test_a_marker_written_as_zero_is_named_and_the_rest_found_as_without_it():
     assert one.after["pos_rms_mm"] == pytest.approx(ref.after["pos_rms_mm"], rel=1e-3)
 
 
+def test_a_zero_marker_that_pulled_the_first_detection_leaves_the_outliers_of_the_file_without_it():
+    """Row 22's marker 3 written as 0, 0, 0 in the bundled TIAGo data (params auto): the first
+    detection, pulled by it, took clean row 6 for an outlier and kept row 7 (12 mm, 32 sigma in
+    the file); its fit was where the detection ran again from, and it named 22, 6, 14, 11. Now the
+    detection runs again on the data without the gross row alone: that file's outliers, and 22."""
+    from jaxcal.measurements import tiago_paths
+
+    urdf, csv = tiago_paths()
+    robot = jaxcal.load_robot(urdf)
+    clean = jaxcal.read_measurements(csv, robot)
+    zeroed = np.array(clean.measured)
+    zeroed[21, 2] = 0.0  # row 22, point 3
+    kw = dict(nested_max_poses=0)
+    b = jaxcal.calibrate_data(robot, jaxcal.Measurements(clean.q, zeroed, rows=clean.rows), **kw).report
+    without = jaxcal.calibrate_data(robot, clean.subset(np.arange(len(clean.q)) != 21), **kw).report
+    assert sorted(o["row"] for o in b["outliers"]) == sorted([o["row"] for o in without["outliers"]] + [22])
+
+
 def test_outliers_of_a_millimetre_are_found_when_the_robots_errors_dominate_the_start():
     """A simulated UR5 millimetres off its nominal table, measured to 0.02 mm: the frames-only
     residual the detector's weights start from is the robot's errors, under which the default
