@@ -206,6 +206,20 @@ def test_a_few_rows_far_off_are_named_not_blamed_on_the_frame():
     assert f"the other rows score {rest:.3g} mm RMS" in w and "moved" not in w
 
 
+def test_a_lost_marker_written_as_a_sentinel_is_named_not_taken_for_a_unit():
+    """One row of 30 at -9999 mm (a lost marker's sentinel): it spread the positions 3x the
+    model's, and evaluate refused the file as another length unit; calibrate, by the median
+    spread, took it and named the row. Now evaluate names the row too."""
+    rng = np.random.default_rng(15)
+    ur5, dh = _truth(rng)
+    q = rng.uniform(-np.pi, np.pi, (30, 6))
+    T = dh_fk(dh, q)
+    T[:, :3, 3] += rng.normal(0, 0.05, (30, 3))
+    T[11, :3, 3] = -9999.0
+    (w,) = evaluate(Model(ur5.replace(dh=dh)), Measurements(q, T))["warnings"]
+    assert w.startswith("1 row(s) err far beyond a calibration's") and "row 12 (" in w
+
+
 def test_a_swapped_pair_of_markers_is_named_by_both_points():
     """Three markers; rows 10 and 20 with markers 1 and 2 swapped, row 5 with marker 3 100 mm off:
     each row names every point far off, the swapped ones both."""
