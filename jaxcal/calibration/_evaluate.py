@@ -168,20 +168,24 @@ FAR_FROM_MEDIAN = 10.0
 are named with them: below the calibration line, they would still dominate the other rows' RMS."""
 
 
-def _few(model: Model, meas, pos) -> list[str]:
-    """A warning naming the few rows whose errors (``pos (K, M)`` mm) are far beyond a
-    calibration's while the median row's are within one, with those far beyond the median row
-    (:data:`FAR_FROM_MEDIAN`): outliers of the file (a lost marker written as a number, swapped
-    marker labels, a knock), which no mistake of :func:`_far` (every row read wrong) explains, and
-    the RMS over all rows hides."""
+def _few(model: Model, meas, pos, rot=None) -> list[str]:
+    """A warning naming the few rows whose errors (``pos (K, M)`` mm, ``rot (K,)`` deg for poses)
+    are far beyond a calibration's while the median row's are within one, with those far beyond
+    the median row (:data:`FAR_FROM_MEDIAN`): outliers of the file (a lost marker written as a
+    number, swapped marker labels, a quaternion of another row, a knock), which no mistake of
+    :func:`_far` (every row read wrong) explains, and the RMS over all rows hides."""
     limit = RESIDUAL_SHARE * model.robot.reach(np.asarray(meas.q))
     worst = np.nanmax(pos, -1)
-    if not (np.sqrt(np.nanmean(pos**2)) > limit >= np.median(worst)):
+    turn = np.zeros(len(worst)) if rot is None else np.asarray(rot)
+    off_pos = np.sqrt(np.nanmean(pos**2)) > limit >= np.median(worst)
+    off_rot = np.sqrt(np.mean(turn**2)) > ROTATION_DEG >= np.median(turn)
+    if not (off_pos or off_rot):
         return []
     # beyond a calibration's, or far beyond the file's median row (hidden in "the other rows")
-    line = min(limit, FAR_FROM_MEDIAN * np.median(worst))
-    bad = np.flatnonzero(worst > line)
-    bad = bad[np.argsort(-worst[bad])]
+    line = min(limit, FAR_FROM_MEDIAN * np.median(worst)) if off_pos else limit
+    line_rot = ROTATION_DEG  # not the median row's: poses simulated without rotation noise have none
+    bad = np.flatnonzero((worst > line) | (turn > line_rot))
+    bad = bad[np.argsort(-(np.maximum(worst[bad] / line, turn[bad] / line_rot) if off_rot else worst[bad]))]
     numbers = list(getattr(meas, "point_numbers", ()) or range(1, pos.shape[1] + 1))
     rows = meas.rows if getattr(meas, "rows", None) is not None else np.arange(1, len(worst) + 1)
 
@@ -189,15 +193,19 @@ def _few(model: Model, meas, pos) -> list[str]:
         far = [j for j in np.argsort(-np.nan_to_num(pos[k], nan=-1.0)) if pos[k, j] > line]
         return f" point{'s' * (len(far) > 1)} {', '.join(str(numbers[j]) for j in far)}" if pos.shape[1] > 1 else ""
 
-    where = [f"row {rows[k]}{points(k)} ({worst[k]:.3g} mm)" for k in bad[:5]]
-    rest = np.sqrt(np.nanmean(np.delete(pos, bad, 0) ** 2))
+    size = (lambda k: f"{worst[k]:.3g} mm, {turn[k]:.3g} deg") if off_rot else (lambda k: f"{worst[k]:.3g} mm")
+    where = [f"row {rows[k]}{points(k)} ({size(k)})" for k in bad[:5]]
+    rest = f"{np.sqrt(np.nanmean(np.delete(pos, bad, 0) ** 2)):.3g} mm"
+    rest += f", {np.sqrt(np.mean(np.delete(turn, bad) ** 2)):.3g} deg" if off_rot else ""
+    limits = f"{limit:.3g} mm" + (f", {ROTATION_DEG:g} deg" if off_rot else "")
+    below = (worst[bad] <= limit) & (turn[bad] <= ROTATION_DEG)
     return [
-        f"{len(bad)} row(s) err far beyond a calibration's ({limit:.3g} mm)"
-        + ("" if worst[bad].min() > limit else f" or the median row's ({np.median(worst):.3g} mm)")
+        f"{len(bad)} row(s) err far beyond a calibration's ({limits})"
+        + ("" if not below.any() else f" or the median row's ({np.median(worst):.3g} mm)")
         + f": {', '.join(where)}"
         + (", ..." if len(bad) > 5 else "")
-        + f"; the other rows score {rest:.3g} mm RMS. Outliers in this file (a lost marker written as a "
-        f"number, swapped marker labels, a knock)?"
+        + f"; the other rows score {rest} RMS. Outliers in this file (a lost marker written as a "
+        f"number, swapped marker labels, {'a quaternion of another row, ' if off_rot else ''}a knock)?"
     ]
 
 
@@ -291,7 +299,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
         lo, hi = joint_ranges(model.robot, training.q)
         ranges = {n: (float(a), float(b)) for n, a, b in zip(model.robot.joint_names, lo, hi)}
     rot_rms = 0.0 if rot is None else float(np.sqrt(np.mean(rot**2)))
-    few = _few(model, meas, pos)
+    few = _few(model, meas, pos, rot)
     far = [] if few else _far(model, meas, float(np.sqrt(np.nanmean(pos**2))), rot_rms)
     if far and ranges is None and training is None:  # a model file calibrate wrote records its ranges
         far[0] += (

@@ -3,6 +3,7 @@ kinematics (NumPy DH products), errors per point and pose, rotation in degrees, 
 groups relative to training data."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -218,6 +219,24 @@ def test_a_lost_marker_written_as_a_sentinel_is_named_not_taken_for_a_unit():
     T[11, :3, 3] = -9999.0
     (w,) = evaluate(Model(ur5.replace(dh=dh)), Measurements(q, T))["warnings"]
     assert w.startswith("1 row(s) err far beyond a calibration's") and "row 12 (" in w
+
+
+def test_a_pose_with_another_rows_quaternion_is_named():
+    """Thirty poses at the noise, row 21 given row 6's orientation: the rotation RMS was far beyond
+    a calibration's and blamed on the file ("no common input mistake ... a frame that moved?"),
+    the row never named. Now the row is named with its rotation error, the others' RMS beside."""
+    rng = np.random.default_rng(16)
+    ur5, dh = _truth(rng)
+    q = rng.uniform(-np.pi, np.pi, (30, 6))
+    T = dh_fk(dh, q)
+    T[:, :3, 3] += rng.normal(0, 0.05, (30, 3))
+    T[20, :3, :3] = T[5, :3, :3]
+    R = dh_fk(dh, q[20:21])[0, :3, :3].T @ T[20, :3, :3]  # its error, by the NumPy FK
+    turn = np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))
+    (w,) = evaluate(Model(ur5.replace(dh=dh)), Measurements(q, T))["warnings"]
+    assert w.startswith("1 row(s) err far beyond a calibration's") and f", {turn:.3g} deg)" in w and "row 21 (" in w
+    rest = re.search(r"the other rows score ([\d.e+-]+) mm, ([\d.e+-]+) deg RMS", w)
+    assert rest and float(rest.group(1)) < 0.1 and float(rest.group(2)) < 1e-3 and "moved" not in w
 
 
 def test_a_swapped_pair_of_markers_is_named_by_both_points():
