@@ -530,6 +530,14 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
             swap = outliers.swaps_note(
                 pred, p.target, last.flags[0], noise, p.rows, getattr(p.data, "point_numbers", ())
             )
+    if not swap and opts.keep_outliers and last.flags[0].any():  # the fit holds the outliers it names
+        rows_kept = p.rows[last.flags[0]]
+        kept = ", ".join(str(int(r)) for r in rows_kept[:10]) + (", ..." if len(rows_kept) > 10 else "")
+        swap = (
+            f"the outliers kept in the fit (--keep-outliers, keep_outliers): row(s) {kept}"
+            + outliers.zeros_note(p.target, p.n_points, last.flags[0])
+            + "; fitted without the option they are left out"
+        )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
     qu = unwrapped(robot, q)  # a continuous joint on the arc it visited
