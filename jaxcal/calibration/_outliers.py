@@ -372,6 +372,32 @@ def _cycles(perm, nums) -> str:
     return "; ".join(parts)
 
 
+ONE_POINT_SHARE = 0.9
+"""The share of the flagged poses of several points whose worst point must be one and the same
+for :func:`one_point_note` to name it."""
+
+
+def one_point_note(pos_err, flags, rows, point_numbers=()) -> str:
+    """What to say when one point is the worst of nearly every flagged pose (``pos_err (K, M)``
+    mm, :data:`ONE_POINT_SHARE`): a marker that slipped on the tool (every pose from one on) or was
+    taken for another, which leaving that point out mends. Empty otherwise."""
+    e, idx = np.asarray(pos_err, float), np.flatnonzero(np.asarray(flags, bool))
+    if e.ndim != 2 or e.shape[1] < 2 or not idx.size:
+        return ""
+    nums = list(point_numbers) or list(range(1, e.shape[1] + 1))
+    worst = np.argmax(np.nan_to_num(e[idx], nan=-1.0), axis=1)
+    j = int(np.bincount(worst, minlength=e.shape[1]).argmax())
+    if np.mean(worst == j) < ONE_POINT_SHARE:
+        return ""
+    r = np.asarray(rows)[idx]
+    span = f" (rows {r.min()} to {r.max()}, every row between)" if r.max() - r.min() + 1 == len(r) > 2 else ""
+    others = ",".join(str(n) for k, n in enumerate(nums) if k != j)
+    return (
+        f"; point {nums[j]} is the worst point of {int(np.sum(worst == j))} of the {len(idx)} outliers{span}: a "
+        f"marker that slipped on the tool or was taken for another? --points {others} leaves it out"
+    )
+
+
 def swaps_note(predicted, target, flags, noise_mm: float, rows, point_numbers=()) -> str:
     """The cause to name when most flagged poses of several points fit once their points are
     relabelled (two exchanged, or a few rotated; ``predicted``, ``target`` ``(K, M, 3)``):

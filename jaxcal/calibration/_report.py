@@ -530,6 +530,10 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
             swap = outliers.swaps_note(
                 pred, p.target, last.flags[0], noise, p.rows, getattr(p.data, "point_numbers", ())
             )
+            if not swap:  # one marker off in them all (slipped): named, with the points that leave it out
+                many += outliers.one_point_note(
+                    fin["pos_err"][0], last.flags[0], p.rows, getattr(p.data, "point_numbers", ())
+                )
     if not swap and opts.keep_outliers and last.flags[0].any():  # the fit holds the outliers it names
         rows_kept = p.rows[last.flags[0]]
         kept = ", ".join(str(int(r)) for r in rows_kept[:10]) + (", ..." if len(rows_kept) > 10 else "")

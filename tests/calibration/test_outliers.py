@@ -507,6 +507,26 @@ def test_kept_outliers_are_named_as_without_the_option():
     assert "row(s) 8;" in rep["implausible"] and "exactly 0, 0, 0 (point 3 in 1 of them)" in rep["implausible"]
 
 
+def test_a_marker_that_slipped_from_one_row_on_is_named():
+    """Three markers on a UR5 (NumPy FK), marker 2 moved 3 mm on the tool from row 41 on: a third
+    of the poses are outliers and the fit is refused, and the refusal says that point 2 is the
+    worst of them all, rows 41 to 60, and which points leave it out (it said "no input mistake")."""
+    ur5 = jaxcal.preset("ur5")
+    rng = np.random.default_rng(41)
+    dh = np.asarray(ur5.dh, float) + np.stack([rng.normal(0, s, 6) for s in (0.003, 0.5, 0.5, 0.003)], 1)
+    q = rng.uniform(-2.5, 2.5, (60, 6))
+    T = dh_fk(dh, q)
+    markers = np.array([[60.0, 0.0, 110.0], [-50.0, 40.0, 100.0], [0.0, -70.0, 130.0]])
+    slipped = np.repeat(markers[None], 60, 0)
+    slipped[40:, 1] += [3.0, 0.0, 0.0]
+    p = np.einsum("kij,kmj->kmi", T[:, :3, :3], slipped) + T[:, None, :3, 3] + rng.normal(0, 0.02, (60, 3, 3))
+    with pytest.warns(jaxcal.CalibrationWarning):
+        rep = jaxcal.calibrate_data(ur5, jaxcal.Measurements(q=q, measured=p), nested_max_poses=0).report
+    assert not rep["plausible"]
+    assert "point 2 is the worst point of 20 of the 20 outliers (rows 41 to 60" in rep["implausible"]
+    assert "--points 1,3 leaves it out" in rep["implausible"]
+
+
 def test_outliers_together_at_an_end_of_a_range_make_a_region_and_scattered_ones_do_not():
     """The region's chance against the hypergeometric count by hand (every one of 4 outliers among
     the 4 poses farthest out: 1 / C(40, 4), times 3 ends x 6 joints), at one end and at both; and
