@@ -96,8 +96,8 @@ class Measurements:
       numbers, as written (a joint of the robot file outside the chain, still moving, shows here).
     * ``units`` — the ``(length, angle)`` units the file was read in.
     * ``dropped_rows`` — data rows left out because none of their points was seen.
-    * ``point_numbers`` — the file's number of each measured point (after :meth:`select_points`);
-      empty: 1..M.
+    * ``point_numbers`` — the file's number of each measured point (after :meth:`select_points`,
+      or of a file that leaves a number out); empty: 1..M.
 
     A point not seen at a pose (a lost marker) is NaN in ``measured`` (:attr:`lost_points`).
     """

@@ -388,8 +388,9 @@ def generic_model(robot: Robot, layout: Layout, distance_mm: float = GENERIC_POI
     """:func:`nominal_model` with its measured points at seeded generic offsets ``distance_mm``
     from the tool origin: a point on the last joint's axis (or several at one place) hides
     parameters that real markers reveal, so what a pose set must identify is judged at generic
-    points. Points that are not estimated (a known tool) stay at the tool origin."""
-    model = nominal_model(robot, layout)
+    points. Points that are not estimated (a known tool) stay at the tool origin. Nearly
+    parallel DH axes are parallel in it (:func:`parallel_snapped`), as the set is chosen."""
+    model = parallel_snapped(nominal_model(robot, layout))
     if not layout.n_points or not layout.tool:
         return model
     pts = np.random.default_rng(0).normal(size=(layout.n_points, 3))
@@ -441,11 +442,12 @@ def parallel_snapped(model: Model) -> Model:
     if robot.convention == "joint":
         return model
     dh = np.array(robot.dh)
-    exact = np.round(dh[:, 3] / np.pi) * np.pi
-    near = (np.abs(dh[:, 3] - exact) < PARALLEL_RAD) & (dh[:, 3] != exact)
+    alpha = dh[..., 3]  # (n,), or (B, n) for a batch of models
+    exact = np.round(alpha / np.pi) * np.pi
+    near = (np.abs(alpha - exact) < PARALLEL_RAD) & (alpha != exact)
     if not near.any():
         return model
-    dh[near, 3] = exact[near]
+    dh[..., 3] = np.where(near, exact, alpha)
     return eqx.tree_at(lambda m: m.robot.dh, model, jnp.asarray(dh))
 
 

@@ -177,14 +177,17 @@ def _few(model: Model, meas, pos, rot=None) -> list[str]:
     limit = RESIDUAL_SHARE * model.robot.reach(np.asarray(meas.q))
     worst = np.nanmax(pos, -1)
     turn = np.zeros(len(worst)) if rot is None else np.asarray(rot)
-    off_pos = np.sqrt(np.nanmean(pos**2)) > limit >= np.median(worst)
-    off_rot = np.sqrt(np.mean(turn**2)) > ROTATION_DEG >= np.median(turn)
+    typical = np.median(worst) <= limit and np.median(turn) <= ROTATION_DEG  # the median row: a calibration's
+    off_pos = typical and np.sqrt(np.nanmean(pos**2)) > limit
+    off_rot = typical and np.sqrt(np.mean(turn**2)) > ROTATION_DEG
     if not (off_pos or off_rot):
         return []
     # beyond a calibration's, or far beyond the file's median row (hidden in "the other rows")
     line = min(limit, FAR_FROM_MEDIAN * np.median(worst)) if off_pos else limit
     line_rot = ROTATION_DEG  # not the median row's: poses simulated without rotation noise have none
     bad = np.flatnonzero((worst > line) | (turn > line_rot))
+    if len(bad) == len(worst):  # every row: the file's doing (_far), not a few rows'
+        return []
     bad = bad[np.argsort(-(np.maximum(worst[bad] / line, turn[bad] / line_rot) if off_rot else worst[bad]))]
     numbers = list(getattr(meas, "point_numbers", ()) or range(1, pos.shape[1] + 1))
     rows = meas.rows if getattr(meas, "rows", None) is not None else np.arange(1, len(worst) + 1)

@@ -441,14 +441,16 @@ def swaps_note(predicted, target, flags, noise_mm: float, rows, point_numbers=()
     )
 
 
-def zeros_note(target, n_points: int, flags) -> str:
+def zeros_note(target, n_points: int, flags, point_numbers=()) -> str:
     """What to say when flagged poses measure a point at exactly 0, 0, 0: a lost marker that the
-    export wrote as zeros (empty cells leave that point out and keep the pose's others)."""
+    export wrote as zeros (empty cells leave that point out and keep the pose's others). Points
+    are named by their numbers in the file (``point_numbers``, else 1..M)."""
     zero = zero_points(target, n_points) & np.asarray(flags, bool)[:, None]  # (K, M)
     if not zero.any():
         return ""
+    nums = list(point_numbers) or list(range(1, zero.shape[1] + 1))
     per = ", ".join(
-        f"point {j + 1} in {int(zero[:, j].sum())} of them" for j in range(zero.shape[1]) if zero[:, j].any()
+        f"point {nums[j]} in {int(zero[:, j].sum())} of them" for j in range(zero.shape[1]) if zero[:, j].any()
     )
     return (
         f"; the outliers include positions at exactly 0, 0, 0 ({per}): lost markers written as zeros? "

@@ -524,7 +524,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
     # the points the model predicts, where flagged poses of several points are looked at
     pred = predict(f.model, q) if p.n_points > 1 and last.flags[0].any() else None
     if many:
-        many += outliers.zeros_note(p.target, p.n_points, last.flags[0])
+        many += outliers.zeros_note(p.target, p.n_points, last.flags[0], getattr(p.data, "point_numbers", ()))
         if p.n_points > 1:
             noise = float(last.scale[0, 0] * fr.sig[-1, 0])
             swap = outliers.swaps_note(
@@ -534,16 +534,16 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
                 many += outliers.one_point_note(
                     fin["pos_err"][0], last.flags[0], p.rows, getattr(p.data, "point_numbers", ())
                 )
-    if not swap and opts.keep_outliers and last.flags[0].any():  # the fit holds the outliers it names
-        rows_kept = p.rows[last.flags[0]]
-        kept = ", ".join(str(int(r)) for r in rows_kept[:10]) + (", ..." if len(rows_kept) > 10 else "")
-        swap = (
-            f"the outliers kept in the fit (--keep-outliers, keep_outliers): row(s) {kept}"
-            + outliers.zeros_note(p.target, p.n_points, last.flags[0])
-            + "; fitted without the option they are left out"
-        )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
     why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
+    if why and opts.keep_outliers and last.flags[0].any():  # said beside the diagnosis, which may name another cause
+        rows_kept = p.rows[last.flags[0]]
+        listed = ", ".join(str(int(r)) for r in rows_kept[:10]) + (", ..." if len(rows_kept) > 10 else "")
+        why += (
+            f"; the fit keeps the outliers it names (--keep-outliers, keep_outliers): row(s) {listed}"
+            + outliers.zeros_note(p.target, p.n_points, last.flags[0], getattr(p.data, "point_numbers", ()))
+            + "; without the option they are left out"
+        )
     qu = unwrapped(robot, q)  # a continuous joint on the arc it visited
     # a pose whose points do not move together is a measurement fault, whatever joint range it is in
     faults = np.zeros(len(q), bool)

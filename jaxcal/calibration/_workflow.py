@@ -44,6 +44,7 @@ import numpy as np
 
 from .._config import jit
 from ..camera import CAMERA_MODELS, check_target_in_front
+from ..camera import n_params as camera_size
 from ..errors import DataError, warn_unusable
 from ..kinematics import gravity_moments
 from ..model import Layout, Model, errors
@@ -252,7 +253,7 @@ def _within_reach(robot: Robot, layout: Layout, K: int, equations: int, candidat
     saying what the data must give at least) when not even that one fits."""
 
     def columns(c):
-        cams = list(layout.cameras) if c.camera != "none" else []
+        cams = list(layout.cameras)[: camera_size(c.camera)]  # the layout's are its largest camera model's
         comps = list(layout.compliances) if c.compliance else []
         return list(layout.frames) + cams + sorted(c.dh) + comps
 

@@ -350,3 +350,19 @@ def test_a_calibrated_table_of_a_parallel_axis_arm_calibrates_again():
     T = np.asarray(jaxcal.fk(again.robot, qv))
     pred = T[:, :3, :3] @ np.asarray(again.model.points[0]) + T[:, :3, 3]  # the measured point
     assert np.sqrt(np.mean(np.sum((pred - points(qv)) ** 2, -1))) < 0.05
+
+
+def test_the_parameters_a_pose_set_must_identify_take_nearly_parallel_axes_as_parallel():
+    """What counts as enough data (the generic rank) is judged on the set a calibration chooses:
+    a UR5 table with alpha2, alpha3 3 mrad off parallel counted two d's that are never estimated
+    (27 against the nominal's 25), refusing pose counts the fit needs no more than the nominal's."""
+    from jaxcal.calibration._core import generic_model, generic_rank
+    from jaxcal.model import Layout
+
+    ur5 = jaxcal.preset("ur5")
+    dh = np.asarray(ur5.dh).copy()
+    dh[1:3, 3] = -0.003
+    off = ur5.replace(dh=dh)
+    lay = Layout.of(ur5, base=True, tool=True, n_points=1)
+    cols = range(lay.size)
+    assert generic_rank(generic_model(off, lay), lay, 60, cols) == generic_rank(generic_model(ur5, lay), lay, 60, cols)

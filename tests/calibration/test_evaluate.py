@@ -237,6 +237,10 @@ def test_a_pose_with_another_rows_quaternion_is_named():
     assert w.startswith("1 row(s) err far beyond a calibration's") and f", {turn:.3g} deg)" in w and "row 21 (" in w
     rest = re.search(r"the other rows score ([\d.e+-]+) mm, ([\d.e+-]+) deg RMS", w)
     assert rest and float(rest.group(1)) < 0.1 and float(rest.group(2)) < 1e-3 and "moved" not in w
+    # every row 100 mm off besides (a frame that moved): the whole file's doing, not a few rows'
+    T[:, :3, 3] += [100.0, 0.0, 0.0]
+    w = evaluate(Model(ur5.replace(dh=dh)), Measurements(q, T))["warnings"]
+    assert w[0].startswith("the errors (") and "moved" in w[0] and not any("nan" in x for x in w)
 
 
 def test_a_swapped_pair_of_markers_is_named_by_both_points():

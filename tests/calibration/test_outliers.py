@@ -497,13 +497,13 @@ def test_kept_outliers_are_named_as_without_the_option():
     assert [(o["row"], o["excluded"]) for o in rep["outliers"]] == [(8, False)]
     assert rep["poses"] == 60 and not rep["outlier_detection"]["excluded"]
     # the marker read as 0, 0, 0 instead: the fit that keeps it is refused, naming the row kept and
-    # the zeros as the cause (it said "none of the likely input mistakes explains it")
+    # the zeros (it said only "none of the likely input mistakes explains it")
     p[7, 2] = 0.0
     with pytest.warns(jaxcal.CalibrationWarning):
         rep = jaxcal.calibrate_data(
             ur5, jaxcal.Measurements(q=q, measured=p), keep_outliers=True, nested_max_poses=0
         ).report
-    assert not rep["plausible"] and "Likely cause: the outliers kept in the fit" in rep["implausible"]
+    assert not rep["plausible"] and "the fit keeps the outliers it names" in rep["implausible"]
     assert "row(s) 8;" in rep["implausible"] and "exactly 0, 0, 0 (point 3 in 1 of them)" in rep["implausible"]
 
 
