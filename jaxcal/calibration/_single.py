@@ -502,7 +502,18 @@ def calibrate(
         first, kept = sig, masks * ~det.flags
         a, sig, weights, b, used = stages(start(kept), kept, b["x"] if again is not None else None)
         if sig[0] < outliers.REDETECT_SIGMA * first[0]:  # gross outliers set the weights: once more
-            det = outliers.found(refit(masks, b["x"]), refit, masks, target, opts)
+            gross = det.flags & (det.sigmas > outliers.GROSS * det.threshold)
+            staged = None
+            if gross.any() and (gross != det.flags).any():  # the gross ones alone may explain it
+                alone = masks * ~gross
+                staged = stages(start(alone), alone, b["x"] if again is not None else None)
+                staged = staged if staged[1][0] < outliers.REDETECT_SIGMA * first[0] else None
+            if staged is not None:  # the outliers of the data without the gross ones, and those
+                a, sig, weights, b, used = staged
+                det = outliers.found(refit(alone, b["x"]), refit, alone, target, opts)
+                det = dataclasses.replace(det, flags=det.flags | gross)
+            else:
+                det = outliers.found(refit(masks, b["x"]), refit, masks, target, opts)
             kept = masks * ~det.flags
             a, sig, weights, b, used = stages(start(kept), kept, b["x"] if again is not None else None)
         found = dict(poses=n_points == 0, sigmas=opts.outlier_sigmas, loss_scale=opts.loss_scale)

@@ -235,6 +235,10 @@ def test_a_zero_marker_that_pulled_the_first_detection_leaves_the_outliers_of_th
     b = jaxcal.calibrate_data(robot, jaxcal.Measurements(clean.q, zeroed, rows=clean.rows), **kw).report
     without = jaxcal.calibrate_data(robot, clean.subset(np.arange(len(clean.q)) != 21), **kw).report
     assert sorted(o["row"] for o in b["outliers"]) == sorted([o["row"] for o in without["outliers"]] + [22])
+    # the same in a single fit (it named ten rows, seven more than the file without row 22)
+    one = calibrate(robot, clean.q, zeroed)
+    ref = calibrate(robot, np.delete(clean.q, 21, 0), np.delete(zeroed, 21, 0))
+    assert one.outliers == tuple(sorted([21] + [i + (i >= 21) for i in ref.outliers]))
 
 
 def test_outliers_of_a_millimetre_are_found_when_the_robots_errors_dominate_the_start():
