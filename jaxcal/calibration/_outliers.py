@@ -78,6 +78,11 @@ more than halves the noise: the outliers of the file without the gross rows, not
 detection the gross rows pulled (which can take a clean pose for an outlier and keep one)."""
 
 
+def gross(det: "Detection") -> np.ndarray:
+    """``(B, K)`` the flagged poses of ``det`` beyond :data:`GROSS` times their threshold."""
+    return det.flags & (det.sigmas > GROSS * det.threshold)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Detection:
     """Outliers of a batch of fits (leading axis: members)."""

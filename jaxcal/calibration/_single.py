@@ -502,7 +502,7 @@ def calibrate(
         first, kept = sig, masks * ~det.flags
         a, sig, weights, b, used = stages(start(kept), kept, b["x"] if again is not None else None)
         if sig[0] < outliers.REDETECT_SIGMA * first[0]:  # gross outliers set the weights: once more
-            gross = det.flags & (det.sigmas > outliers.GROSS * det.threshold)
+            gross = outliers.gross(det)
             staged = None
             if gross.any() and (gross != det.flags).any():  # the gross ones alone may explain it
                 alone = masks * ~gross

@@ -510,7 +510,7 @@ def _left_out(p: _Problem, fr: _Frames):
         first, p = fr, dataclasses.replace(p, valid=~det.flags[0])
         fr = _frames(p)
         if fr.sig[-1, 0] < outliers.REDETECT_SIGMA * first.sig[-1, 0]:  # gross outliers set the weights: once more
-            gross = det.flags[0] & (det.sigmas[0] > outliers.GROSS * det.threshold[0])
+            gross = outliers.gross(det)[0]
             alone = None
             if gross.any() and (gross != det.flags[0]).any():  # the gross ones alone may explain it
                 alone = _frames(dataclasses.replace(p, valid=~gross))

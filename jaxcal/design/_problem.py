@@ -356,8 +356,8 @@ def design_problem(
     layout = make_layout(robot, opts, int(n_points))
     if points is None:
         model = generic_model(robot, layout, DEFAULT_POINT_MM)
-    else:
-        model = eqx.tree_at(lambda m: m.points, nominal_model(robot, layout), jnp.asarray(points))
+    else:  # nearly parallel axes parallel, as in the generic model: the set a calibration chooses
+        model = parallel_snapped(eqx.tree_at(lambda m: m.points, nominal_model(robot, layout), jnp.asarray(points)))
     # the arm's whole range: the set a calibration on designed poses identifies, and the scales;
     # validation poses where the arm will work may move fewer joints, or be few
     whole = uniform_poses(robot, max(int(n_val), STRUCTURE_POSES), np.random.default_rng([int(seed), 1]))
@@ -371,8 +371,7 @@ def design_problem(
 
     # the identifiable set as calibrate finds it on poses over the whole range
     frames, cams, comps = list(layout.frames), list(layout.cameras), list(layout.compliances)
-    snapped = parallel_snapped(model)  # nearly parallel axes as parallel, as a calibration takes them
-    ident = base_set(J if snapped is model else reference(snapped, layout, whole)[0], layout, robot)
+    ident = base_set(J, layout, robot)
     spec = "all" if opts.params == "auto" else opts.params
     cand = parse_params(spec, robot, opts.ridge_mm, compliance=opts.compliance == "yes")[0]
     estimated = set(frames + cams + list(cand.dh) + (comps if cand.compliance else []))
