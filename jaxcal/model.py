@@ -64,6 +64,9 @@ class Layout:
     """Unit of each kinematic error (``mm`` or ``rad``); empty: from the DH names."""
     n_comp: int = 0
     """Joint compliances carried (one per joint, :attr:`jaxcal.Robot.compliance`), or 0."""
+    point_numbers: tuple[int, ...] = dataclasses.field(default=(), compare=False, repr=False)
+    """The data file's number of each measured point, for their parameters' names (empty: 1..M);
+    no part of the computation, so not of the layout's identity or printed key (one program)."""
 
     @classmethod
     def of(
@@ -75,9 +78,11 @@ class Layout:
         n_points: int = 0,
         camera: str = "none",
         compliance: bool = False,
+        point_numbers: tuple[int, ...] = (),
     ) -> "Layout":
         names, units = tuple(robot.param_names()), tuple(robot.param_units())
-        return cls(names, bool(base), bool(tool), int(n_points), camera, units, robot.n_joints if compliance else 0)
+        n_comp = robot.n_joints if compliance else 0
+        return cls(names, bool(base), bool(tool), int(n_points), camera, units, n_comp, tuple(point_numbers))
 
     @property
     def n_kin(self) -> int:
@@ -124,7 +129,8 @@ class Layout:
             elif self.n_points == 1:
                 out += ["tool_x", "tool_y", "tool_z"]
             else:
-                out += [f"point{j + 1}_{c}" for j in range(self.n_points) for c in "xyz"]
+                numbers = self.point_numbers or range(1, self.n_points + 1)
+                out += [f"point{j}_{c}" for j in numbers for c in "xyz"]
         out += [f"compliance{j + 1}" for j in range(self.n_comp)]
         return out + camera_names(self.camera)
 

@@ -183,10 +183,16 @@ def kinematic_set(opts: Options, robot: Robot) -> Candidate:
 
 
 def make_layout(
-    robot: Robot, opts: Options, n_points: int, camera: str | None = None, compliance: bool | None = None
+    robot: Robot,
+    opts: Options,
+    n_points: int,
+    camera: str | None = None,
+    compliance: bool | None = None,
+    point_numbers: tuple[int, ...] = (),
 ) -> Layout:
     """The parameters a fit with these options carries; ``camera`` and ``compliance`` override the
-    options' (a workflow's layout holds every candidate's)."""
+    options' (a workflow's layout holds every candidate's); ``point_numbers`` name the points'
+    parameters by the data file's numbers."""
     camera = opts.camera if camera is None else camera
     compliance = opts.compliance == "yes" if compliance is None else compliance
     if n_points and camera != "none":
@@ -207,7 +213,13 @@ def make_layout(
             option="estimate_tool",
         )
     return Layout.of(
-        robot, base=opts.estimate_base, tool=opts.estimate_tool, n_points=n_points, camera=camera, compliance=compliance
+        robot,
+        base=opts.estimate_base,
+        tool=opts.estimate_tool,
+        n_points=n_points,
+        camera=camera,
+        compliance=compliance,
+        point_numbers=point_numbers,
     )
 
 

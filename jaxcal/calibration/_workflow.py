@@ -187,7 +187,8 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     cameras = CAMERA_MODELS if opts.camera == "auto" else (opts.camera,)
     compliance = _compliant(robot, q, opts)
     candidates, detector = _candidates(robot, opts, cameras, compliance)
-    layout = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=compliance)
+    numbers = tuple(getattr(data, "point_numbers", ()))  # the file's numbers name the points' parameters
+    layout = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=compliance, point_numbers=numbers)
     if "quadratic" in cameras:
         check_target_in_front(target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows)
     K, F = len(q), opts.folds
@@ -203,7 +204,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     if compliance and opts.compliance == "auto" and n_train * layout.rows < 2 * (len(wanted(layout)) + layout.n_comp):
         # perhaps too few poses to tell a compliance from noise: decided on the rigid layout's rank
         # (the same columns), before either layout's programs are compiled
-        rigid = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=False)
+        rigid = dataclasses.replace(layout, n_comp=0)
         needed = core.generic_rank(core.generic_model(robot, rigid), rigid, K, wanted(rigid))
         if n_train * layout.rows < 2 * (needed + layout.n_comp):  # the rigid candidates alone
             candidates = [c for c in candidates if not c.compliance]

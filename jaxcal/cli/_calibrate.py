@@ -486,7 +486,7 @@ def show(rep: dict, meas) -> None:
         )
     )
     if rep.get("points_mm"):
-        for j, p in enumerate(rep["points_mm"], 1):
+        for j, p in zip(rep.get("point_numbers") or range(1, len(rep["points_mm"]) + 1), rep["points_mm"]):
             console.print(f"point {j} on the tool: " + ", ".join(f"{v:.2f}" for v in p) + " mm")
     if rep["camera_parameters"]:
         vals = ", ".join(

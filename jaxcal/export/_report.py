@@ -8,6 +8,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import itertools
 
 import numpy as np
 
@@ -245,7 +246,10 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
                 ]
                 for k in ("base", "tool")
             ]
-            + [[f"point {j} on the tool", *p, None, None, None] for j, p in enumerate(rep.get("points_mm") or [], 1)],
+            + [
+                [f"point {j} on the tool", *p, None, None, None]
+                for j, p in zip(rep.get("point_numbers") or itertools.count(1), rep.get("points_mm") or [])
+            ],
         ),  # fmt: skip
     ]
     frame_se = [(k, v) for k, v in result.deltas.items() if k.startswith(("base_", "tool_", "point"))]

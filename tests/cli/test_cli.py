@@ -340,6 +340,14 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     )  # fmt: skip
     assert code in (0, None), err
     assert "point_numbers = [ 3, 1, ]" in " ".join((tmp_path / "c31.toml").read_text().split())
+    # each point's parameters and printed position carry its number in the file, not its place
+    r31 = json.loads((tmp_path / "r31.json").read_text())
+    assert [k for k in r31["parameters"] if k.startswith("point")] == [f"point{j}_{c}" for j in (3, 1) for c in "xyz"]
+    printed = [ln.split(":")[0].strip() for ln in out.splitlines() if "on the tool:" in ln]
+    assert printed == ["point 3 on the tool", "point 1 on the tool"]
+    # the pair fitted is markers 1 and 3 (their distance on the tool), in that order of the file
+    p3, p1 = np.asarray(r31["points_mm"])
+    assert np.linalg.norm(p3 - p1) == pytest.approx(np.linalg.norm(pts[2] - pts[0]), abs=0.1)
     code, out, err = run_cli(
         monkeypatch, capsys, "evaluate", tmp_path / "c31.toml", data, "--json", tmp_path / "e.json"
     )
