@@ -16,7 +16,8 @@ A command is then put on the branch of its starting command (revolute joints wit
 no whole-turn jumps), a joint beyond limits of its own there turned by whole turns into them
 where it fits and its start lies beyond them too (or no command was given), and checked against
 the robot's joint limits. A target is reached
-(``converged``) when the solver met its tolerances and the residual is below ``tol_mm``; a
+(``converged``) when its residual is below ``tol_mm`` (whether or not the solver's own stopping
+rule was met: near a singularity it creeps on at nanometres); a
 command outside the limits (``within_limits``) or one that left its starting command's branch,
 a joint turned by more than :data:`MAX_MOVE_DEG` (``on_branch``), is flagged, never silently
 written.
@@ -75,7 +76,7 @@ class Compensation:
     rot_residual_deg: np.ndarray
     """``(K,)`` rotation angle of the remaining error (0 for position targets)."""
     converged: np.ndarray
-    """``(K,)`` the target is reached (solver tolerances met and residual below ``tol_mm``)."""
+    """``(K,)`` the target is reached (its residual below ``tol_mm``)."""
     outside: np.ndarray
     """``(K, n)`` the joints of each command beyond the robot's limits."""
     steps: np.ndarray
@@ -156,11 +157,11 @@ def _ik(robot: Robot, targets, q0, position_only: bool, rot_weight, damping, max
         # the pull leaves a residual of about damping x the move (mm for a prismatic joint's tens
         # of mm): once more, pulled toward that solution instead (the bias is then damping x the
         # last small move; a redundant arm stays where the first solve put it)
-        y, ok, more = least_squares(rj, y, (T, y, sd, scale), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10)
+        y, _, more = least_squares(rj, y, (T, y, sd, scale), method="gn", max_steps=max_steps, rtol=1e-10, atol=1e-10)
         q, steps = y * scale, steps + more
         q = jnp.where(prismatic, q, q_start + _wrap(q - q_start))  # the branch of the starting command
         e = pose_error(T, fk(robot, q))
-        return q, jnp.linalg.norm(e[:3]), jnp.linalg.norm(e[3:]), ok, steps
+        return q, jnp.linalg.norm(e[:3]), jnp.linalg.norm(e[3:]), steps
 
     return jax.vmap(one)(targets, q0)
 
@@ -174,7 +175,7 @@ def compensate(
     rot_weight_mm: float = 1000.0,
     damping: float = 1e-6,
     max_steps: int = 100,
-    tol_mm: float = 1e-6,
+    tol_mm: float = 1e-3,
     branch: bool = True,
 ) -> Compensation:
     """Joint commands ``q`` with ``fk(calibrated, q) ~ targets``, starting from ``q_start``.
@@ -184,7 +185,8 @@ def compensate(
     commands; ``rot_weight_mm`` mm per rad of rotation error; ``damping`` the pull toward
     ``q_start`` (mm^2 per rad^2, a prismatic joint's move counted in the revolute joints' mean
     lever: its pull is that lever squared weaker per mm); a target counts as reached when its position residual is below
-    ``tol_mm`` and its rotation residual below ``tol_mm / rot_weight_mm``; ``branch``: ``q_start``
+    ``tol_mm`` (a micron by default, far below any arm's repeatability) and its rotation residual
+    below ``tol_mm / rot_weight_mm``; ``branch``: ``q_start``
     are the commands meant, whose branch a command must keep (``on_branch``; False: a start only).
 
     **Returns** a :class:`Compensation` (residuals, ``converged`` and ``within_limits`` per
@@ -217,7 +219,7 @@ def compensate(
             raise DataError(f"{name} must be a finite positive number, got {v!r}", option=name)
     if int(max_steps) < 1:
         raise DataError(f"max_steps must be >= 1, got {max_steps!r}", option="max_steps")
-    q, ep, er, ok, steps = _ik(
+    q, ep, er, steps = _ik(
         calibrated.stripped(),
         jnp.asarray(targets),
         jnp.asarray(q_start),
@@ -234,7 +236,7 @@ def compensate(
     given = np.array([t == "R" for t in calibrated.joint_types]) & calibrated.limits_given()
     start_out = (q_start < lim[:, 0] - LIMIT_TOL) | (q_start > lim[:, 1] + LIMIT_TOL)
     q = _into_limits(q, lim, given & (start_out | (not branch)))
-    reached = np.asarray(ok) & (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
+    reached = (ep < tol_mm) & (er < tol_mm / rot_weight_mm) & np.all(np.isfinite(q), -1)
     # a joint given no limits has none to be outside of (its defaults are a sampling range)
     outside = ((q < lim[:, 0] - LIMIT_TOL) | (q > lim[:, 1] + LIMIT_TOL)) & calibrated.limits_given()
     rev = np.array([t == "R" for t in calibrated.joint_types])
