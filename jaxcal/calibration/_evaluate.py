@@ -112,15 +112,18 @@ def _stand_out(pos: Float[np.ndarray, "K M"], rot: Float[np.ndarray, " K"] | Non
     return det.flags[0], det.sigmas[0]
 
 
-def _stand_out_note(rows, sigmas, pos, rot=None) -> str:
-    """The warning naming the poses that stand out, with the RMS of the others (mm; deg)."""
-    listed = ", ".join(f"{int(r)} ({u:.3g})" for r, u in list(zip(rows, sigmas))[:10])
+def _stand_out_note(rows, sigmas, pose_mm, pos, rot=None) -> str:
+    """The warning naming the poses that stand out (each with its error, mm), with the RMS of the
+    others (mm; deg). The scale is the file's own median error: with reference data more precise
+    than the model, a row can stand out at a few hundredths of a millimetre, which the figures show."""
+    listed = ", ".join(f"{int(r)} ({u:.3g} sigma, {e:.3g} mm)" for r, u, e in list(zip(rows, sigmas, pose_mm))[:10])
     more = f" and {len(rows) - 10} more" if len(rows) > 10 else ""
     return (
-        f"row(s) {listed}{more} stand out of the others' errors (in standard deviations of their noise, beyond "
-        f"the {OUTLIER_SIGMAS:g}-sigma rule calibrate leaves poses out by): a measurement gone wrong (a swapped "
-        f"marker label, a knock), postures the model predicts badly, or the rows its calibration left out as "
-        f"outliers; the figures include them; without them the position RMS is {_stats(pos)['rms_mm']:.4g} mm"
+        f"row(s) {listed}{more} stand out of the others' errors (in standard deviations of this file's errors, "
+        f"their median taken as the noise, beyond the {OUTLIER_SIGMAS:g}-sigma rule calibrate leaves poses out "
+        f"by): a measurement gone wrong (a swapped marker label, a knock), postures the model predicts badly, or "
+        f"the rows its calibration left out as outliers; the figures include them; without them the position RMS "
+        f"is {_stats(pos)['rms_mm']:.4g} mm"
         + ("" if rot is None else f" and the rotation RMS {_stats(rot)['rms_mm']:.4g} deg")
     )
 
@@ -326,7 +329,11 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
         if not few:  # else named as rows far beyond a calibration's
             out["warnings"].append(
                 _stand_out_note(
-                    np.asarray(meas.rows)[order], sigmas[order], pos[~flags], None if rot is None else rot[~flags]
+                    np.asarray(meas.rows)[order],
+                    sigmas[order],
+                    pose_mm[order],
+                    pos[~flags],
+                    None if rot is None else rot[~flags],
                 )
             )
     if ranges is not None:

@@ -322,6 +322,8 @@ def test_rows_that_stand_out_by_the_outlier_rule_are_named_with_the_figures_with
     assert rep["without_outliers"]["position_rms_mm"] == pytest.approx(rest, rel=1e-9)
     (w,) = rep["warnings"]
     assert w.startswith("row(s) 8 (") and ", 22 (" in w and f"the position RMS is {rest:.4g} mm" in w
+    # each with its error in mm, so a row standing out at hundredths of a millimetre shows as such
+    assert f"8 ({u[7]:.3g} sigma, {e[7]:.3g} mm)" in w and f"22 ({u[21]:.3g} sigma, {e[21]:.3g} mm)" in w
     # the same rows measured as the rest: nothing named
     p[[7, 21]] = dh_fk(dh, q[[7, 21]])[:, :3, 3] + rng.normal(0, 0.05, (2, 3))
     clean = evaluate(model, Measurements(q, p[:, None, :]))
