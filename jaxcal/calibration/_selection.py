@@ -246,9 +246,8 @@ def solve(A, b, free, prior) -> Float[np.ndarray, "C F m"]:
     F_ = free[:, None, :, None] & free[:, None, None, :]
     A = np.where(F_, A, 0.0) + np.eye(m) * (~free)[:, None, None, :]
     b = np.where(free[:, None, :], b, 0.0)
-    jitter = 1e-12 * np.maximum(np.trace(A, axis1=-2, axis2=-1), 1e-300)[..., None, None] / m
-    x = np.linalg.solve(A + jitter * np.eye(m), b[..., None])[..., 0]
-    return np.where(free[:, None, :], x, 0.0)
+    x = _scaled_inverse(A) @ b[..., None]
+    return np.where(free[:, None, :], x[..., 0], 0.0)
 
 
 def fit(lin: Linear, train, free, prior) -> Float[np.ndarray, "C F m"]:
@@ -316,10 +315,7 @@ def standard_errors(lin: Linear, rule: Rule, free, prior, x) -> Float[np.ndarray
     free = np.asarray(free, bool)
     JJ = rule.A_all[np.ix_(free, free)]
     Nf = JJ + np.diag(np.asarray(prior, float)[free] ** 2)
-    try:
-        Ni = np.linalg.inv(Nf)
-    except np.linalg.LinAlgError:
-        Ni = np.linalg.pinv(Nf)
+    Ni = _scaled_inverse(Nf)
     w = rule.valid.astype(float)
     e = lin.r - np.einsum("krm,m->kr", lin.J, x)
     dof = max(float(np.sum(w[:, None] * lin.seen)) - free.sum(), 1.0)
@@ -416,10 +412,7 @@ def pruned_scores(lin: Linear, rule: Rule, free, prior, prunable, steps: int):
         both = keep[:, :, None] & keep[:, None, :]
         JJ = np.where(both, A, 0.0)
         N = JJ + np.eye(m) * np.where(keep, pr**2, 1.0)[:, None, :]
-        # solve's jitter, of the whole layout's trace (a held parameter's diagonal is 1 there)
-        trace = np.trace(N, axis1=-2, axis2=-1) + (lin.m - m)
-        N = N + np.eye(m) * (1e-12 * np.maximum(trace, 1e-300) / lin.m)[:, None, None]
-        Ni = _inverse(N)
+        Ni = _scaled_inverse(N)  # as solve's
         x = np.where(keep, (Ni @ np.where(keep, b, 0.0)[..., None])[..., 0], 0.0)
         e = lin.r[None] - (J @ x.T).T.reshape(F, K, -1)  # (F, K, rows), weighted
         pos = (e[..., : 3 * M] * lin.pos_scale[: 3 * M]).reshape(F, K, M, 3)
@@ -446,11 +439,25 @@ def pruned_scores(lin: Linear, rule: Rule, free, prior, prunable, steps: int):
     return scores, errs
 
 
-def _inverse(N):
+JITTER = 1e-12
+"""Added to the column-scaled normal matrix's unit diagonal, so that a singular candidate still
+gives finite numbers (:data:`MAX_CONDITION` fails it)."""
+
+
+def _scaled_inverse(N):
+    """The inverse of the normal matrices ``N (..., m, m)``, their columns scaled to a unit
+    diagonal first: parameters in rad/mm (a compliance's column is the joint's lever times the
+    gravity moment, ~1e5 mm per unit) sit beside mm, and a jitter or pivoting on the raw matrix
+    would hold the small-columned parameters by the large ones' scale."""
+    N = np.asarray(N, float)
+    diag = np.diagonal(N, axis1=-2, axis2=-1)
+    d = np.sqrt(np.where(diag > 0, diag, 1.0))
+    S = N / d[..., :, None] / d[..., None, :] + JITTER * np.eye(N.shape[-1])
     try:
-        return np.linalg.inv(N)
+        Si = np.linalg.inv(S)
     except np.linalg.LinAlgError:
-        return np.linalg.pinv(N)
+        Si = np.linalg.pinv(S)
+    return Si / d[..., :, None] / d[..., None, :]
 
 
 def condition(A, free) -> float:

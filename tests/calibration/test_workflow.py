@@ -330,27 +330,47 @@ def test_a_marker_far_out_on_a_flange_that_barely_moves_is_not_taken_for_another
 
 
 @pytest.mark.parametrize("exchanged", [False, True])
-def test_a_pruning_the_linearisation_misjudged_is_undone(monkeypatch, exchanged):
+@pytest.mark.parametrize("forced", [False, True])
+def test_a_pruning_the_linearisation_misjudged_is_undone(monkeypatch, exchanged, forced):
     """``tests/data/custom_arm`` (its README): an odd arm whose joint origins are a millimetre and
-    a few mrad off, measured as exact poses. With the base set of the parameter order alone, the
-    selection, linearised, finds y3 and ry4 of no use; fitted in full, the model without them
-    leaves several times the residual of the chosen set unpruned, so nothing is pruned and a note
-    says why. The default set (exchanged after the order, ``jaxcal.identifiability.DOMINANCE``)
-    needs no such undoing. Either way the model is within the noise of the truth on new postures."""
+    a few mrad off, measured as exact poses. The selection keeps what the full fit needs, with the
+    base set of the parameter order alone or the default one (exchanged after the order,
+    ``jaxcal.identifiability.DOMINANCE``). Where the linearised problem nonetheless finds y3 and
+    ry4 of no use (``forced``: as its unscaled normal equations once did), the model without them,
+    fitted in full, leaves several times the residual of the chosen set: nothing is pruned and a
+    note says why. Either way the model is within the noise of the truth on new postures."""
     import jaxcal.identifiability
     from jaxcal import load_robot, read_measurements
+    from jaxcal.calibration import _selection
     from jaxcal.model import predict
 
     if not exchanged:
         monkeypatch.setattr(jaxcal.identifiability, "DOMINANCE", np.inf)
     d = Path(__file__).resolve().parents[1] / "data" / "custom_arm"
     robot = load_robot(d / "custom.urdf", base_link="base_link", tip_link="flange")
+    if forced:
+        prune, names = _selection.prune, robot.param_names()
+
+        def misjudged(lin, rule, free, prior, prunable):
+            kept, dropped, kept_t = prune(lin, rule, free, prior, prunable)
+            kept = kept.copy()
+            for name in ("ry4", "y3"):
+                j = names.index(name)
+                if kept[j] and prunable[j]:  # not once the pruning is undone
+                    kept[j] = False
+                    dropped += ((j, 0.1, 0.0),)
+            return kept, dropped, kept_t
+
+        monkeypatch.setattr(_selection, "prune", misjudged)
     # the order's set writes a link 67 mm off the arm, beyond the default limit (the exchange is why)
     far = {} if exchanged else dict(max_length_change_mm=250.0)
     res = calibrate_data(robot, read_measurements(d / "poses_train.csv", robot), **far)
     assert res.report["plausible"], res.report["implausible"]
-    undone = any(n.startswith("not pruned: the selection would drop") for n in res.report["notes"])
-    assert undone == (not exchanged)
+    undone = [n for n in res.report["notes"] if n.startswith("not pruned: the selection would drop")]
+    assert bool(undone) == forced
+    if forced:
+        assert "drop ry4" in undone[0]  # (y3 is not in the exchanged set)
+    assert not res.report["selection"]["dropped"]
     new = read_measurements(d / "truth_new.csv", robot)
     err = np.asarray(predict(res.model, new.q))[:, :3, 3] - new.measured[:, 0]
     assert np.sqrt(np.mean(np.sum(err**2, -1))) < 0.03  # noise-free truth; the data's noise 0.03 mm
