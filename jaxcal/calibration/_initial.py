@@ -56,17 +56,23 @@ def _register(P_from, P_to, w):
     return R, cb - (R @ ca[..., None])[..., 0]
 
 
-def _solve_normal(N, rhs):
-    """The normal equations ``N x = rhs`` with a trace-relative ridge of 1e-12, so that a
-    direction the poses do not determine stays at 0 instead of making the solve fail."""
+def _solve_normal(N, rhs, tool: int):
+    """The normal equations ``N x = rhs`` with a trace-relative ridge of 1e-9 on the first
+    ``tool`` unknowns (the tool's), so that a direction the poses do not determine stays at the
+    nominal tool (0) instead of making the solve fail: shared with the base's translation (a
+    SCARA's parallel axes take a shift along them in either), it goes wholly to the base, the
+    measurement frame that is unknown anyway, and not in part to the tool a controller uses. (The
+    ridge stands well above the rounding of a base metres away; what the poses do determine it
+    moves by a part in a billion.)"""
     n = N.shape[-1]
-    ridge = 1e-12 * np.trace(N, axis1=-2, axis2=-1) / n
-    return np.linalg.solve(N + ridge[..., None, None] * np.eye(n), rhs[..., None])[..., 0]
+    ridge = 1e-9 * np.trace(N, axis1=-2, axis2=-1) / n
+    held = (np.arange(n) < tool).astype(float)
+    return np.linalg.solve(N + ridge[..., None, None] * np.diag(held), rhs[..., None])[..., 0]
 
 
-def _lstsq(A, b):
+def _lstsq(A, b, tool: int):
     """Least squares through :func:`_solve_normal`."""
-    return _solve_normal(np.swapaxes(A, -1, -2) @ A, (b[..., None, :] @ A)[..., 0, :])
+    return _solve_normal(np.swapaxes(A, -1, -2) @ A, (b[..., None, :] @ A)[..., 0, :], tool)
 
 
 def _transform(R, p):
@@ -129,7 +135,7 @@ def initial_frames(
             sw = np.sqrt(w)[..., None]
             A = (np.concatenate(cols, -1) * sw[..., None]).reshape(lead + (3 * K, -1))
             rhs = pM - np.einsum("...kj,...ij->...ki", pF, R_B) - (0.0 if estimate_base else p_B[..., None, :])
-            sol = _lstsq(A, (rhs * sw).reshape(lead + (3 * K,)))
+            sol = _lstsq(A, (rhs * sw).reshape(lead + (3 * K,)), 3 if estimate_tool else 3 * estimate_base)
             if estimate_tool:
                 X[..., :3, 3] = sol[..., :3]
             if estimate_base:
@@ -174,7 +180,7 @@ def initial_frames(
             if estimate_base:
                 N[..., 3 * M :, 3 * M :] = count.sum(-1)[..., None, None] * np.eye(3)
                 g[..., 3 * M :] = (wkm[..., None] * rhs).sum((-3, -2))
-            sol = _solve_normal(N, g)
+            sol = _solve_normal(N, g, 3 * M)
             pts = sol[..., : 3 * M].reshape(lead + (M, 3))
             if estimate_base:
                 p_B = sol[..., 3 * M :]

@@ -431,3 +431,43 @@ def test_a_small_session_tries_the_candidates_it_can_fit():
     assert any("not tried" in n and "all, prior 1 mm" in n for n in rep["notes"])
     pred = np.asarray(fk(res.robot, qv))[:, :3, 3]  # its tool is the measured point
     assert np.sqrt(np.mean(np.sum((pred - points(qv)) ** 2, -1))) < 0.2
+
+
+@pytest.mark.parametrize("poses", [False, True])
+def test_a_scara_keeps_its_tool_where_the_data_cannot_place_it(poses):
+    """A SCARA (R, R, P, R: every axis parallel; NumPy FK) measured by a tracker 2 m below its
+    base: a shift along the axes sits in the base or the tool alike, and the data cannot tell
+    which. The tool keeps the robot file's height (the base, unknown anyway, takes the shift);
+    the start split it between the two and wrote the tool 995 mm off the flange."""
+    from jaxcal import Robot
+    from jaxcal.model import measured_robot, predict
+
+    dh = np.array([[0.0, 400.0, 325.0, 0.0], [0.0, 0.0, 275.0, np.pi], [0.0, 0.0, 0.0, 0.0], [0.0, 50.0, 0.0, 0.0]])
+    tool = np.eye(4)
+    tool[:3, 3] = [40.0, 15.0, 90.0]
+    lim = np.array([[-2.6, 2.6], [-2.5, 2.5], [0.0, 200.0], [-3.0, 3.0]])
+    robot = Robot(dh, joint_types=["R", "R", "P", "R"], q_limits=lim, tool=tool, name="scara")
+    rng = np.random.default_rng(3)
+    true_dh = dh + rng.normal(0, [0.001, 0.3, 0.5, 0.001], dh.shape)
+    true_tool = tool.copy()
+    true_tool[:3, 3] += [-0.3, -0.8, -0.45]
+    base = random_transform(rng, 10.0)
+    base[:3, :3] = np.eye(3)  # the tracker's axes near the robot's, its origin 2 m below
+    base[2, 3] = -2000.0
+    q = lim[:, 0] + (lim[:, 1] - lim[:, 0]) * rng.uniform(0.05, 0.95, (50, 4))
+    T = dh_fk(true_dh, q, joint_types="RRPR", base=base, tool=true_tool)
+    if poses:
+        measured = T.copy()
+        measured[:, :3, 3] += rng.normal(0, 0.02, (50, 3))
+    else:
+        measured = T[:, None, :3, 3] + rng.normal(0, 0.02, (50, 1, 3))
+    res = calibrate_data(robot, Measurements(q, measured), nested_max_poses=0)
+    assert res.report["plausible"] and "tool_z" in res.report["not_estimated"]
+    written = np.asarray(measured_robot(res.model).tool)[:3, 3]
+    assert written[2] == pytest.approx(90.0, abs=0.05)  # the file's height, not the truth's (unobservable)
+    assert np.asarray(res.model.robot.base)[2, 3] == pytest.approx(-2000.0, abs=5.0)  # with the d errors
+    q_new = lim[:, 0] + (lim[:, 1] - lim[:, 0]) * rng.uniform(0.05, 0.95, (30, 4))  # and predicts as well
+    want = dh_fk(true_dh, q_new, joint_types="RRPR", base=base, tool=true_tool)[:, :3, 3]
+    got = np.asarray(predict(res.model, q_new)).reshape(30, -1)
+    got = got[:, :3] if not poses else np.asarray(predict(res.model, q_new))[:, :3, 3]
+    assert np.sqrt(np.mean(np.sum((got - want) ** 2, -1))) < 0.05
