@@ -65,18 +65,50 @@ def posture_groups(robot: Robot, q: np.ndarray, q_train: np.ndarray) -> np.ndarr
     return np.where(near, 0, np.where(inside, 1, 2))
 
 
-def outside(robot: Robot, q, ranges: dict) -> np.ndarray:
-    """Which poses ``q (K, n)`` have a joint outside its training range (``ranges``: joint name ->
-    ``(lowest, highest)``, mm and rad; tolerances :data:`REPEAT_RAD`, :data:`REPEAT_MM`; a
-    revolute joint's reading a whole turn away is inside)."""
-    q = np.asarray(q)
-    out = np.zeros(len(q), bool)
+def beyond(robot: Robot, q, ranges: dict) -> np.ndarray:
+    """``(K, n)`` how far each joint value of ``q (K, n)`` lies beyond its training range
+    (``ranges``: joint name -> ``(lowest, highest)``, mm and rad; 0 within it, or within the
+    tolerances :data:`REPEAT_RAD`, :data:`REPEAT_MM` of it, or for a joint without a range; a
+    revolute joint's reading a whole turn away is inside, and its distance the shorter way round)."""
+    q = np.asarray(q, float)
+    out = np.zeros(q.shape)
     for j, (name, t) in enumerate(zip(robot.joint_names, robot.joint_types)):
-        if name in ranges:
-            tol = REPEAT_RAD if t == "R" else REPEAT_MM
-            lo, hi = ranges[name]
-            out |= ~_within(q[:, j], lo, hi, tol, t == "R")
+        if name not in ranges:
+            continue
+        tol = REPEAT_RAD if t == "R" else REPEAT_MM
+        lo, hi = ranges[name][0] - tol, ranges[name][1] + tol
+        if t == "R":
+            turned = lo + np.mod(q[:, j] - lo, 2 * np.pi)  # the first turn of q at or above lo
+            out[:, j] = np.where(turned <= hi, 0.0, np.minimum(turned - hi, lo + 2 * np.pi - turned))
+        else:
+            out[:, j] = np.maximum(np.maximum(lo - q[:, j], q[:, j] - hi), 0.0)
     return out
+
+
+def outside(robot: Robot, q, ranges: dict) -> np.ndarray:
+    """Which poses ``q (K, n)`` have a joint outside its training range (:func:`beyond`)."""
+    return (beyond(robot, q, ranges) > 0).any(-1)
+
+
+def _outside_note(robot: Robot, far: np.ndarray) -> str:
+    """The extrapolation warning for the distances ``far (K, n)`` beyond the training ranges: how
+    many postures, which joints by how much, and how many with several joints out at once."""
+    away = (far > 0).any(-1)
+    joints = []
+    for j in np.flatnonzero((far > 0).any(0)):
+        rev = robot.joint_types[j] == "R"
+        most = np.degrees(far[:, j].max()) if rev else far[:, j].max()
+        joints.append(
+            f"{robot.joint_names[j]} in {int((far[:, j] > 0).sum())} by up to {most:.3g} {'deg' if rev else 'mm'}"
+        )
+    several = int(((far > 0).sum(-1) >= 2).sum())
+    return (
+        f"{int(away.sum())} of {len(away)} postures ({100 * away.mean():.0f} %) have a joint outside the ranges the "
+        f"model was fitted on ({'; '.join(joints)}"
+        + (f"; {several} with two joints or more out at once" if several else "")
+        + "): there it extrapolates, and errors grow; a calibration's figure beyond the ranges is for one joint "
+        "at a time just past its range, and errors grow further with the distance and with several joints out"
+    )
 
 
 def _positions(pred, n_points: int):
@@ -337,14 +369,20 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
                 )
             )
     if ranges is not None:
-        away = outside(model.robot, meas.q, ranges)
+        far = beyond(model.robot, meas.q, ranges)
+        away = (far > 0).any(-1)
         share = float(away.mean()) if len(away) else 0.0
-        out["outside_training_ranges"] = {"poses": int(away.sum()), "fraction": share}
+        out["outside_training_ranges"] = {
+            "poses": int(away.sum()),
+            "fraction": share,
+            "several_joints": int(((far > 0).sum(-1) >= 2).sum()),
+            "joints": {
+                model.robot.joint_names[j]: {"poses": int((far[:, j] > 0).sum()), "max_beyond": float(far[:, j].max())}
+                for j in np.flatnonzero((far > 0).any(0))
+            },
+        }
         if share > OUTSIDE_WARNING:
-            out["warnings"].append(
-                f"{int(away.sum())} of {len(away)} postures ({100 * away.mean():.0f} %) have a joint outside the "
-                f"ranges the model was fitted on: there it extrapolates, and errors grow"
-            )
+            out["warnings"].append(_outside_note(model.robot, far))
     if training is not None:
         if training.q.shape[1] != meas.q.shape[1]:
             raise DataError(f"{training.source}: {training.q.shape[1]} joints, the data {meas.q.shape[1]}")

@@ -119,21 +119,41 @@ def test_model_and_data_must_measure_the_same_thing():
 
 def test_postures_outside_the_training_ranges_are_counted_and_warned(rng):
     """A model's training ranges: postures with a joint beyond them (by more than 0.01 rad) are
-    counted; more than 10 % of them is a warning."""
+    counted, per joint with how far the farthest lies (beyond the range and its tolerance), and
+    those with several joints out at once; more than 10 % of them is a warning that names them."""
     ur5, dh = _truth(rng)
     q = rng.uniform(-1.0, 1.0, (20, 6))
     ranges = {n: (-0.8, 0.8) for n in ur5.joint_names}
     meas = Measurements(q, dh_fk(dh, q))
     rep = evaluate(Model(ur5), meas, ranges=ranges)
-    want = (np.abs(q) > 0.81).any(1)
-    assert rep["outside_training_ranges"] == {"poses": int(want.sum()), "fraction": float(want.mean())}
+    far = np.clip(np.abs(q) - 0.81, 0.0, None)
+    want = (far > 0).any(1)
+    got = dict(rep["outside_training_ranges"])
+    joints = got.pop("joints")
+    assert got == {
+        "poses": int(want.sum()),
+        "fraction": float(want.mean()),
+        "several_joints": int(((far > 0).sum(1) >= 2).sum()),
+    }
+    out = [j for j in range(6) if (far[:, j] > 0).any()]
+    assert list(joints) == [ur5.joint_names[j] for j in out]
+    for j in out:
+        assert joints[ur5.joint_names[j]]["poses"] == int((far[:, j] > 0).sum())
+        assert joints[ur5.joint_names[j]]["max_beyond"] == pytest.approx(far[:, j].max(), abs=1e-12)
     assert want.mean() > 0.1 and "outside the ranges the model was fitted on" in rep["warnings"][0]
+    j = int(np.argmax(far.max(0)))
+    n_j = int((far[:, j] > 0).sum())
+    assert f"{ur5.joint_names[j]} in {n_j} by up to {np.degrees(far[:, j].max()):.3g} deg" in rep["warnings"][0]
     inside = evaluate(Model(ur5), Measurements(q * 0.5, dh_fk(dh, q * 0.5)), ranges=ranges)
     assert inside["outside_training_ranges"]["poses"] == 0 and inside["warnings"] == []
     # the same postures with readings a whole turn away: the same count (a wrapped continuous joint)
     turns = -2 * np.pi * np.sign(q) * rng.integers(0, 2, q.shape)  # within a turn of 0, as readings are
     wrapped = evaluate(Model(ur5), Measurements(q + turns, dh_fk(dh, q + turns)), ranges=ranges)
-    assert wrapped["outside_training_ranges"] == rep["outside_training_ranges"]
+    w = wrapped["outside_training_ranges"]
+    assert {k: w[k] for k in ("poses", "fraction", "several_joints")} == got
+    assert {n: v["poses"] for n, v in w["joints"].items()} == {n: v["poses"] for n, v in joints.items()}
+    for n, v in joints.items():
+        assert w["joints"][n]["max_beyond"] == pytest.approx(v["max_beyond"], abs=1e-12)
 
 
 def test_a_misread_file_is_refused_or_named():
