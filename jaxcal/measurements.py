@@ -127,9 +127,19 @@ class Measurements:
                 f"Measurements: inconsistent shapes q {q.shape}, measured {meas.shape}, rows {rows.shape}; "
                 f"expected (K, n), (K, 4, 4) or (K, M, 3), (K,)"
             )
+        M = 0 if meas.shape[1:] == (4, 4) else meas.shape[1]
+        nums = tuple(self.point_numbers)
+        if nums and (
+            len(nums) != M or len(set(nums)) != M or not all(isinstance(j, (int, np.integer)) and j >= 1 for j in nums)
+        ):
+            raise DataError(
+                f"Measurements: point_numbers {nums!r} must give each of the {M} measured points its number in the "
+                f"file (1, 2, ...), each once"
+            )
         object.__setattr__(self, "q", q)
         object.__setattr__(self, "measured", meas)
         object.__setattr__(self, "rows", rows)
+        object.__setattr__(self, "point_numbers", tuple(int(j) for j in nums))
 
     def __len__(self) -> int:
         return self.q.shape[0]

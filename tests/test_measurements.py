@@ -486,6 +486,24 @@ def test_measurements_shape_check():
         Measurements(q=np.zeros((3, 2)), measured=np.zeros((2, 4, 4)), source="s", rows=np.arange(3))
 
 
+@pytest.mark.parametrize("numbers", [(2, 2, 5), (7, 8), (0, 1, 2), (1.5, 2, 3)])
+def test_point_numbers_name_each_point_once(numbers):
+    """The points' numbers in the file name their parameters: a repeated number would merge two
+    points' parameters in the report, a missing one fail deep in the fit."""
+    with pytest.raises(DataError, match="point_numbers .* each of the 3 measured points"):
+        Measurements(q=np.zeros((4, 6)), measured=np.zeros((4, 3, 3)), point_numbers=numbers)
+
+
+def test_a_non_finite_coordinate_is_named_by_its_points_file_number():
+    """Points chosen as 3, 1: an infinite coordinate of the first is the file's point 3."""
+    from jaxcal import calibrate_data
+
+    p = np.ones((6, 2, 3))
+    p[4, 0, 1] = np.inf
+    with pytest.raises(DataError, match="row 5, point 3, y"):
+        calibrate_data(preset("ur5"), Measurements(q=np.zeros((6, 6)), measured=p, point_numbers=(3, 1)))
+
+
 @pytest.mark.parametrize(
     "dialect",
     [

@@ -26,6 +26,7 @@ def as_target(
     batched: bool,
     position_only: bool | None = None,
     rows: Int[np.ndarray, " K"] | None = None,
+    numbers: tuple[int, ...] = (),
 ):
     """Validate ``q`` and the measurements; return ``(q, target, n_points)`` as float64 NumPy
     arrays (copies: the caller's arrays are never touched).
@@ -73,10 +74,9 @@ def as_target(
         if bad.any():
             idx = tuple(int(i) for i in np.argwhere(bad)[0])
             what = "; a point not measured is NaN in all three coordinates" if kind != "poses" and name != "q" else ""
-            value = arr[idx]
+            value, where = arr[idx], _place(robot, name, kind, idx, rows, batched, numbers)
             raise DataError(
-                f"{name}: non-finite value ({value}) at {_place(robot, name, kind, idx, rows, batched)}{what}; "
-                f"{int(bad.sum())} non-finite value(s) in all",
+                f"{name}: non-finite value ({value}) at {where}{what}; {int(bad.sum())} non-finite value(s) in all",
                 option=name,
             )
     # a marker never measured makes every fit singular; in a batch, only one never measured in any
@@ -126,9 +126,9 @@ def as_target(
     return q, measured, measured.shape[-2]
 
 
-def _place(robot: Robot, name: str, kind: str, idx: tuple[int, ...], rows, batched: bool) -> str:
+def _place(robot: Robot, name: str, kind: str, idx: tuple[int, ...], rows, batched: bool, numbers=()) -> str:
     """Where a value sits, in the user's words: the data set, the pose (its file row when known),
-    the joint, the point and the coordinate."""
+    the joint, the point (its number in the file, ``numbers``, when known) and the coordinate."""
     lead = [f"data set {idx[0]}"] if batched else []
     pose = idx[len(lead)]
     lead.append(f"row {np.asarray(rows)[pose]}" if rows is not None and not batched else f"pose index {pose}")
@@ -137,7 +137,7 @@ def _place(robot: Robot, name: str, kind: str, idx: tuple[int, ...], rows, batch
         return ", ".join(lead + [f"joint {robot.joint_names[rest[0]]!r}"])
     if kind == "poses":
         return ", ".join(lead + [f"matrix element [{rest[0]}][{rest[1]}]"])
-    point = [f"point {rest[0] + 1}"] if kind == "points" else []
+    point = [f"point {numbers[rest[0]] if numbers else rest[0] + 1}"] if kind == "points" else []
     return ", ".join(lead + point + ["xyz"[rest[-1]]])
 
 

@@ -67,21 +67,22 @@ def posture_groups(robot: Robot, q: np.ndarray, q_train: np.ndarray) -> np.ndarr
 
 def beyond(robot: Robot, q, ranges: dict) -> np.ndarray:
     """``(K, n)`` how far each joint value of ``q (K, n)`` lies beyond its training range
-    (``ranges``: joint name -> ``(lowest, highest)``, mm and rad; 0 within it, or within the
-    tolerances :data:`REPEAT_RAD`, :data:`REPEAT_MM` of it, or for a joint without a range; a
-    revolute joint's reading a whole turn away is inside, and its distance the shorter way round)."""
+    (``ranges``: joint name -> ``(lowest, highest)``, mm and rad): 0 within it or within the
+    tolerances :data:`REPEAT_RAD`, :data:`REPEAT_MM` of it, and for a joint without a range; a
+    revolute joint's reading a whole turn away is inside, and its distance the shorter way round."""
     q = np.asarray(q, float)
     out = np.zeros(q.shape)
     for j, (name, t) in enumerate(zip(robot.joint_names, robot.joint_types)):
         if name not in ranges:
             continue
         tol = REPEAT_RAD if t == "R" else REPEAT_MM
-        lo, hi = ranges[name][0] - tol, ranges[name][1] + tol
+        lo, hi = ranges[name]
         if t == "R":
-            turned = lo + np.mod(q[:, j] - lo, 2 * np.pi)  # the first turn of q at or above lo
-            out[:, j] = np.where(turned <= hi, 0.0, np.minimum(turned - hi, lo + 2 * np.pi - turned))
+            turned = lo - tol + np.mod(q[:, j] - (lo - tol), 2 * np.pi)  # the first turn at or above the range
+            far = np.minimum(turned - hi, lo + 2 * np.pi - turned)
         else:
-            out[:, j] = np.maximum(np.maximum(lo - q[:, j], q[:, j] - hi), 0.0)
+            far = np.maximum(lo - q[:, j], q[:, j] - hi)
+        out[:, j] = np.where(far > tol, far, 0.0)
     return out
 
 
@@ -144,11 +145,16 @@ def _stand_out(pos: Float[np.ndarray, "K M"], rot: Float[np.ndarray, " K"] | Non
     return det.flags[0], det.sigmas[0]
 
 
-def _stand_out_note(rows, sigmas, pose_mm, pos, rot=None) -> str:
-    """The warning naming the poses that stand out (each with its error, mm), with the RMS of the
-    others (mm; deg). The scale is the file's own median error: with reference data more precise
-    than the model, a row can stand out at a few hundredths of a millimetre, which the figures show."""
-    listed = ", ".join(f"{int(r)} ({u:.3g} sigma, {e:.3g} mm)" for r, u, e in list(zip(rows, sigmas, pose_mm))[:10])
+def _stand_out_note(rows, sigmas, pose_mm, rot_deg, pos, rot=None) -> str:
+    """The warning naming the poses that stand out (each with its error, mm, and for poses deg:
+    ``rot_deg``, or None), with the RMS of the others (mm; deg). The scale is the file's own
+    median error: with reference data more precise than the model, a row can stand out at a few
+    hundredths of a millimetre, which the figures show."""
+    turns = [None] * len(rows) if rot_deg is None else rot_deg
+    listed = ", ".join(
+        f"{int(r)} ({u:.3g} sigma, {e:.3g} mm" + ("" if d is None else f", {d:.3g} deg") + ")"
+        for r, u, e, d in list(zip(rows, sigmas, pose_mm, turns))[:10]
+    )
     more = f" and {len(rows) - 10} more" if len(rows) > 10 else ""
     return (
         f"row(s) {listed}{more} stand out of the others' errors (in standard deviations of this file's errors, "
@@ -310,7 +316,8 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
         raise DataError(f"{meas.source}: the data measure {have}, the model predicts {want}{why}", option="data")
     # the checks calibrate makes (finite values, a lost point NaN in all three coordinates, proper
     # rotations): a NaN joint or coordinate would otherwise leave a pose out of the figures unsaid
-    as_target(model.robot, meas.q, meas.measured, batched=False, rows=getattr(meas, "rows", None))
+    numbers = tuple(getattr(meas, "point_numbers", ()))
+    as_target(model.robot, meas.q, meas.measured, batched=False, rows=getattr(meas, "rows", None), numbers=numbers)
     q = np.asarray(meas.q)
     pred = np.asarray(_predict(model, q))
     # by the median spread, as calibrate: a row of a lost marker's sentinel is named below, not taken for a unit
@@ -364,6 +371,7 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
                     np.asarray(meas.rows)[order],
                     sigmas[order],
                     pose_mm[order],
+                    None if rot is None else rot[order],
                     pos[~flags],
                     None if rot is None else rot[~flags],
                 )

@@ -177,7 +177,8 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
         )
     given = getattr(data, "rows", None)
     rows = np.arange(1, len(data.q) + 1) if given is None else np.asarray(given)
-    q, target, n_points = as_target(robot, data.q, data.measured, batched=False, rows=rows)
+    numbers = tuple(getattr(data, "point_numbers", ()))  # the file's numbers name the points
+    q, target, n_points = as_target(robot, data.q, data.measured, batched=False, rows=rows, numbers=numbers)
     if len(still_joint_notes(robot, q)) == robot.n_joints:
         raise DataError(
             f"no joint moves over the {len(q)} poses: every row is the same posture (rows {rows[0]}..{rows[-1]}), "
@@ -187,7 +188,6 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     cameras = CAMERA_MODELS if opts.camera == "auto" else (opts.camera,)
     compliance = _compliant(robot, q, opts)
     candidates, detector = _candidates(robot, opts, cameras, compliance)
-    numbers = tuple(getattr(data, "point_numbers", ()))  # the file's numbers name the points' parameters
     layout = make_layout(robot, opts, n_points, camera=cameras[-1], compliance=compliance, point_numbers=numbers)
     if "quadratic" in cameras:
         check_target_in_front(target, "quadratic" + (" (tried by camera auto)" if opts.camera == "auto" else ""), rows)
