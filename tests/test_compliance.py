@@ -101,6 +101,24 @@ def test_robot_files_carry_the_compliance(tmp_path, rng):
     qt = np.c_[rng.uniform(0.05, 0.3, 5), rng.uniform(-1, 1, (5, 7))]
     assert_allclose(np.asarray(jaxcal.fk(again, qt)), np.asarray(jaxcal.fk(tiago, qt)), atol=1e-9)
     assert len(yourdfpy.URDF.load(str(tmp_path / "t.urdf"), load_meshes=False).robot.joints) > 8
+    # the file says at its top that only jaxcal reads the compliances, whoever wrote it
+    head = (tmp_path / "t.urdf").read_text().split("<robot")[0]
+    assert "only jaxcal reads; other URDF readers apply the rigid geometry only" in head
+
+
+def test_info_shows_what_a_file_holds_beyond_its_table(tmp_path, monkeypatch, capsys):
+    """``jaxcal info`` of a compliant model file lists the compliances, where their weight is,
+    and the measured points by their numbers: a reloaded file's rigid table alone hid them."""
+    from helpers import run_cli
+
+    ur5 = jaxcal.preset("ur5").replace(compliance=[0.0, 1.5e-6, 2e-6, 0.0, 0.0, 0.0], load=np.array([10.0, 0, 0]))
+    points = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    jaxcal.save_robot(ur5, tmp_path / "c.toml", points=points, point_numbers=[3, 1])
+    code, out, err = run_cli(monkeypatch, capsys, "info", str(tmp_path / "c.toml"))
+    text = " ".join(out.split())
+    assert code in (0, None), err
+    assert "joint compliances (rad per mm of moment arm): q2 1.5e-06, q3 2e-06; weight at xyz 10 0 0 mm" in text
+    assert "point 3 on the tool: xyz 1 2 3 mm" in text and "point 1 on the tool: xyz 4 5 6 mm" in text
 
 
 def _tiago_truth(rng, perturb: bool):

@@ -135,6 +135,7 @@ def calibrate(
     from ..calibration import GAUGE, JOINT_GAUGE, calibrate_data
     from ..errors import CalibrationWarning, DataError, ImplausibleFitError
     from ..export import check_dh, check_ur
+    from ..kinematics import to_joint
     from ..measurements import joints_left_out, read_measurements
     from ..model import Model, save_model
     from ..robot import PRESETS, UR_BASE, calibrated_chain, read_movable_joints, save_robot
@@ -163,12 +164,14 @@ def calibrate(
                 "nothing was computed",
                 option=name,
             )
-        if path is not None and (path.suffix.lower() in (".urdf", ".xml")) != (nominal.convention == "joint"):
+        urdf_out = path is not None and path.suffix.lower() in (".urdf", ".xml")
+        # a DH model as URDF: --out-model converts it to joint frames (its points and compliances kept)
+        if path is not None and urdf_out != (nominal.convention == "joint") and not (urdf_out and name == "out_model"):
             kind = (
                 "a joint-frame robot (a URDF, or a UR factory calibration) is written as URDF (.urdf, .xml)"
                 if nominal.convention == "joint"
-                else "a DH robot is written as TOML (.toml); for a URDF, convert the calibrated one with "
-                "jaxcal.to_joint and jaxcal.save_robot (docs/using-the-result.md)"
+                else "a DH robot is written as TOML (.toml); --out-model with a .urdf path writes the calibrated "
+                "model as a URDF in joint frames"
             )
             raise DataError(f"{name}: {kind}; nothing was computed", option=name)
     chosen = None if points is None else parse_points(points)
@@ -280,6 +283,8 @@ def calibrate(
             urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
             model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
             bent = rigid() if Path(path).suffix.lower() in (".urdf", ".xml") else None
+            if nominal.convention != "joint" and Path(path).suffix.lower() in (".urdf", ".xml"):
+                model = Model(to_joint(model.robot), model.points)  # the same arm in joint frames
             save_model(
                 model, path, comment=comment if bent is None else comment | _rigid_comment(bent, "URDF readers"),
                 template=urdf, base_link=UR_BASE if from_ur else base_link, tip_link=tip_link,

@@ -18,7 +18,7 @@ def info(
     import numpy as np
 
     from ..lie import matrix_to_rpy
-    from ..robot import calibrated_chain
+    from ..robot import PRESETS, calibrated_chain, read_point_numbers, read_robot_file
 
     r = load_robot_arg(robot, base_link, tip_link)
     table = Table(title=f"{r.name} ({r.convention}, file units {r.units[0]}, {r.units[1]})")
@@ -50,6 +50,18 @@ def info(
         xyz = " ".join(f"{v:.6g}" for v in T[:3, 3])
         rpy = " ".join(f"{v:.6g}" for v in np.asarray(matrix_to_rpy(T[:3, :3])))
         console.print(f"{what}: xyz {xyz} mm, rpy {rpy} rad", highlight=False)
+    if r.compliance is not None and np.any(np.asarray(r.compliance) != 0):
+        # what evaluate and compensate apply and other readers of the file may not: shown, not hidden
+        c = ", ".join(f"{n} {v:.4g}" for n, v in zip(r.joint_names, np.asarray(r.compliance)) if v != 0)
+        load = None if r.load is None else " ".join(f"{v:.6g}" for v in np.asarray(r.load))
+        at = "the tool origin" if load is None else f"xyz {load} mm (tool frame)"
+        console.print(f"joint compliances (rad per mm of moment arm): {c}; weight at {at}", highlight=False)
+    if robot not in PRESETS and not robot.lower().endswith((".yaml", ".yml")):  # a UR kinematics file has none
+        points = read_robot_file(robot, base_link=base_link, tip_link=tip_link)[1]
+        points = np.zeros((0, 3)) if points is None else np.asarray(points)
+        numbers = read_point_numbers(robot) or range(1, len(points) + 1)
+        for j, pt in zip(numbers, points):
+            console.print(f"point {j} on the tool: xyz " + " ".join(f"{v:.6g}" for v in pt) + " mm", highlight=False)
     chain = calibrated_chain(robot)
     if chain is not None:
         console.print(

@@ -473,7 +473,8 @@ def urdf_text(
     if robot.load is not None and robot.compliance is not None and np.any(np.asarray(robot.compliance) != 0):
         raise RobotFileError(
             "this robot's compliances weigh a point that is not its tool origin (a measured point folded into its "
-            "tool); write the model with its points instead (jaxcal.save_model, --out-model)"
+            "tool); write the model with its points instead (jaxcal.save_model of the model, its robot in joint "
+            "frames for a DH arm: jaxcal.to_joint; or --out-model with a .urdf path)"
         )
     yourdfpy = _yourdfpy()
     from lxml import etree  # yourdfpy's XML library
@@ -560,6 +561,16 @@ def urdf_text(
         s = 1.0 if kinds.get(nm) == "R" else 1.0 / M_TO_MM
         unit = "rad" if kinds.get(nm) == "R" else "m"
         root.append(etree.Element(RANGE, joint=nm, lower=repr(lo * s), upper=repr(hi * s), unit=unit))
+    if (
+        robot.compliance is not None
+        and np.any(np.asarray(robot.compliance) != 0)
+        and "compliance" not in (comment or {})
+    ):
+        # whoever writes it: other readers skip the elements, and the file says so at its top
+        comment = dict(comment or {}) | {
+            "compliance": "in <jaxcal_compliance> elements, which only jaxcal reads; other URDF readers apply "
+            "the rigid geometry only"
+        }
     note = "; ".join(f"{k}: {v}" for k, v in comment.items()).replace("--", "- -") if comment else None
     etree.indent(root, space="  ")
     return _serialised(root, note)

@@ -320,11 +320,23 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     data = _write(tmp_path, [head, *rows], "three.csv")
     code, out, err = run_cli(
         monkeypatch, capsys, "calibrate", "ur5", data, "--nested-max-poses", "0", "--compliance", "no",
-        "--out-robot", tmp_path / "cal.toml",
+        "--out-robot", tmp_path / "cal.toml", "--out-model", tmp_path / "cal.urdf",
         "--json", tmp_path / "rep.json",
     )  # fmt: skip
     assert code in (0, None), err
     assert "with the 3 measured points" in " ".join(out.split())
+    # the DH model as a URDF in joint frames: yourdfpy places its points where jaxcal's TOML does
+    import yourdfpy
+
+    from jaxcal.model import load_model, predict
+
+    u = yourdfpy.URDF.load(str(tmp_path / "cal.urdf"), load_meshes=False)
+    want = np.asarray(predict(load_model(tmp_path / "cal.toml"), np.asarray(sim.q[0])[:5]))
+    for k, qk in enumerate(np.asarray(sim.q[0])[:5]):
+        u.update_cfg(dict(zip([f"q{i}" for i in range(1, 7)], qk)))
+        for j in range(3):
+            got = u.get_transform(f"jaxcal_point{j + 1}", "jaxcal_measurement_frame")[:3, 3] * 1000.0
+            assert np.abs(got - want[k, j]).max() < 1e-6
     code, out, err = run_cli(
         monkeypatch, capsys, "evaluate", tmp_path / "cal.toml", data, "--json", tmp_path / "ev.json"
     )

@@ -150,8 +150,9 @@ def test_output_kind_is_checked_before_the_fit(monkeypatch, capsys, split):
     code, out, err = run_cli(monkeypatch, capsys, "calibrate", URDF, d / "train.csv", "--out-model", d / "x.toml")
     msg = "--out-model: a joint-frame robot (a URDF, or a UR factory calibration) is written as URDF (.urdf, .xml)"
     assert code == 2 and msg in err, err
-    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", d / "train.csv", "--out-model", d / "x.urdf")
-    assert code == 2 and "a DH robot is written as TOML" in err and "jaxcal.to_joint" in " ".join(err.split())
+    code, out, err = run_cli(monkeypatch, capsys, "calibrate", "ur5", d / "train.csv", "--out-robot", d / "x.urdf")
+    text = " ".join(err.split())
+    assert code == 2 and "a DH robot is written as TOML" in text and "--out-model with a .urdf path" in text
 
 
 def test_compensate_brings_the_measured_point_to_the_targets(monkeypatch, capsys, split, tmp_path):
