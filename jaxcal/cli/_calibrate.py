@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import typer
@@ -212,6 +211,15 @@ def calibrate(
     above = base_link or (calibrated_chain(robot) or (None,))[0]  # the chain's base link (None: the root)
     left_out = joints_left_out(meas, nominal, read_movable_joints(robot, above))
     rep["notes"] = list(left_out.values()) + rep["notes"]
+    bent = _rigid_figures(res, meas)  # None for a rigid model
+    if bent is not None:  # in the report too, not in the headers of the files alone
+        rep["rigid_geometry_rms_mm_on_the_data"] = bent[1]
+        rep["notes"].append(
+            f"the joint compliances are applied by jaxcal alone (evaluate, compensate, its TOML and URDF): a reader "
+            f"of the rigid geometry (a UR kinematics file, a URDF in ROS or MoveIt, the DH table without its "
+            f"compliance rows) predicts the data to {bent[1]:.3g} mm RMS, the model with them {bent[0]:.3g} mm "
+            f"(every pose); --compliance no fits the best rigid model"
+        )
     show(rep, meas)
     # a fit that stopped short is judged where it stopped: refused as implausible only where an
     # input mistake the check names explains it (reversed joints, units, swapped axes), else said
@@ -275,24 +283,25 @@ def calibrate(
                     f"they hang, not one of them",
                     highlight=False,
                 )
-        rigid = functools.cache(lambda: _rigid_figures(res, meas))  # once, for every file that needs it
         # a URDF robot's --out-robot is its model too: the points are links of the written URDF
         for path in (out_robot, out_model) if nominal.convention == "joint" else (out_model,):
             if path is None:
                 continue
             urdf = Path(robot) if Path(robot).suffix.lower() in (".urdf", ".xml") else None
             model = Model(res.model.robot.replace(name=f"{nominal.name}-calibrated"), res.model.points)
-            bent = rigid() if Path(path).suffix.lower() in (".urdf", ".xml") else None
-            if nominal.convention != "joint" and Path(path).suffix.lower() in (".urdf", ".xml"):
+            to_urdf = Path(path).suffix.lower() in (".urdf", ".xml")
+            urdf_bent = bent if to_urdf else None
+            if nominal.convention != "joint" and to_urdf:
                 model = Model(to_joint(model.robot), model.points)  # the same arm in joint frames
             save_model(
-                model, path, comment=comment if bent is None else comment | _rigid_comment(bent, "URDF readers"),
+                model, path,
+                comment=comment if urdf_bent is None else comment | _rigid_comment(urdf_bent, "URDF readers"),
                 template=urdf, base_link=UR_BASE if from_ur else base_link, tip_link=tip_link,
                 training_ranges=res.training_ranges,
                 point_numbers=numbers,
             )  # fmt: skip
             console.print(f"calibrated model written to {path}", soft_wrap=True, highlight=False, markup=False)
-            if bent is not None:
+            if urdf_bent is not None:
                 console.print(
                     f"[yellow]warning:[/yellow] the model has joint compliances, written as <jaxcal_compliance> "
                     f"elements that only jaxcal reads: other URDF readers (ROS, MoveIt) see the rigid geometry, "
@@ -309,7 +318,7 @@ def calibrate(
             for p in calibration_figures(res, plots):
                 console.print(f"plot written to {p}", soft_wrap=True, highlight=False, markup=False)
         like = robot if from_ur else None  # the UR file calibrated: its angles' branches are kept
-        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain, like)
+        _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, bent, ur_chain, like)
     console.file.write(said.get())
 
 
@@ -341,7 +350,7 @@ def _rigid_comment(bent: tuple[float, float], readers: str) -> dict:
     }
 
 
-def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid, ur_chain, like) -> None:
+def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, bent, ur_chain, like) -> None:
     """The forms other tools load (:mod:`jaxcal.export`), each written atomically; the UR file's angles
     follow ``like``'s, the UR file calibrated (:func:`jaxcal.export.ur_kinematics`)."""
     import numpy as np
@@ -351,7 +360,7 @@ def _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, rigid,
 
     if out_ur_kinematics is not None:
         robot = res.robot.replace(name=f"{res.nominal.name}-calibrated")
-        bent = rigid()  # the controller's model is rigid
+        # the controller's model is rigid: ``bent`` its figures (:func:`_rigid_figures`), None for a rigid arm
         if bent is not None:
             with_c, without = bent
             # the file's own figure: its rigid geometry's, not the held-out error of the model with compliances

@@ -4,6 +4,7 @@ model to 1e-6 mm; every output is written only on success; robots the outputs ca
 are refused before any fitting."""
 
 import csv
+import json
 
 import numpy as np
 import pytest
@@ -183,6 +184,7 @@ def test_a_compliant_models_ur_file_gives_its_rigid_geometrys_error(tmp_path, mo
     code, out, err = run_cli(
         monkeypatch, capsys, "calibrate", "ur5", data, "--params", "all", "--compliance", "yes", "--folds", "3",
         "--nested-max-poses", "0", "--out-robot", tmp_path / "cal.toml", "--out-ur-kinematics", tmp_path / "cal.yaml",
+        "--json", tmp_path / "rep.json",
     )  # fmt: skip
     assert code in (0, None), err
     text = (tmp_path / "cal.yaml").read_text()
@@ -195,6 +197,10 @@ def test_a_compliant_models_ur_file_gives_its_rigid_geometrys_error(tmp_path, mo
     rigid = float(np.sqrt(np.mean(np.sum((ends[:, :3, 3] - points) ** 2, -1))))
     assert float(head["rigid_geometry_rms_mm_on_the_data"]) == pytest.approx(rigid, rel=1e-4)
     assert rigid > 5 * float(head["heldout_rms_mm_with_compliance"])  # what the file alone does not reach
+    # and the report says it, for a script that reads --json rather than the file's header
+    rep = json.loads((tmp_path / "rep.json").read_text())
+    assert rep["rigid_geometry_rms_mm_on_the_data"] == pytest.approx(rigid, rel=1e-4)
+    assert any("a reader of the rigid geometry" in n for n in rep["notes"])
 
 
 def test_a_factory_calibrated_ur_file_calibrated_again_is_written_back(tmp_path, monkeypatch, capsys):
