@@ -400,3 +400,16 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
             for i, name in enumerate(GROUPS)
         }
     return out
+
+
+def rigid_figures(model: Model, meas) -> tuple[float, float] | None:
+    """``(position RMS with the joint compliances, position RMS of the rigid geometry alone)``
+    (mm, every pose of ``meas``) of a model with compliances, which only jaxcal's own readers
+    apply (a URDF in ROS, a UR kinematics file, a DH table read without its compliance rows see
+    the rigid geometry); None for a rigid model."""
+    c = model.robot.compliance
+    if c is None or not np.any(np.asarray(c) != 0):
+        return None
+    rigid = model.robot.replace(compliance=None, load=None)
+    alone = Model(rigid, model.points, model.camera_params, camera=model.camera)
+    return evaluate(model, meas)["position_rms_mm"], evaluate(alone, meas)["position_rms_mm"]

@@ -19,6 +19,7 @@ from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
 from ._checks import joint_ranges, limit_notes, unwrapped
+from ._evaluate import rigid_figures
 from ._markers import drift, moved_point
 from ._param_sets import Candidate
 from ._single import estimated, judge, narrow_joint_notes, still_joint_notes
@@ -640,6 +641,15 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
             f"taken back: row(s) {', '.join(map(str, back))}, flagged by the outlier detection, are predicted "
             "by the calibrated model within the threshold in the spread of their own prediction, and fitted"
         )
+    model = core.described(f.model, robot)
+    if (bent := rigid_figures(model, p.data)) is not None:  # what the files other tools read hold
+        rep["rms_mm_on_the_data_with_compliance"], rep["rigid_geometry_rms_mm_on_the_data"] = bent
+        rep["notes"].append(
+            f"the joint compliances are applied by jaxcal alone (evaluate, compensate, its TOML and URDF): a reader "
+            f"of the rigid geometry (a UR kinematics file, a URDF in ROS or MoveIt, the DH table without its "
+            f"compliance rows) predicts the data to {bent[1]:.3g} mm RMS, the model with them {bent[0]:.3g} mm "
+            f"(every pose); compliance='no' (--compliance no) fits the best rigid model"
+        )
     if p.n_points:
         rep["points_mm"] = np.asarray(f.model.points).tolist()
         rep["heldout_points_rms_mm"] = [float(v) for v in core.nan_rms(h["pe"][scored], 0)]
@@ -657,6 +667,6 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         "frames_only": core.described(fr.member(-1), robot).robot,
     }
     return DataCalibration(
-        model=core.described(f.model, robot), nominal=robot, choice=final.candidate, report=rep, per_pose=per_pose,
+        model=model, nominal=robot, choice=final.candidate, report=rep, per_pose=per_pose,
         deltas=f.deltas, covariance=f.cov, layout=layout, training_ranges=training_ranges(robot, q, p.valid),
     )  # fmt: skip

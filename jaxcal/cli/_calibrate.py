@@ -211,15 +211,12 @@ def calibrate(
     above = base_link or (calibrated_chain(robot) or (None,))[0]  # the chain's base link (None: the root)
     left_out = joints_left_out(meas, nominal, read_movable_joints(robot, above))
     rep["notes"] = list(left_out.values()) + rep["notes"]
-    bent = _rigid_figures(res, meas)  # None for a rigid model
-    if bent is not None:  # in the report too, not in the headers of the files alone
-        rep["rigid_geometry_rms_mm_on_the_data"] = bent[1]
-        rep["notes"].append(
-            f"the joint compliances are applied by jaxcal alone (evaluate, compensate, its TOML and URDF): a reader "
-            f"of the rigid geometry (a UR kinematics file, a URDF in ROS or MoveIt, the DH table without its "
-            f"compliance rows) predicts the data to {bent[1]:.3g} mm RMS, the model with them {bent[0]:.3g} mm "
-            f"(every pose); --compliance no fits the best rigid model"
-        )
+    # a model with compliances: its rigid geometry's error on the data, for the files other tools read
+    bent = (
+        (rep["rms_mm_on_the_data_with_compliance"], rep["rigid_geometry_rms_mm_on_the_data"])
+        if ("rigid_geometry_rms_mm_on_the_data" in rep)
+        else None
+    )
     show(rep, meas)
     # a fit that stopped short is judged where it stopped: refused as implausible only where an
     # input mistake the check names explains it (reversed joints, units, swapped axes), else said
@@ -320,24 +317,6 @@ def calibrate(
         like = robot if from_ur else None  # the UR file calibrated: its angles' branches are kept
         _write_exports(res, meas, out_ur_kinematics, out_dh, report, comment, bent, ur_chain, like)
     console.file.write(said.get())
-
-
-def _rigid_figures(res, meas) -> tuple[float, float] | None:
-    """``(RMS with the joint compliances, RMS of the rigid geometry alone)`` (mm, every pose of
-    ``meas``) where the model has compliances, which only jaxcal's own readers apply; else None."""
-    import equinox as eqx
-    import numpy as np
-
-    from ..calibration import evaluate
-    from ..model import Model
-
-    compliance = res.model.robot.compliance
-    if compliance is None or not np.any(np.asarray(compliance) != 0):
-        return None
-    m = res.model
-    rigid = eqx.tree_at(lambda r: r.compliance, m.robot, None, is_leaf=lambda v: v is None)
-    with_c = evaluate(m, meas)["position_rms_mm"]
-    return with_c, evaluate(Model(rigid, m.points, m.camera_params, camera=m.camera), meas)["position_rms_mm"]
 
 
 def _rigid_comment(bent: tuple[float, float], readers: str) -> dict:

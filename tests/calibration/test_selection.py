@@ -231,3 +231,12 @@ def test_a_compliance_candidate_scores_as_its_full_fits_predict():
     assert cand["name"] == "all + compliance"
     assert cand["heldout_rms_mm"] == pytest.approx(rep["heldout_rms_mm"], rel=0.01)
     assert rep["parameters"]["compliance2"]["value"] == pytest.approx(c[1], rel=0.2)
+    # the report says what the rigid geometry alone (what a URDF or UR file reader loads) errs on
+    # the data: NumPy FK of the calibrated table without its compliances
+    r = res.model.robot
+    F = dh_fk(np.asarray(r.dh), q, base=np.asarray(r.base), tool=np.asarray(r.tool))
+    rigid = F[:, :3, :3] @ np.asarray(res.model.points)[0] + F[:, :3, 3]
+    want = np.sqrt(np.mean(np.sum((rigid - p) ** 2, -1)))
+    assert rep["rigid_geometry_rms_mm_on_the_data"] == pytest.approx(want, rel=1e-6)
+    assert want > 3 * rep["rms_mm_on_the_data_with_compliance"]
+    assert any("a reader of the rigid geometry" in n for n in rep["notes"])
