@@ -291,7 +291,7 @@ def joint_ranges(robot: Robot, q: Float[np.ndarray, "K n"]) -> tuple[np.ndarray,
     turn a whole turn (no limits of its own, or limits a turn apart) has the shortest arc that
     holds every reading, starting in ``[-pi, pi)``, where that is shorter than their span: a
     continuous joint read over ``[0, 2 pi)`` visits the arc across 0, not the span between
-    (:func:`._evaluate.outside` reads a range a whole turn round)."""
+    (:func:`._evaluate.beyond` reads a range a whole turn round)."""
     q = np.asarray(q, float)
     lo, hi = q.min(0), q.max(0)
     lim = np.asarray(robot.q_limits, float)

@@ -86,26 +86,34 @@ def beyond(robot: Robot, q, ranges: dict) -> np.ndarray:
     return out
 
 
-def outside(robot: Robot, q, ranges: dict) -> np.ndarray:
-    """Which poses ``q (K, n)`` have a joint outside its training range (:func:`beyond`)."""
-    return (beyond(robot, q, ranges) > 0).any(-1)
-
-
-def _outside_note(robot: Robot, far: np.ndarray) -> str:
-    """The extrapolation warning for the distances ``far (K, n)`` beyond the training ranges: how
-    many postures, which joints by how much, and how many with several joints out at once."""
+def outside_summary(robot: Robot, far: np.ndarray) -> dict:
+    """``outside_training_ranges`` of :func:`evaluate` from the distances ``far (K, n)`` beyond the
+    training ranges (:func:`beyond`): how many postures, which joints by how much (mm, rad), and
+    how many with several joints out at once."""
     away = (far > 0).any(-1)
-    joints = []
-    for j in np.flatnonzero((far > 0).any(0)):
-        rev = robot.joint_types[j] == "R"
-        most = np.degrees(far[:, j].max()) if rev else far[:, j].max()
-        joints.append(
-            f"{robot.joint_names[j]} in {int((far[:, j] > 0).sum())} by up to {most:.3g} {'deg' if rev else 'mm'}"
-        )
-    several = int(((far > 0).sum(-1) >= 2).sum())
+    return {
+        "poses": int(away.sum()),
+        "fraction": float(away.mean()) if len(away) else 0.0,
+        "several_joints": int(((far > 0).sum(-1) >= 2).sum()),
+        "joints": {
+            robot.joint_names[j]: {"poses": int((far[:, j] > 0).sum()), "max_beyond": float(far[:, j].max())}
+            for j in np.flatnonzero((far > 0).any(0))
+        },
+    }
+
+
+def _outside_note(robot: Robot, summary: dict, n_poses: int) -> str:
+    """The extrapolation warning, from :func:`outside_summary`."""
+    kinds = dict(zip(robot.joint_names, robot.joint_types))
+    joints = [
+        f"{name} in {v['poses']} by up to "
+        + (f"{np.degrees(v['max_beyond']):.3g} deg" if kinds[name] == "R" else f"{v['max_beyond']:.3g} mm")
+        for name, v in summary["joints"].items()
+    ]
+    several = summary["several_joints"]
     return (
-        f"{int(away.sum())} of {len(away)} postures ({100 * away.mean():.0f} %) have a joint outside the ranges the "
-        f"model was fitted on ({'; '.join(joints)}"
+        f"{summary['poses']} of {n_poses} postures ({100 * summary['fraction']:.0f} %) have a joint outside the "
+        f"ranges the model was fitted on ({'; '.join(joints)}"
         + (f"; {several} with two joints or more out at once" if several else "")
         + "): there it extrapolates, and errors grow; a calibration's figure beyond the ranges is for one joint "
         "at a time just past its range, and errors grow further with the distance and with several joints out"
@@ -377,20 +385,10 @@ def evaluate(model: Model, meas, *, training=None, ranges: dict | None = None) -
                 )
             )
     if ranges is not None:
-        far = beyond(model.robot, meas.q, ranges)
-        away = (far > 0).any(-1)
-        share = float(away.mean()) if len(away) else 0.0
-        out["outside_training_ranges"] = {
-            "poses": int(away.sum()),
-            "fraction": share,
-            "several_joints": int(((far > 0).sum(-1) >= 2).sum()),
-            "joints": {
-                model.robot.joint_names[j]: {"poses": int((far[:, j] > 0).sum()), "max_beyond": float(far[:, j].max())}
-                for j in np.flatnonzero((far > 0).any(0))
-            },
-        }
-        if share > OUTSIDE_WARNING:
-            out["warnings"].append(_outside_note(model.robot, far))
+        summary = outside_summary(model.robot, beyond(model.robot, meas.q, ranges))
+        out["outside_training_ranges"] = summary
+        if summary["fraction"] > OUTSIDE_WARNING:
+            out["warnings"].append(_outside_note(model.robot, summary, len(meas.q)))
     if training is not None:
         if training.q.shape[1] != meas.q.shape[1]:
             raise DataError(f"{training.source}: {training.q.shape[1]} joints, the data {meas.q.shape[1]}")
@@ -410,6 +408,8 @@ def rigid_figures(model: Model, meas) -> tuple[float, float] | None:
     c = model.robot.compliance
     if c is None or not np.any(np.asarray(c) != 0):
         return None
-    rigid = model.robot.replace(compliance=None, load=None)
-    alone = Model(rigid, model.points, model.camera_params, camera=model.camera)
-    return evaluate(model, meas)["position_rms_mm"], evaluate(alone, meas)["position_rms_mm"]
+    alone = Model(
+        model.robot.replace(compliance=None, load=None), model.points, model.camera_params, camera=model.camera
+    )
+    q, target, M = np.asarray(meas.q), np.asarray(meas.measured), meas.n_points
+    return _rms(model, q, target, M)[0], _rms(alone, q, target, M)[0]  # the errors alone, none of evaluate's checks

@@ -5,7 +5,7 @@ import pytest
 
 import jaxcal
 from jaxcal.calibration._checks import check_angles, joint_ranges, limit_notes
-from jaxcal.calibration._evaluate import outside
+from jaxcal.calibration._evaluate import beyond
 
 
 def test_rows_beyond_a_joints_limits_are_named_in_the_files_units():
@@ -54,7 +54,7 @@ def test_a_continuous_joint_read_over_a_whole_turn_has_the_arc_it_visited_as_its
     )
     ranges = dict(zip(robot.joint_names, zip(lo, hi)))
     probe = np.array([[3.1, 0.0, 100.0], [0.3, 0.0, 100.0], [6.0, 0.0, 100.0]])
-    assert outside(robot, probe, ranges).tolist() == [True, False, False]
+    assert (beyond(robot, probe, ranges) > 0).any(-1).tolist() == [True, False, False]
 
 
 @pytest.mark.parametrize("columns", [[5], [1, 5], list(range(6))])
