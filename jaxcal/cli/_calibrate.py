@@ -298,6 +298,12 @@ def calibrate(
                 point_numbers=numbers,
             )  # fmt: skip
             console.print(f"calibrated model written to {path}", soft_wrap=True, highlight=False, markup=False)
+            unit = getattr(meas, "units", ("m",))[0]
+            if to_urdf and unit != "m":  # a URDF's data files are read in its metres
+                console.print(
+                    f"  a URDF is in metres: evaluate or compensate it on data in {unit} with --length-unit {unit}",
+                    highlight=False,
+                )
             if urdf_bent is not None:
                 console.print(
                     f"[yellow]warning:[/yellow] the model has joint compliances, written as <jaxcal_compliance> "

@@ -325,6 +325,9 @@ def test_out_robot_of_several_points_keeps_them(tmp_path, monkeypatch, capsys):
     )  # fmt: skip
     assert code in (0, None), err
     assert "with the 3 measured points" in " ".join(out.split())
+    assert "a URDF is in metres: evaluate or compensate it on data in mm with --length-unit mm" in " ".join(out.split())
+    code, _, err = run_cli(monkeypatch, capsys, "evaluate", tmp_path / "cal.urdf", data, "--length-unit", "mm")
+    assert code in (0, None), err  # as it says
     # the DH model as a URDF in joint frames: yourdfpy places its points where jaxcal's TOML does
     import yourdfpy
 
