@@ -172,12 +172,25 @@ def gravity_moments(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n
 
 def deflected(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n"]:
     """The joint values a compliant robot reaches at the commands ``q``: ``q + compliance *
-    gravity_moments(robot, q)``; ``q`` itself for a rigid robot (``compliance`` None). The moments
-    are taken as given (no derivative through them): they change with the geometry only at second
-    order in the deflection, and the identification Jacobian treats them so too."""
+    (gravity_moments(robot, q) - moment_ref)``; ``q`` itself for a rigid robot (``compliance``
+    None). The moments are taken as given (no derivative through them): they change with the
+    geometry only at second order in the deflection, and the identification Jacobian treats them
+    so too."""
     if robot.compliance is None:
         return q
-    return q + robot.compliance * jax.lax.stop_gradient(gravity_moments(robot, q))
+    return q + robot.compliance * moments_from_ref(robot, q)
+
+
+def moments_from_ref(robot: Robot, q: Float[Array, "*b n"]) -> Float[Array, "*b n"]:
+    """:func:`gravity_moments` less the robot's :attr:`~jaxcal.Robot.moment_ref`, held constant
+    (no derivative): what each compliance multiplies. The moments are taken at the weightless
+    offsets (``offset - compliance * moment_ref``), as a robot without a reference takes them, so
+    that a reference changes the offsets written and nothing the model predicts."""
+    if robot.moment_ref is None:
+        return jax.lax.stop_gradient(gravity_moments(robot, q))
+    c = jnp.zeros_like(robot.moment_ref) if robot.compliance is None else robot.compliance
+    weightless = eqx.tree_at(lambda r: r.dh, robot, robot.dh.at[..., 0].add(-c * robot.moment_ref))
+    return jax.lax.stop_gradient(gravity_moments(weightless, q) - robot.moment_ref)
 
 
 @eqx.filter_jit

@@ -40,7 +40,7 @@ from .camera import apply_camera, camera_jacobian
 from .camera import n_params as camera_size
 from .camera import param_names as camera_names
 from .error_model import FRAME_NAMES, dh_column_entries, perturb, pose_error, stack_columns
-from .kinematics import deflected, fk, gravity_moments
+from .kinematics import deflected, fk, moments_from_ref
 from .lie import make_transform, so3_exp, so3_left_jacobian, so3_right_jacobian_inv
 from .robot import Robot
 
@@ -287,7 +287,7 @@ def residual_and_jacobian_soa(model: Model, layout: Layout, x: Float[Array, " m"
     if layout.tool and layout.n_points:  # dp_j / dm_j = R
         frames += [[R[r, c] if i == j else 0.0 for i in range(M) for r in range(3)] for j in range(M) for c in range(3)]
     if layout.n_comp:  # a compliance turns its joint by tau: the joint offset's column times tau
-        tau = jax.lax.stop_gradient(gravity_moments(robot, q)).T  # (n, K)
+        tau = moments_from_ref(robot, q).T  # (n, K)
         rows0 = sum(P[0], []) + (list(W[0]) if layout.n_points == 0 else [])
         frames += [[jnp.broadcast_to(e, (n, K))[j] * tau[j] for e in rows0] for j in range(n)]
     if layout.n_points:

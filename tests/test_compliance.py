@@ -52,6 +52,11 @@ def test_fk_of_a_compliant_robot_is_the_rigid_fk_at_the_deflected_joints(conv, r
     got = np.asarray(jaxcal.fk(robot.replace(compliance=c), q))
     assert_allclose(got, rigid, atol=1e-9)
     assert np.abs(got - np.asarray(jaxcal.fk(robot, q)))[..., :3, 3].max() > 1.0  # the deflection shows
+    # with reference moments m the offsets hold at m: the same arm written with offsets + c m
+    m = rng.uniform(-300.0, 300.0, robot.n_joints)
+    dh = np.array(robot.dh)
+    dh[:, 0] += c * m
+    assert_allclose(np.asarray(jaxcal.fk(robot.replace(dh=dh, compliance=c, moment_ref=m), q)), rigid, atol=1e-9)
 
 
 @pytest.mark.parametrize("conv", sorted(ROBOTS))
@@ -62,6 +67,8 @@ def test_jacobian_of_the_compliances_matches_autodiff(conv, n_points, rng):
     in both (:func:`jaxcal.kinematics.deflected`)."""
     robot = ROBOTS[conv]()
     robot = robot.replace(compliance=np.where(np.array(robot.joint_types) == "R", 1e-5, 0.0))
+    if n_points:  # and reference moments (jaxcal.Robot.moment_ref), which the columns subtract
+        robot = robot.replace(moment_ref=rng.uniform(-300.0, 300.0, robot.n_joints))
     lay = Layout.of(robot, base=True, tool=True, n_points=n_points, compliance=True)
     model = Model(robot, rng.normal(0, 50, (n_points, 3)) if n_points else None)
     q = jnp.asarray(rng.uniform(-1, 1, (5, robot.n_joints)))
@@ -86,18 +93,24 @@ def test_robot_files_carry_the_compliance(tmp_path, rng):
     forward kinematics; yourdfpy still reads the URDF."""
     import yourdfpy
 
-    ur5 = jaxcal.preset("ur5").replace(units=("m", "deg"), compliance=rng.uniform(0, 3e-5, 6))
+    ur5 = jaxcal.preset("ur5").replace(
+        units=("m", "deg"), compliance=rng.uniform(0, 3e-5, 6), moment_ref=rng.uniform(-300, 300, 6)
+    )
     jaxcal.save_robot(ur5, tmp_path / "ur5.toml")
     back = jaxcal.load_robot(tmp_path / "ur5.toml")
     assert_allclose(np.asarray(back.compliance), np.asarray(ur5.compliance), rtol=1e-14)
+    assert_allclose(np.asarray(back.moment_ref), np.asarray(ur5.moment_ref), rtol=1e-14)
     q = rng.uniform(-1, 1, (5, 6))
     assert_allclose(np.asarray(jaxcal.fk(back, q)), np.asarray(jaxcal.fk(ur5, q)), atol=1e-9)
 
     urdf = "jaxcal/data/tiago_mocap/tiago_arm.urdf"
     tiago = jaxcal.load_robot(urdf)
-    tiago = tiago.replace(compliance=np.where(np.array(tiago.joint_types) == "R", 2e-5, 0.0))
+    tiago = tiago.replace(
+        compliance=np.where(np.array(tiago.joint_types) == "R", 2e-5, 0.0), moment_ref=rng.uniform(-300, 300, 8)
+    )
     jaxcal.save_model(Model(tiago), tmp_path / "t.urdf", template=urdf)
     again = jaxcal.load_model(tmp_path / "t.urdf").robot
+    assert_allclose(np.asarray(again.moment_ref), np.asarray(tiago.moment_ref), rtol=1e-12)
     qt = np.c_[rng.uniform(0.05, 0.3, 5), rng.uniform(-1, 1, (5, 7))]
     assert_allclose(np.asarray(jaxcal.fk(again, qt)), np.asarray(jaxcal.fk(tiago, qt)), atol=1e-9)
     assert len(yourdfpy.URDF.load(str(tmp_path / "t.urdf"), load_meshes=False).robot.joints) > 8
@@ -111,13 +124,16 @@ def test_info_shows_what_a_file_holds_beyond_its_table(tmp_path, monkeypatch, ca
     and the measured points by their numbers: a reloaded file's rigid table alone hid them."""
     from helpers import run_cli
 
-    ur5 = jaxcal.preset("ur5").replace(compliance=[0.0, 1.5e-6, 2e-6, 0.0, 0.0, 0.0], load=np.array([10.0, 0, 0]))
+    ur5 = jaxcal.preset("ur5").replace(
+        compliance=[0.0, 1.5e-6, 2e-6, 0.0, 0.0, 0.0], load=np.array([10.0, 0, 0]), moment_ref=[0, -250.0, 120, 7, 0, 0]
+    )
     points = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
     jaxcal.save_robot(ur5, tmp_path / "c.toml", points=points, point_numbers=[3, 1])
     code, out, err = run_cli(monkeypatch, capsys, "info", str(tmp_path / "c.toml"))
     text = " ".join(out.split())
     assert code in (0, None), err
     assert "joint compliances (rad per mm of moment arm): q2 1.5e-06, q3 2e-06; weight at xyz 10 0 0 mm" in text
+    assert "joint offsets hold at the moment arms (mm): q2 -250, q3 120" in text
     assert "point 3 on the tool: xyz 1 2 3 mm" in text and "point 1 on the tool: xyz 4 5 6 mm" in text
 
 
@@ -205,7 +221,7 @@ def test_conversions_keep_a_compliant_arms_pose_or_refuse(rng):
     deflected end pose; ``to_sdh`` of an MDH arm whose first twist is not 0 would tilt it and is
     refused, while with a zero first twist it converts exactly."""
     r = jaxcal.preset("panda")  # MDH, alpha_1 = 0
-    r = r.replace(compliance=np.full(7, 3e-6))
+    r = r.replace(compliance=np.full(7, 3e-6), moment_ref=rng.uniform(-300, 300, 7))
     q = rng.uniform(-1.5, 1.5, (20, 7))
     want = np.asarray(jaxcal.fk(r, q))
     for other in (jaxcal.to_sdh(r), to_joint(r), jaxcal.to_mdh(jaxcal.to_sdh(r))):

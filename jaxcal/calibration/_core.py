@@ -22,7 +22,7 @@ from jaxtyping import Float
 
 from .._config import jit
 from ..identifiability import Identifiability, analyze
-from ..kinematics import fk
+from ..kinematics import fk, gravity_moments
 from ..lie import so3_log
 from ..model import Layout, Model, apply, errors, jacobian, observed, predict
 from ..robot import JOINT_FRAME_NAMES, Robot
@@ -507,6 +507,26 @@ def carrying(robot: Robot, layout: Layout) -> Robot:
     if layout.n_comp and robot.compliance is None:
         return eqx.tree_at(lambda r: r.compliance, robot, np.zeros(robot.n_joints), is_leaf=lambda v: v is None)
     return robot
+
+
+moments = jit(gravity_moments)
+""":func:`jaxcal.kinematics.gravity_moments` as one compiled program (op by op, each operation
+would be a program of its own to compile in each process)."""
+
+
+def referenced(robot: Robot, layout: Layout, q) -> Robot:
+    """``robot`` with its compliances' reference moments (:attr:`jaxcal.Robot.moment_ref`) at
+    their mean over the poses ``q (..., n)``, where the layout estimates compliances and the robot
+    has none: the same model (the offsets take up the constant part of any compliance it carries),
+    whose rigid geometry is the arm at its mean load over the data. Centred so, a compliance's
+    column is the part of the load that varies, not also a turn the offset makes."""
+    if not layout.n_comp or robot.moment_ref is not None:
+        return robot
+    ref = np.asarray(moments(robot.stripped(), np.asarray(q).reshape(-1, robot.n_joints))).mean(0)
+    dh = np.array(robot.dh)
+    if robot.compliance is not None:  # the offset takes up c * ref: every prediction as before
+        dh[:, 0] += np.asarray(robot.compliance) * ref
+    return robot.replace(dh=dh, moment_ref=ref)
 
 
 def broadcast_model(model: Model, n: int) -> Model:

@@ -445,6 +445,7 @@ def calibrate(
     opts = make_options(options, kw)
     q, target, n_points = as_target(robot, q, measured, batched=False, position_only=position_only)
     layout = make_layout(robot, opts, n_points)
+    robot = core.referenced(robot, layout, q)
     K = q.shape[0]
     cand = kinematic_set(opts, robot)
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
@@ -650,6 +651,7 @@ def calibrate_batch(
     opts = make_options(options, kw, elimination=True)
     q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
     layout = make_layout(robot, opts, n_points)
+    robot = core.referenced(robot, layout, q)
     R, K = q.shape[:2]
     if R == 0:
         raise DataError("no data sets: q and measured have R = 0 along their first axis", option="q")

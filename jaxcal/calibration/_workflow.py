@@ -46,7 +46,6 @@ from .._config import jit
 from ..camera import CAMERA_MODELS, check_target_in_front
 from ..camera import n_params as camera_size
 from ..errors import DataError, warn_unusable
-from ..kinematics import gravity_moments
 from ..model import Layout, Model, errors
 from ..robot import Robot
 from ..solvers import PIN
@@ -125,7 +124,6 @@ class _Problem:
 
 # each compiled as one program: run op by op, every operation would be a program of its own to
 # compile in each process
-_gravity_moments = jit(gravity_moments)
 _errors = jit(errors)
 
 
@@ -134,7 +132,7 @@ def _compliant(robot: Robot, q, opts: Options) -> bool:
     joint's gravity moment varies over the data by more than 1 % of the reach."""
     if opts.compliance != "auto":
         return opts.compliance == "yes"
-    tau = np.asarray(_gravity_moments(robot.stripped(), q))
+    tau = np.asarray(core.moments(robot.stripped(), q))
     return bool(np.ptp(tau, axis=0).max() > 0.01 * robot.reach(q))
 
 

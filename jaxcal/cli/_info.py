@@ -56,6 +56,10 @@ def info(
         load = None if r.load is None else " ".join(f"{v:.6g}" for v in np.asarray(r.load))
         at = "the tool origin" if load is None else f"xyz {load} mm (tool frame)"
         console.print(f"joint compliances (rad per mm of moment arm): {c}; weight at {at}", highlight=False)
+        if r.moment_ref is not None:  # the offsets above hold at these moments, not weightless
+            refs = zip(r.joint_names, np.asarray(r.moment_ref), np.asarray(r.compliance))
+            m = ", ".join(f"{n} {v:.6g}" for n, v, cj in refs if cj)
+            console.print(f"joint offsets hold at the moment arms (mm): {m}", highlight=False)
     if robot not in PRESETS and not robot.lower().endswith((".yaml", ".yml")):  # a UR kinematics file has none
         points = read_robot_file(robot, base_link=base_link, tip_link=tip_link)[1]
         points = np.zeros((0, 3)) if points is None else np.asarray(points)

@@ -19,7 +19,8 @@ def dh_rows(result) -> list[dict]:
     """One row per kinematic parameter of a :class:`jaxcal.DataCalibration` (DH, or a URDF
     robot's joint-frame corrections, whose nominal values are 0), keyed by :data:`COLUMNS`;
     ``std_error`` is ``None`` and ``status`` says why for a parameter held at its nominal value;
-    then the joint compliances the model estimated (angle unit per length unit); ``convention``
+    then the joint compliances the model estimated (angle unit per length unit) and the moment
+    arms their offsets hold at (:attr:`jaxcal.Robot.moment_ref`, length unit); ``convention``
     the table's (``sdh``, ``mdh``: Craig's, whose ``alpha_i``, ``a_i`` precede joint i)."""
     nominal, rep = result.nominal, result.report
     lu, au = nominal.units
@@ -67,6 +68,25 @@ def dh_rows(result) -> list[dict]:
                 "convention": nominal.convention,
             }
         )
+    ref = result.model.robot.moment_ref
+    if comp is not None and ref is not None:  # where the offsets hold: not estimated, the data's mean
+        ref0 = np.zeros(nominal.n_joints) if nominal.moment_ref is None else np.asarray(nominal.moment_ref)
+        for j in range(nominal.n_joints):
+            if f"compliance{j + 1}" not in result.deltas:
+                continue
+            rows.append(
+                {
+                    "parameter": f"reference_moment{j + 1}",
+                    "joint": j + 1,
+                    "unit": lu,
+                    "nominal": float(ref0[j] / LENGTH_UNITS[lu]),
+                    "calibrated": float(np.asarray(ref)[j] / LENGTH_UNITS[lu]),
+                    "delta": float((np.asarray(ref)[j] - ref0[j]) / LENGTH_UNITS[lu]),
+                    "std_error": None,
+                    "status": "the mean gravity moment arm over the data, at which the joint's offset holds",
+                    "convention": nominal.convention,
+                }
+            )
     return rows
 
 

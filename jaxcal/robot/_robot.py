@@ -64,6 +64,11 @@ class Robot(eqx.Module):
     ``compliance_i * tau_i(q)`` beyond its command, ``tau_i`` the gravity moment arm (mm) about its
     axis of a unit weight at the tool origin (:func:`jaxcal.kinematics.gravity_moments`); 0 for
     prismatic joints."""
+    moment_ref: Float[Array, " n"] | None = None
+    """The gravity moment arms (mm) at which the joint offsets hold as written: a compliant joint
+    turns by ``compliance_i * (tau_i(q) - moment_ref_i)``. A calibration sets them to the mean over
+    its poses, so that the rigid geometry, which readers other than jaxcal load, is the arm at its
+    typical load rather than weightless. ``None``: zero (the weightless arm)."""
     load: Float[Array, " 3"] | None = None
     """Where that unit weight sits, in the tool frame (mm), when not at the tool origin: a
     measured point folded into the tool (:func:`jaxcal.model.measured_robot`) moves the tool, not
@@ -97,6 +102,7 @@ class Robot(eqx.Module):
         compliance=None,
         load=None,
         limits_set=None,
+        moment_ref=None,
     ):
         if convention not in CONVENTIONS:
             raise RobotFileError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
@@ -139,6 +145,7 @@ class Robot(eqx.Module):
                 raise RobotFileError(f"limits_set must say for each of the {n} joints whether limits were given")
         self.limits_set = limits_set
         self.compliance = _check_compliance(compliance, joint_types)
+        self.moment_ref = _check_moment_ref(moment_ref, joint_types)
         self.load = None if load is None else as_f64(load, "load")
         if self.load is not None and (self.load.shape != (3,) or not np.all(np.isfinite(np.asarray(self.load)))):
             raise RobotFileError(f"load must be 3 finite numbers (mm, tool frame), got {np.asarray(load)!r}")
@@ -246,6 +253,7 @@ class Robot(eqx.Module):
             origins=self.origins,
             axes=self.axes,
             compliance=self.compliance,
+            moment_ref=self.moment_ref,
             load=self.load,
             # new limits say for themselves whether they are given
             limits_set=None if "q_limits" in kw else self.limits_set,
@@ -266,6 +274,7 @@ class Robot(eqx.Module):
             "origins",
             "axes",
             "compliance",
+            "moment_ref",
             "load",
             "convention",
             "joint_types",
@@ -325,6 +334,20 @@ def _check_compliance(c, joint_types):
         if t == "P" and cn[i] != 0:
             raise RobotFileError(f"joint {i + 1}: a prismatic joint has no compliance (got {cn[i]:g})")
     return c
+
+
+def _check_moment_ref(m, joint_types):
+    """Validated reference moments (``None``: zero)."""
+    if m is None:
+        return None
+    m = as_f64(m, "moment_ref")
+    n = len(joint_types)
+    if m.shape != (n,):
+        raise RobotFileError(f"moment_ref must have one value per joint ({n}), got shape {m.shape}")
+    bad = ~np.isfinite(np.asarray(m))
+    if bad.any():
+        raise RobotFileError(f"joint {int(np.argmax(bad)) + 1}: moment_ref is not finite")
+    return m
 
 
 def _check_transform(T, name):

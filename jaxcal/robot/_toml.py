@@ -17,6 +17,8 @@ File shape (see README)::
     limits = [-3.14, 3.14]      # optional: joint limits (angle unit, or length unit if "P")
     compliance = 0.0            # optional: turn per length of gravity moment arm (angle unit
                                 # per length unit; jaxcal.Robot.compliance)
+    reference_moment = 0.0      # optional: the moment arm (length unit) at which theta holds
+                                # (jaxcal.Robot.moment_ref; default 0)
     [tool]                      # optional, flange -> tool point/frame
     xyz = [0.0, 0.0, 0.0]
     rpy = [0.0, 0.0, 0.0]       # roll-pitch-yaw, fixed axes x-y-z
@@ -43,7 +45,7 @@ TOP_KEYS = {
     "name", "convention", "length_unit", "angle_unit", "joints", "tool", "base", "calibration", "points", "load",
     "point_numbers",
 }  # fmt: skip
-JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits", "compliance"}
+JOINT_KEYS = {"name", "theta", "d", "a", "alpha", "type", "limits", "compliance", "reference_moment"}
 FRAME_KEYS = {"xyz", "rpy"}
 
 
@@ -90,7 +92,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
     joints = doc.get("joints")
     if not isinstance(joints, list) or not joints:
         raise RobotFileError(f"{source}: needs at least one [[joints]] table")
-    dh, types, limits, names, compliance, given = [], [], [], [], [], []
+    dh, types, limits, names, compliance, given, ref = [], [], [], [], [], [], []
     for i, j in enumerate(joints, start=1):
         if not isinstance(j, dict):
             raise RobotFileError(f"{source}: joint {i} is not a table")
@@ -124,6 +126,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
                 )
         types.append(jt)
         compliance.append(_num(j["compliance"], f"joint {i} compliance") * au / lu if "compliance" in j else None)
+        ref.append(_num(j["reference_moment"], f"joint {i} reference_moment") * lu if "reference_moment" in j else None)
         lim = j.get("limits", None)
         scale = au if jt == "R" else lu
         given.append(lim is not None)
@@ -155,6 +158,7 @@ def robot_from_dict(doc: dict, *, source: str = "robot file") -> Robot:
         joint_names=names,
         units=(lu_name, au_name),
         compliance=None if all(c is None for c in compliance) else [c or 0.0 for c in compliance],
+        moment_ref=None if all(m is None for m in ref) else [m or 0.0 for m in ref],
         load=load,
     )
 
@@ -260,6 +264,9 @@ def robot_to_dict(robot: Robot, *, comment: dict | None = None, points=None, poi
     if robot.compliance is not None:
         for j, c in zip(doc["joints"], np.asarray(robot.compliance)):
             j["compliance"] = float(c) * lu / au
+        if robot.moment_ref is not None:
+            for j, m in zip(doc["joints"], np.asarray(robot.moment_ref)):
+                j["reference_moment"] = float(m) / lu
         if robot.load is not None and np.any(np.asarray(robot.compliance) != 0):
             doc["load"] = [float(v) / lu for v in np.asarray(robot.load)]
     for key in ("tool", "base"):

@@ -46,7 +46,8 @@ RANGE = "jaxcal_training_range"
 """Element of a calibrated file holding the range of a joint's values the model was fitted on."""
 COMPLIANCE = "jaxcal_compliance"
 """Element of a calibrated file holding a joint's compliance (:attr:`jaxcal.Robot.compliance`,
-in rad per metre of gravity moment arm)."""
+in rad per metre of gravity moment arm) and the moment arm at which its origin holds
+(:attr:`jaxcal.Robot.moment_ref`, m; 0 when not given)."""
 POINT_NUMBERS = "jaxcal_point_numbers"
 """Element of a calibrated file holding the data file's number of each measured point (files
 without it, of an earlier layout, do not say which of the data's points they were fitted on)."""
@@ -350,11 +351,12 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
         names.append(j.name)
     if not types:
         raise RobotFileError(f"{source}: no movable joint between {base_link!r} and {tip_link!r}")
-    compliance = _compliance(path, names)
+    compliance, moment_ref = _compliance(path, names)
     robot = Robot(
         None,
         convention="joint",
         compliance=compliance,
+        moment_ref=moment_ref,
         origins=np.stack(origins),
         axes=np.stack(axes),
         joint_types=types,
@@ -375,20 +377,28 @@ def read_urdf(path, *, base_link: str | None = None, tip_link: str | None = None
     return robot, points
 
 
-def _compliance(path: Path, names: list[str]) -> np.ndarray | None:
-    """The chain's joint compliances (rad/mm) from the file's ``<jaxcal_compliance>`` elements,
-    ``None`` without any."""
+def _compliance(path: Path, names: list[str]) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The chain's joint compliances (rad/mm) and reference moments (mm) from the file's
+    ``<jaxcal_compliance>`` elements, ``None`` without any (moments: without any given)."""
     from lxml import etree  # yourdfpy's XML library
 
-    found = {}
+    found, refs = {}, {}
     for el in etree.parse(str(path)).getroot().iter(COMPLIANCE):
-        try:
-            found[el.get("joint")] = float(el.get("rad_per_m")) / M_TO_MM
-        except (TypeError, ValueError):
-            raise RobotFileError(f"{path}: <{COMPLIANCE} joint={el.get('joint')!r}> needs a number rad_per_m") from None
+        nm = el.get("joint")
+        for key, into, scale in (("rad_per_m", found, 1 / M_TO_MM), ("reference_moment_m", refs, M_TO_MM)):
+            v = el.get(key)
+            if v is None and into is refs:
+                continue
+            try:
+                into[nm] = float(v) * scale
+            except (TypeError, ValueError):
+                raise RobotFileError(f"{path}: <{COMPLIANCE} joint={nm!r}> needs a number {key}, got {v!r}") from None
+            if not np.isfinite(into[nm]):
+                raise RobotFileError(f"{path}: <{COMPLIANCE} joint={nm!r}> {key} is not finite ({v!r})")
     if not found:
-        return None
-    return np.array([found.get(nm, 0.0) for nm in names])
+        return None, None
+    c = np.array([found.get(nm, 0.0) for nm in names])
+    return c, (np.array([refs.get(nm, 0.0) for nm in names]) if refs else None)
 
 
 def _folded(robot: Robot, i: int) -> np.ndarray:
@@ -554,8 +564,10 @@ def urdf_text(
     if point_numbers is not None and len(pts):
         root.append(etree.Element(POINT_NUMBERS, numbers=" ".join(str(int(j)) for j in point_numbers)))
     if robot.compliance is not None:  # not URDF's: an element of jaxcal's own, other readers skip it
-        for nm, c in zip(robot.joint_names, np.asarray(robot.compliance)):
-            root.append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM)))
+        refs = np.zeros(robot.n_joints) if robot.moment_ref is None else np.asarray(robot.moment_ref)
+        for nm, c, m in zip(robot.joint_names, np.asarray(robot.compliance), refs):
+            ref = {} if robot.moment_ref is None else {"reference_moment_m": repr(float(m) / M_TO_MM)}
+            root.append(etree.Element(COMPLIANCE, joint=nm, rad_per_m=repr(float(c) * M_TO_MM), **ref))
     kinds = dict(zip(robot.joint_names, robot.joint_types))
     for nm, (lo, hi) in (training_ranges or {}).items():  # metres and radians, as the file's
         s = 1.0 if kinds.get(nm) == "R" else 1.0 / M_TO_MM

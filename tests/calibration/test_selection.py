@@ -201,13 +201,10 @@ def test_each_fold_prunes_in_its_own_order(rng):
     assert np.argmin(scores) >= 3  # the test can fail: dropping the null parameters helps
 
 
-def test_a_compliance_candidate_scores_as_its_full_fits_predict():
+def _bent_ur5(n_poses=60, sigma=0.05):
     """A UR5 (NumPy FK) whose shoulder and elbow bend under a weight at the flange (moments by
-    finite differences of the tool's height: the virtual work of a unit weight), one marker,
-    0.05 mm noise. The linearised score of ``all + compliance`` is the held-out error of its fits
-    in full (nested cross-validation, the same folds): the compliances' columns (rad/mm, ~1e5 mm
-    per unit) beside the millimetres once held the other parameters by their scale, and scored
-    the compliant model up to a fifth worse than its fits (5 % here), no better than the rigid one."""
+    finite differences of the tool's height: the virtual work of a unit weight), one marker:
+    ``(dh, base, c, tau, q, points)``."""
     ur5 = preset("ur5")
     rng = np.random.default_rng(9)
     dh = np.asarray(ur5.dh) + np.stack([rng.normal(0, s, 6) for s in (0.001, 0.5, 0.5, 0.001)], 1)
@@ -222,9 +219,20 @@ def test_a_compliance_candidate_scores_as_its_full_fits_predict():
             out[:, i] = -(dh_fk(dh, q + dq)[:, 2, 3] - dh_fk(dh, q - dq)[:, 2, 3]) / (2 * h)
         return out
 
-    q = rng.uniform(-2.0, 2.0, (60, 6))
+    q = rng.uniform(-2.0, 2.0, (n_poses, 6))
     T = base @ dh_fk(dh, q + c * tau(q))
-    p = T[:, :3, :3] @ np.array([40.0, -30.0, 90.0]) + T[:, :3, 3] + rng.normal(0, 0.05, (60, 3))
+    p = T[:, :3, :3] @ np.array([40.0, -30.0, 90.0]) + T[:, :3, 3] + rng.normal(0, sigma, (n_poses, 3))
+    return dh, base, c, tau, q, p
+
+
+def test_a_compliance_candidate_scores_as_its_full_fits_predict():
+    """The bent UR5 (:func:`_bent_ur5`), 0.05 mm noise. The linearised score of ``all +
+    compliance`` is the held-out error of its fits in full (nested cross-validation, the same
+    folds): the compliances' columns (rad/mm, ~1e5 mm per unit) beside the millimetres once held
+    the other parameters by their scale, and scored the compliant model up to a fifth worse than
+    its fits (5 % here), no better than the rigid one."""
+    ur5 = preset("ur5")
+    dh, base, c, tau, q, p = _bent_ur5()
     res = calibrate_data(ur5, Measurements(q, p[:, None, :]), params="all", compliance="yes")
     rep = res.report
     (cand,) = rep["cv"]
@@ -240,3 +248,14 @@ def test_a_compliance_candidate_scores_as_its_full_fits_predict():
     assert rep["rigid_geometry_rms_mm_on_the_data"] == pytest.approx(want, rel=1e-6)
     assert want > 3 * rep["rms_mm_on_the_data_with_compliance"]
     assert any("a reader of the rigid geometry" in n for n in rep["notes"])
+    # that rigid geometry is the arm at its mean load over the data, not weightless: the shoulder's
+    # offset is the truth's plus compliance x mean moment (3.7e-4 rad; its standard error 3e-5),
+    # and the table errs about as the true arm frozen at that load (0.47 mm weightless)
+    m = tau(q).mean(0)
+    assert_allclose(np.asarray(r.moment_ref), m, rtol=0.01, atol=0.5)
+    assert np.asarray(r.dh)[1, 0] - dh[1, 0] == pytest.approx(c[1] * m[1], abs=1e-4)
+    frozen = base @ dh_fk(dh, q + c * m)
+    frozen = frozen[:, :3, :3] @ np.array([40.0, -30.0, 90.0]) + frozen[:, :3, 3]
+    assert want < 1.1 * np.sqrt(np.mean(np.sum((frozen - p) ** 2, -1)))
+    (row,) = [row for row in jaxcal.export.dh_rows(res) if row["parameter"] == "reference_moment2"]
+    assert row["calibrated"] == pytest.approx(m[1], rel=0.01) and row["std_error"] is None
