@@ -320,3 +320,40 @@ def tilted_arm_links(folder, seed: int):
             c = (np.trace(T_true[:3, :3].T @ T_cal[:3, :3]) - 1) / 2
             turn = max(turn, float(np.degrees(np.arccos(np.clip(c, -1, 1)))))
     return r, far, turn
+
+
+UR5_DH = np.array(
+    [
+        [0.0, 89.159, 0.0, np.pi / 2],
+        [0.0, 0.0, -425.0, 0.0],
+        [0.0, 0.0, -392.25, 0.0],
+        [0.0, 109.15, 0.0, np.pi / 2],
+        [0.0, 94.65, 0.0, -np.pi / 2],
+        [0.0, 82.3, 0.0, 0.0],
+    ]
+)
+"""UR5's standard-DH table (mm, rad), as Universal Robots publish it."""
+
+
+def bent_ur5(n_poses=60, sigma=0.05, *, q=None, seed=9):
+    """A UR5 (NumPy FK, :data:`UR5_DH` perturbed) whose shoulder and elbow bend under a weight at
+    the flange (moments by finite differences of the tool's height: the virtual work of a unit
+    weight), one marker, seen from an unknown frame: ``(dh, base, c, tau, q, points)``; ``q``
+    (radians) or ``n_poses`` drawn in [-2, 2]."""
+    rng = np.random.default_rng(seed)
+    dh = UR5_DH + np.stack([rng.normal(0, s, 6) for s in (0.001, 0.5, 0.5, 0.001)], 1)
+    base = random_transform(rng, 1000.0)
+    c = np.array([0.0, 1.1e-6, 0.6e-6, 0.6e-6, 0.0, 0.0])
+
+    def tau(q, h=1e-6):  # -dz/dq_i of the flange origin, central differences
+        out = np.empty_like(q)
+        for i in range(6):
+            dq = np.zeros(6)
+            dq[i] = h
+            out[:, i] = -(dh_fk(dh, q + dq)[:, 2, 3] - dh_fk(dh, q - dq)[:, 2, 3]) / (2 * h)
+        return out
+
+    q = rng.uniform(-2.0, 2.0, (n_poses, 6)) if q is None else np.asarray(q, float)
+    T = base @ dh_fk(dh, q + c * tau(q))
+    p = T[:, :3, :3] @ np.array([40.0, -30.0, 90.0]) + T[:, :3, 3] + rng.normal(0, sigma, (len(q), 3))
+    return dh, base, c, tau, q, p

@@ -233,3 +233,36 @@ def test_conversions_keep_a_compliant_arms_pose_or_refuse(rng):
         jaxcal.to_sdh(tilted)
     rigid = np.asarray(jaxcal.fk(tilted.replace(compliance=np.zeros(7)), q))
     assert_allclose(np.asarray(jaxcal.fk(jaxcal.to_sdh(tilted.replace(compliance=np.zeros(7))), q)), rigid, atol=1e-9)
+
+
+def test_references_are_the_mean_over_the_poses_each_fit_used():
+    """The bent UR5 (NumPy FK, :func:`helpers.bent_ur5`). ``calibrate`` writes the reference
+    moments as the mean moment over the poses it fitted: not over outliers it left out, and, for a
+    model calibrated again on poses elsewhere, the new data's mean, not the file's. The batch's
+    ``x`` stays relative to the nominal robot: applied to it, the data are predicted."""
+    from helpers import bent_ur5
+
+    ur5 = jaxcal.preset("ur5")
+    _, _, c, tau, q, p = bent_ur5(40, 0.02)
+    p = p.copy()
+    p[:6] += [30.0, -40.0, 25.0]  # gross outliers at six poses of large moments
+    first = jaxcal.calibrate(ur5, q, p, compliance="yes")
+    assert set(first.outliers) == set(range(6))
+    m = tau(q[6:]).mean(0)
+    r1 = first.model.robot
+    assert_allclose(np.asarray(r1.moment_ref)[1:4], m[1:4], atol=1.0)  # mm, of hundreds
+    assert abs(np.asarray(r1.moment_ref)[1] - tau(q).mean(0)[1]) > 0.05 * abs(m[1])  # the outliers' mean differs
+
+    elsewhere = np.random.default_rng(5).uniform([-1, -2.5, 0.5, -1, -1, -1], [1, -1.5, 1.5, 1, 1, 1], (40, 6))
+    _, _, _, _, q2, p2 = bent_ur5(sigma=0.02, q=elsewhere)
+    again = jaxcal.calibrate(r1, q2, p2, compliance="yes")
+    m2 = tau(q2).mean(0)
+    assert_allclose(np.asarray(again.model.robot.moment_ref)[1:4], m2[1:4], atol=1.0)
+    assert np.abs(m2 - m)[1:4].max() > 50.0  # the test can fail: the file's moments are not these
+    assert np.sqrt(np.mean(np.sum((np.asarray(predict(again.model, q2))[:, 0] - p2) ** 2, -1))) < 3 * 0.02 * np.sqrt(3)
+
+    batch = jaxcal.calibrate_batch(ur5, q2[None], p2[None], compliance="yes")
+    model = Model(ur5.replace(compliance=np.zeros(6)), np.zeros((1, 3)))
+    fitted = apply(model, batch.layout, jnp.asarray(batch.x[0]))
+    err = np.asarray(predict(fitted, q2))[:, 0] - p2
+    assert np.sqrt(np.mean(np.sum(err**2, -1))) < 3 * 0.02 * np.sqrt(3)

@@ -514,19 +514,33 @@ moments = jit(gravity_moments)
 would be a program of its own to compile in each process)."""
 
 
-def referenced(robot: Robot, layout: Layout, q) -> Robot:
-    """``robot`` with its compliances' reference moments (:attr:`jaxcal.Robot.moment_ref`) at
-    their mean over the poses ``q (..., n)``, where the layout estimates compliances and the robot
-    has none: the same model (the offsets take up the constant part of any compliance it carries),
-    whose rigid geometry is the arm at its mean load over the data. Centred so, a compliance's
-    column is the part of the load that varies, not also a turn the offset makes."""
-    if not layout.n_comp or robot.moment_ref is not None:
-        return robot
-    ref = np.asarray(moments(robot.stripped(), np.asarray(q).reshape(-1, robot.n_joints))).mean(0)
-    dh = np.array(robot.dh)
-    if robot.compliance is not None:  # the offset takes up c * ref: every prediction as before
-        dh[:, 0] += np.asarray(robot.compliance) * ref
-    return robot.replace(dh=dh, moment_ref=ref)
+def centred(model: Model, layout: Layout, q, x, cov, active) -> tuple[Model, np.ndarray, np.ndarray, list]:
+    """A fitted model with its compliances' reference moments (:attr:`jaxcal.Robot.moment_ref`)
+    at their mean over the poses fitted ``q (K, n)``: the same predictions (the moments are taken
+    at the weightless offsets, which do not move), and a rigid geometry, what readers other than
+    jaxcal load, at the arm's mean load over these data. Fits and their priors work in the form
+    they were given (weightless for a rigid start), so this follows them; the estimates ``x`` and
+    their covariance ``cov`` (``active``: the estimated indices) follow by the linear map
+    ``offset_j + c_j (m_new - m_old)_j``. Returns the model, ``x``, ``cov`` and the indices of the
+    offsets moved."""
+    r = model.robot
+    c = None if r.compliance is None else np.asarray(r.compliance)
+    if not layout.n_comp or c is None or not np.any(c):
+        return model, x, cov, []
+    old = np.zeros(r.n_joints) if r.moment_ref is None else np.asarray(r.moment_ref)
+    dh = np.array(r.dh)
+    weightless = r.replace(dh=dh - np.c_[c * old, np.zeros((r.n_joints, dh.shape[1] - 1))], compliance=None)
+    new = np.asarray(moments(weightless.stripped(), np.asarray(q).reshape(-1, r.n_joints))).mean(0)
+    dh[:, 0] += c * (new - old)
+    moved = [j for j in range(r.n_joints) if c[j] != 0]
+    A = np.eye(len(x))
+    x = np.array(x, dtype=float)
+    for j in moved:
+        i, k = j * r.n_kinds, layout.compliances[j]
+        x[i] += c[j] * (new[j] - old[j])
+        A[i, k] = new[j] - old[j] if k in active else 0.0
+    out = Model(r.replace(dh=dh, moment_ref=new), model.points, model.camera_params, camera=model.camera)
+    return out, x, A @ cov @ A.T, [j * r.n_kinds for j in moved]
 
 
 def broadcast_model(model: Model, n: int) -> Model:

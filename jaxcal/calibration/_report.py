@@ -320,37 +320,12 @@ def _final(p, fr, final, fits) -> _Final:
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], final.prior)
     lev = core.leverage(J_fin, w, st, final.prior, observed(p.target))
     active = list(estimated(final.prior))
-    model, x, cov, moved = _centred(model, layout, p.q[p.valid], x, cov, active)
+    model, x, cov, moved = core.centred(model, layout, p.q[p.valid], x, cov, active)
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     names, units = layout.names(), layout.units()
     deltas = {names[i]: (float(x[i]), float(se[i]), units[i]) for i in sorted(set(active) | set(moved))}
     cam_names = [names[i] for i in layout.cameras[: camera_size(cand.camera)]]
     return _Final(model, fin, x, deltas, cov, st["normal"], active, cam_names, lev)
-
-
-def _centred(model: Model, layout, q, x, cov, active) -> tuple[Model, np.ndarray, np.ndarray, list]:
-    """The fitted model with its compliances' reference moments at their mean over the poses
-    fitted (:func:`._core.referenced`): the same predictions, and a rigid geometry (what readers
-    other than jaxcal load) at the arm's mean load, not weightless. The selection fitted the
-    weightless form (its priors hold the weightless offsets), so the change is made after it;
-    ``x`` and ``cov`` follow (each offset takes up its compliance times the moment), and the
-    offsets that moved are returned."""
-    r = model.robot
-    if not layout.n_comp or r.compliance is None or r.moment_ref is not None or not np.any(np.asarray(r.compliance)):
-        return model, x, cov, []
-    ref = np.asarray(core.referenced(r.replace(compliance=None), layout, q).moment_ref)
-    c = np.asarray(r.compliance)
-    moved = [j for j in range(r.n_joints) if c[j] != 0]
-    A = np.eye(len(x))
-    x = np.array(x, dtype=float)
-    for j in moved:  # offset_j + c_j ref_j: one linear map of the estimates and their covariance
-        i, k = j * r.n_kinds, layout.compliances[j]
-        x[i] += c[j] * ref[j]
-        A[i, k] = ref[j] if k in active else 0.0
-    dh = np.array(r.dh)
-    dh[:, 0] += c * ref
-    centred = Model(r.replace(dh=dh, moment_ref=ref), model.points, model.camera_params, camera=model.camera)
-    return centred, x, A @ cov @ A.T, [j * r.n_kinds for j in moved]
 
 
 def _figures(p, fr, fits, fin: dict, h: dict, scored) -> dict:

@@ -445,7 +445,6 @@ def calibrate(
     opts = make_options(options, kw)
     q, target, n_points = as_target(robot, q, measured, batched=False, position_only=position_only)
     layout = make_layout(robot, opts, n_points)
-    robot = core.referenced(robot, layout, q)
     K = q.shape[0]
     cand = kinematic_set(opts, robot)
     wanted = list(layout.frames + layout.cameras) + [i for i in range(layout.n_kin) if i in cand.dh]
@@ -550,8 +549,9 @@ def calibrate(
         seen=observed(target),
     )
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
-    se = np.sqrt(np.clip(np.diag(cov), 0, None))
     x = core.relative_x(robot, layout, model)
+    model, x, cov, _ = core.centred(model, layout, q[fitted], x, cov, list(estimated(prior)))
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
     after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
     rot_deg = np.degrees(np.asarray(b["rot_err"][0])) if n_points == 0 else None
@@ -651,7 +651,6 @@ def calibrate_batch(
     opts = make_options(options, kw, elimination=True)
     q, target, n_points = as_target(robot, q, measured, batched=True, position_only=position_only)
     layout = make_layout(robot, opts, n_points)
-    robot = core.referenced(robot, layout, q)
     R, K = q.shape[:2]
     if R == 0:
         raise DataError("no data sets: q and measured have R = 0 along their first axis", option="q")

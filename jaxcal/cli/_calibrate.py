@@ -453,9 +453,16 @@ def show(rep: dict, meas) -> None:
     pt = Table(title="estimated parameters (all poses)")
     for col in ("parameter", "delta", "std err", "unit"):
         pt.add_column(col, justify="right")
+    moved = [n for n in rep["parameters"] if n in rep["not_estimated"]]  # an offset its compliance moved
     for name, p in rep["parameters"].items():
-        pt.add_row(name, f"{p['value']:+.4g}", f"{p['std_error']:.2g}", p["unit"])
+        pt.add_row(name + " *" * (name in moved), f"{p['value']:+.4g}", f"{p['std_error']:.2g}", p["unit"])
     console.print(pt)
+    if moved:
+        console.print(
+            "*: not estimated; moved by its joint's compliance times the mean moment arm over the data (the "
+            "offset of the arm at its mean load), its error that of the compliance",
+            highlight=False,
+        )
     if any(n.startswith(("base_", "tool_")) for n in rep["parameters"]):
         console.print(
             "delta: from the robot file; base_* and tool_*: from the closed-form starting frames (the frames "
@@ -466,7 +473,7 @@ def show(rep: dict, meas) -> None:
         console.print(f"[yellow]note:[/yellow] {note}", highlight=False)
     held = rep["not_estimated"]
     if held:
-        console.print("held at 0:")
+        console.print("not estimated (held at 0 unless said):")
         for name, why in held.items():
             console.print(f"  {name}: {why}", highlight=False)
     console.print(

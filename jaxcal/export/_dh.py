@@ -31,8 +31,10 @@ def dh_rows(result) -> list[dict]:
     rows = []
     for i, (name, unit) in enumerate(zip(nominal.param_names(), nominal.param_units())):
         file_unit, scale = (lu, LENGTH_UNITS[lu]) if unit == "mm" else (au, ANGLE_UNITS[au])
-        if name in result.deltas:
+        if name in result.deltas and name not in held:
             status, se = "estimated", result.deltas[name][1] / scale
+        elif name in result.deltas:  # an offset its compliance moved to the mean load: its reason says so
+            status, se = f"not estimated: {held[name]}", result.deltas[name][1] / scale
         else:
             status = f"not estimated: {held[name]}" if name in held else f"not in the chosen set ({rep['choice']})"
             se = None

@@ -482,9 +482,10 @@ def urdf_text(
     origins and axes, which carry the corrections; or a minimal chain of its own without one."""
     if robot.load is not None and robot.compliance is not None and np.any(np.asarray(robot.compliance) != 0):
         raise RobotFileError(
-            "this robot's compliances weigh a point that is not its tool origin (a measured point folded into its "
-            "tool); write the model with its points instead (jaxcal.save_model of the model, its robot in joint "
-            "frames for a DH arm: jaxcal.to_joint; or --out-model with a .urdf path)"
+            "this robot's compliances weigh a point that is not its tool origin (its load: a measured point folded "
+            "into its tool, as in a one-point --out-robot file), which a URDF cannot hold; write the calibration's "
+            "model with its point instead: --out-model with a .urdf path in the calibrate command, or "
+            "jaxcal.save_model(result.model, path) (a DH arm's robot through jaxcal.to_joint first)"
         )
     yourdfpy = _yourdfpy()
     from lxml import etree  # yourdfpy's XML library

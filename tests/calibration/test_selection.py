@@ -5,7 +5,7 @@ full one, and the selection on simulated robots whose true errors are known."""
 import equinox as eqx
 import numpy as np
 import pytest
-from helpers import dh_fk, random_transform
+from helpers import bent_ur5, dh_fk, random_transform
 from numpy.testing import assert_allclose
 
 import jaxcal
@@ -201,38 +201,14 @@ def test_each_fold_prunes_in_its_own_order(rng):
     assert np.argmin(scores) >= 3  # the test can fail: dropping the null parameters helps
 
 
-def _bent_ur5(n_poses=60, sigma=0.05):
-    """A UR5 (NumPy FK) whose shoulder and elbow bend under a weight at the flange (moments by
-    finite differences of the tool's height: the virtual work of a unit weight), one marker:
-    ``(dh, base, c, tau, q, points)``."""
-    ur5 = preset("ur5")
-    rng = np.random.default_rng(9)
-    dh = np.asarray(ur5.dh) + np.stack([rng.normal(0, s, 6) for s in (0.001, 0.5, 0.5, 0.001)], 1)
-    base = random_transform(rng, 1000.0)
-    c = np.array([0.0, 1.1e-6, 0.6e-6, 0.6e-6, 0.0, 0.0])
-
-    def tau(q, h=1e-6):  # -dz/dq_i of the flange origin, central differences
-        out = np.empty_like(q)
-        for i in range(6):
-            dq = np.zeros(6)
-            dq[i] = h
-            out[:, i] = -(dh_fk(dh, q + dq)[:, 2, 3] - dh_fk(dh, q - dq)[:, 2, 3]) / (2 * h)
-        return out
-
-    q = rng.uniform(-2.0, 2.0, (n_poses, 6))
-    T = base @ dh_fk(dh, q + c * tau(q))
-    p = T[:, :3, :3] @ np.array([40.0, -30.0, 90.0]) + T[:, :3, 3] + rng.normal(0, sigma, (n_poses, 3))
-    return dh, base, c, tau, q, p
-
-
 def test_a_compliance_candidate_scores_as_its_full_fits_predict():
-    """The bent UR5 (:func:`_bent_ur5`), 0.05 mm noise. The linearised score of ``all +
+    """The bent UR5 (:func:`helpers.bent_ur5`), 0.05 mm noise. The linearised score of ``all +
     compliance`` is the held-out error of its fits in full (nested cross-validation, the same
     folds): the compliances' columns (rad/mm, ~1e5 mm per unit) beside the millimetres once held
     the other parameters by their scale, and scored the compliant model up to a fifth worse than
     its fits (5 % here), no better than the rigid one."""
     ur5 = preset("ur5")
-    dh, base, c, tau, q, p = _bent_ur5()
+    dh, base, c, tau, q, p = bent_ur5()
     res = calibrate_data(ur5, Measurements(q, p[:, None, :]), params="all", compliance="yes")
     rep = res.report
     (cand,) = rep["cv"]

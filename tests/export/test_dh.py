@@ -81,6 +81,33 @@ def test_estimated_compliances_are_rows_in_the_files_units():
     np.testing.assert_allclose(got, np.array([1e-5, 3e-5, 2e-5, 4e-7]) * k, rtol=1e-12)
 
 
+def test_reference_moments_are_rows_and_a_moved_offset_says_it_was_not_estimated():
+    """A model whose offsets hold at reference moments (jaxcal.Robot.moment_ref, mm) has a row
+    per estimated compliance with its moment in the file's length unit (m: /1000); an offset the
+    calibration did not estimate but its compliance moved keeps the reason it was not estimated
+    (and the compliance's error), not 'estimated'."""
+    from types import SimpleNamespace
+
+    nominal = jaxcal.preset("ur5").replace(units=("m", "rad"))
+    dh = np.array(nominal.dh)
+    dh[1, 0] += 3e-5 * 250.0
+    robot = nominal.replace(dh=dh, compliance=np.r_[0.0, 3e-5, np.zeros(4)], moment_ref=np.r_[0.0, 250.0, np.zeros(4)])
+    why = "not in the chosen set (lengths); written moved by its joint's compliance ..."
+    result = SimpleNamespace(
+        nominal=nominal,
+        model=SimpleNamespace(robot=robot),
+        deltas={"compliance2": (3e-5, 4e-7), "theta2": (7.5e-3, 1e-4)},
+        report={"not_estimated": {"theta2": why}, "choice": "lengths + compliance"},
+    )
+    rows = {r["parameter"]: r for r in dh_rows(result)}
+    ref = rows["reference_moment2"]
+    assert (ref["unit"], ref["std_error"]) == ("m", None) and "reference_moment1" not in rows
+    np.testing.assert_allclose([ref["nominal"], ref["calibrated"]], [0.0, 0.25], rtol=1e-12)
+    theta = rows["theta2"]
+    assert theta["status"] == f"not estimated: {why}" and theta["std_error"] == pytest.approx(1e-4)
+    assert theta["delta"] == pytest.approx(7.5e-3)
+
+
 def test_a_result_without_the_tables_estimates_refused(tmp_path):
     """``jaxcal.calibrate`` returns no nominal table beside its estimates: the DH table is
     ``calibrate_data``'s, and saying so beats an attribute error."""
