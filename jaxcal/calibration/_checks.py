@@ -241,22 +241,31 @@ def check_angles(robot: Robot, q, rows: Int[np.ndarray, " K"] | None = None) -> 
         flat, n = q.reshape(-1, q.shape[-1]), q.shape[-1]
         cols = over.reshape(-1, n).mean(0) > 0.5
         span = np.ptp(flat, axis=0)
-        # every other revolute joint moves (a joint held still tells no unit) within half a turn
+        # every other revolute joint moves (a joint held still tells no unit) within half a turn:
+        # radians, surely; within a turn and never beyond it, likely (degrees moving that little
+        # would be a few degrees' motion), so both readings are offered
         others = revolute & ~cols
-        rest = others & ~over.reshape(-1, n).any(0) & (span <= np.pi) & (span > MOVED_SPAN_RAD)
-        alone = (
-            f"; only joint(s) {', '.join(repr(robot.joint_names[j]) for j in np.flatnonzero(cols))} look so, the "
-            "other revolute joints' values span less than half a turn: if only those columns are in degrees, "
-            "convert them"
-            if cols.any() and others.any() and (rest == others).all()
-            else ""
-        )
+        moving = others & ~over.reshape(-1, n).any(0) & (span > MOVED_SPAN_RAD)
+        listed = ", ".join(repr(robot.joint_names[j]) for j in np.flatnonzero(cols))
+        whole = f'if the data are in degrees, read them with angle_unit="deg"{turns}'
+        if cols.any() and others.any() and ((moving & (span <= np.pi)) == others).all():
+            advice = (
+                f"{whole}; only joint(s) {listed} look so, the other revolute joints' values span less than half "
+                "a turn: if only those columns are in degrees, convert them"
+            )
+        elif cols.any() and others.any() and (moving == others).all():
+            advice = (
+                f"joint(s) {listed} are beyond a turn in most poses, the other revolute joints never: if only "
+                f"those columns are in degrees, convert them (angle_unit reads every joint column in one unit); "
+                f"{whole}"
+            )
+        else:
+            advice = whole
         raise DataError(
             f"{'q: ' if rows is None else ''}joint values look like degrees: {100 * float(np.max(frac)):.0f}% of the "
             "poses have a "
             f"revolute joint beyond a full turn and its limits ({where} = {q[idx]:.6g} rad); the "
-            f'robot\'s angles are in {unit}; if the data are in degrees, read them with angle_unit="deg"{turns}'
-            f"{alone}",
+            f"robot's angles are in {unit}; {advice}",
             option="angle_unit",
         )
 
@@ -421,3 +430,80 @@ def check_units(
                 f"; the robot's lengths are in {lu}; read the data with{fix}{arm}",
                 option="length_unit",
             )
+
+
+RIGID_RATIO = 20.0
+"""A pair of measured points keeps its distance when the distance's robust spread over the rows
+is within this many times the steadiest pair's (their noise) or :data:`RIGID_FLOOR_MM`: a marker
+that slipped partway is left to the fit's own finding (:mod:`._markers`), which names the row."""
+RIGID_FLOOR_MM = 0.1
+RIGID_MIN_ROWS = 8
+"""Rows a pair must be seen together in to be judged."""
+
+
+def check_rigid_points(target: Float[np.ndarray, "K M 3"], numbers: tuple[int, ...] = ()) -> None:
+    """Refuse measured points that do not keep their distances to the others over the rows (a
+    marker on another link, loose, or another marker's label in most rows): one tool cannot carry
+    them, and a fit would spread their error over the arm's parameters. Model-free: each pair's
+    distance, its spread robust to the odd outlier row (1.4826 x the median absolute deviation),
+    against the steadiest pair's. Points that do keep them form groups; more than one is refused,
+    naming them. ``target`` in mm (NaN where not seen); ``numbers`` the file's point numbers."""
+    P = np.asarray(target, float)
+    if P.ndim != 3 or P.shape[1] < 3:
+        return
+    M = P.shape[1]
+    nums = list(numbers) if len(numbers) == M else list(range(1, M + 1))
+    spread = np.full((M, M), np.nan)
+    for j in range(M):
+        for k in range(j + 1, M):
+            d = np.linalg.norm(P[:, j] - P[:, k], axis=-1)
+            d = d[np.isfinite(d)]
+            if len(d) >= RIGID_MIN_ROWS:
+                spread[j, k] = spread[k, j] = 1.4826 * np.median(np.abs(d - np.median(d)))
+    if np.all(np.isnan(spread)):
+        return
+    limit = max(RIGID_RATIO * np.nanmin(spread), RIGID_FLOOR_MM)
+    group = list(range(M))  # union-find over the pairs that keep their distance
+
+    def root(i):
+        while group[i] != i:
+            i = group[i]
+        return i
+
+    for j, k in zip(*np.nonzero(spread <= limit)):
+        group[root(j)] = root(k)
+    judged = [i for i in range(M) if np.any(np.isfinite(spread[i]))]
+    groups = {}
+    for i in judged:
+        groups.setdefault(root(i), []).append(i)
+    if len(groups) < 2:
+        return
+    parts = sorted(groups.values(), key=lambda g: (-len(g), g))
+    main, rest = parts[0], [i for g in parts[1:] for i in g]
+    across = spread[np.ix_(rest, main)]
+    inside = spread[np.ix_(main, main)][np.triu_indices(len(main), 1)] if len(main) > 1 else spread[np.ix_(rest, rest)]
+
+    def listed(idx):
+        return ", ".join(str(nums[i]) for i in idx)
+
+    def span(v):
+        v = v[np.isfinite(v)]
+        return f"{v.min():.3g}" if v.min() == v.max() or len(v) == 1 else f"{v.min():.3g}-{v.max():.3g}"
+
+    one = "s" if len(rest) > 1 else ""
+    tie = len(parts[0]) == len(parts[1])
+    who = (
+        " and ".join(f"points {listed(g)}" if len(g) > 1 else f"point {listed(g)}" for g in parts)
+        + " do not keep their distances to each other"
+        if tie
+        else f"point{one} {listed(rest)} do{'es' if not one else ''} not keep {'their' if one else 'its'} distances "
+        f"to points {listed(main)}"
+    )
+    keep = " or ".join(f"--points {','.join(str(nums[i]) for i in sorted(g))}" for g in (parts if tie else parts[:1]))
+    raise DataError(
+        f"{who} over the rows: those distances spread by {span(across)} mm (robust, over the rows where both are "
+        f"seen), the others by {span(inside[np.isfinite(inside)]) if np.any(np.isfinite(inside)) else '?'} mm. One "
+        f"tool cannot carry them all: a marker on another link, loose, or another marker's label in most rows? "
+        f"Check the markers, or calibrate with the points that move together ({keep})",
+        option="points",
+    )

@@ -257,6 +257,30 @@ def _moved_note(p, model: Model, noise_mm: float) -> str:
     )
 
 
+def _unfitted_points(p) -> tuple[str, str]:
+    """``(finding, cause)`` for measured points seen only at poses left out as outliers (a ghost
+    marker, a reflection): their place on the tool is never estimated, yet a model would carry
+    them; ``("", "")`` when every point is seen at a pose fitted."""
+    if not p.n_points:
+        return "", ""
+    seen = np.isfinite(np.asarray(p.target)).all(-1)  # (K, M)
+    gone = [j for j in range(p.n_points) if seen[:, j].any() and not seen[p.valid, j].any()]
+    if not gone:
+        return "", ""
+    nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
+    rows = {j: ", ".join(str(int(r)) for r in p.rows[seen[:, j]][:10]) for j in gone}
+    finding = "; ".join(
+        f"point {nums[j]} is measured only at rows left out as outliers ({rows[j]}): its place on the tool is "
+        "not estimated"
+        for j in gone
+    )
+    keep = ",".join(str(n) for i, n in enumerate(nums) if i not in gone)
+    return finding, (
+        "a marker that is not on the tool (a reflection, a ghost, another object's)? Calibrate without it "
+        f"(--points {keep})"
+    )
+
+
 def _why_not(p, final, names) -> dict:
     """Why each parameter of the layout is not estimated (identifiability, the chosen set, or
     pruned by the selection)."""
@@ -537,7 +561,17 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
                     fin["pos_err"][0], last.flags[0], p.rows, getattr(p.data, "point_numbers", ())
                 )
     se = np.array([f.deltas[n][1] if n in f.deltas else 0.0 for n in names])
-    why = judge(robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, many, se=se, cause=swap)
+    noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]), f.leverage)
+    # a point that moved on the tool partway: one position fits neither part, and the arm's
+    # parameters take up the rest; a measurement fault, refused with its rows and the points to keep
+    moved = _moved_note(p, f.model, noise)
+    unfitted, ghost = _unfitted_points(p)
+    extra = "; ".join(
+        filter(None, (many, "a measured point moved on the tool during the session" if moved else "", unfitted))
+    )
+    why = judge(
+        robot, q, p.target, p.n_points, layout, opts, train, f.x, f.active, extra, se=se, cause=swap or moved or ghost
+    )
     if why and opts.keep_outliers and last.flags[0].any():  # said beside the diagnosis, which may name another cause
         rows_kept = p.rows[last.flags[0]]
         listed = ", ".join(str(int(r)) for r in rows_kept[:10]) + (", ..." if len(rows_kept) > 10 else "")
@@ -558,7 +592,6 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         hint = outliers.region(qu, arm, chance=outliers.HINT_CHANCE, least=2)
     scored = p.valid | (reg.flags if reg is not None else False)
     h = _heldout(fits, fr, p, scored)
-    noise = _noise(fin["pos_err"][0], last.flags[0], float(fr.sig[-1, 0]), f.leverage)
     rep = {
         "robot": robot.name,
         "data": getattr(p.data, "source", "arrays"),
@@ -621,7 +654,7 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         + list(narrow_joint_notes(robot, q))
         + list(limit_notes(robot, q[p.valid], p.rows[p.valid]))
         + list(p.notes)
-        + [n for n in [_moved_note(p, f.model, noise) or _odd_point(p, h["pe"])] if n],
+        + [n for n in [moved or _odd_point(p, h["pe"])] if n],
     }
     rep |= _outlier_section(p, fr, det, last, fin, h, reg, faults)
     if faults.any():

@@ -29,7 +29,7 @@ from . import _core as core
 from . import _outliers as outliers
 from . import _plausibility as plausibility
 from . import _selection as selection
-from ._checks import as_target, check_units, limit_notes, lost_points
+from ._checks import as_target, check_rigid_points, check_units, limit_notes, lost_points
 from ._core import nominal_model
 from ._options import ELIMINATION_METHODS, Options, make_options
 from ._param_sets import Candidate, parse_params
@@ -444,6 +444,8 @@ def calibrate(
     """
     opts = make_options(options, kw)
     q, target, n_points = as_target(robot, q, measured, batched=False, position_only=position_only)
+    if n_points:
+        check_rigid_points(target)
     layout = make_layout(robot, opts, n_points)
     K = q.shape[0]
     cand = kinematic_set(opts, robot)

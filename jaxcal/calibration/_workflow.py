@@ -52,7 +52,7 @@ from ..solvers import PIN
 from . import _core as core
 from . import _outliers as outliers
 from . import _selection as selection
-from ._checks import as_target, check_units
+from ._checks import as_target, check_rigid_points, check_units
 from ._options import Options, make_options
 from ._param_sets import Candidate, parse_params
 from ._report import DataCalibration, report_of
@@ -177,6 +177,8 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     rows = np.arange(1, len(data.q) + 1) if given is None else np.asarray(given)
     numbers = tuple(getattr(data, "point_numbers", ()))  # the file's numbers name the points
     q, target, n_points = as_target(robot, data.q, data.measured, batched=False, rows=rows, numbers=numbers)
+    if n_points:
+        check_rigid_points(target, numbers)
     if len(still_joint_notes(robot, q)) == robot.n_joints:
         raise DataError(
             f"no joint moves over the {len(q)} poses: every row is the same posture (rows {rows[0]}..{rows[-1]}), "

@@ -76,6 +76,21 @@ def test_joint_columns_in_degrees_are_named_where_the_others_are_radians(columns
         assert "only joint(s)" not in msg
 
 
+def test_one_column_in_degrees_beside_joints_moving_most_of_a_turn_is_named_with_both_readings():
+    """UR5 readings over +-2.5 rad (more than half a turn), joint 4 written in degrees: the other
+    columns never leave a turn, as radians do, so joint 4 is named with the advice to convert it;
+    the whole-file option (which would have read the radians as degrees) is given as the other
+    reading, not alone."""
+    ur5 = jaxcal.preset("ur5")
+    q = np.random.default_rng(4).uniform(-2.5, 2.5, (30, 6))
+    q[:, 3] = np.degrees(q[:, 3])
+    with pytest.raises(jaxcal.DataError, match="look like degrees") as e:
+        check_angles(ur5, q, rows=np.arange(1, 31))
+    msg = str(e.value)
+    assert f"joint(s) {ur5.joint_names[3]!r} are beyond a turn in most poses, the other revolute joints never" in msg
+    assert "convert them" in msg and 'angle_unit="deg"' in msg
+
+
 @pytest.mark.parametrize("held", ["still at 3 deg", "within +-3 deg"])
 def test_no_column_hint_where_another_joint_is_held_still(held):
     """A file all in degrees whose joint 6 is held at 3 deg, or moves within +-3 deg: converting

@@ -1,24 +1,32 @@
 """What the report of ``calibrate_data`` says about the data (``jaxcal/calibration/_report.py``)."""
 
+import warnings
+
 import numpy as np
+import pytest
 from helpers import dh_fk, random_transform
 
+import jaxcal
 from jaxcal import Measurements, calibrate_data, preset
 
 MARKERS_MM = np.array([[60.0, 0.0, 40.0], [-50.0, 40.0, 60.0], [0.0, -70.0, 90.0], [30.0, 50.0, 120.0]])
 
 
-def _four_markers(slip_mm: float, noise3_mm: float = 0.1):
+def _four_markers(slip_mm: float, noise3_mm: float = 0.1, marker4_link: int = 6):
     """A UR5 with small DH errors measured at four markers (an independent NumPy FK, 0.1 mm noise,
-    marker 3's ``noise3_mm``); marker 3 moved ``slip_mm`` on the tool from pose 26 on."""
+    marker 3's ``noise3_mm``); marker 3 moved ``slip_mm`` on the tool from pose 26 on; marker 4 on
+    link ``marker4_link`` (6: the tool)."""
     rng = np.random.default_rng(5)
     ur5 = preset("ur5")
     dh = np.asarray(ur5.dh) + rng.normal(0.0, [1e-3, 0.3, 0.3, 1e-3], (6, 4))
     q = rng.uniform(-np.pi, np.pi, (50, 6))
-    T = dh_fk(dh, q, base=random_transform(rng, 1000.0))
+    base = random_transform(rng, 1000.0)
+    T = dh_fk(dh, q, base=base)
     markers = np.broadcast_to(MARKERS_MM, (50, 4, 3)).copy()
     markers[25:, 2] += slip_mm * np.array([0.6, 0.0, 0.8])
     p = np.einsum("kij,kmj->kmi", T[:, :3, :3], markers) + T[:, None, :3, 3]
+    L = dh_fk(dh[:marker4_link], q[:, :marker4_link], base=base)
+    p[:, 3] = np.einsum("kij,j->ki", L[:, :3, :3], MARKERS_MM[3]) + L[:, :3, 3]
     return ur5, q, p + rng.normal(scale=[[0.1], [0.1], [noise3_mm], [0.1]], size=p.shape)
 
 
@@ -42,13 +50,23 @@ def test_the_noise_is_the_measurements_not_the_residuals():
 
 def test_a_marker_that_slipped_on_the_tool_is_named_with_the_row():
     """One noise weight for all markers hides the slip (nothing is an outlier); the step in the
-    marker's error relative to the others' names it and where it moved."""
+    marker's error relative to the others' names it and where it moved, and the fit is refused:
+    one place for the marker fits neither part, and the arm's parameters take up the rest."""
     for slip, named in ((3.0, True), (0.0, False)):
         robot, q, p = _four_markers(slip)
-        notes = calibrate_data(robot, Measurements(q=q, measured=p), params="all", folds=2).report["notes"]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", jaxcal.CalibrationWarning)
+            rep = calibrate_data(robot, Measurements(q=q, measured=p), params="all", folds=2).report
+        notes = rep["notes"]
         said = [n for n in notes if n.startswith("point 3 seems to have moved on the tool between rows 25 and 26")]
         assert bool(said) == named and all("--points 1,2,4" in n for n in said), notes
         assert not any(n.startswith(("point 1 ", "point 2 ", "point 4 ")) for n in notes)
+        assert rep["plausible"] != named
+        if named:
+            assert (
+                "a measured point moved on the tool during the session. Likely cause: point 3 seems"
+                in (rep["implausible"])
+            )
 
 
 def test_a_marker_much_noisier_than_the_others_is_named():
@@ -95,3 +113,34 @@ def test_cross_validation_fits_that_did_not_converge_are_noted():
     missed = rep["cv_fits"] - rep["cv_fits_converged"]
     said = [n for n in rep["notes"] if "cross-validation fits did not converge" in n]
     assert missed > 0 and len(said) == 1 and said[0].startswith(f"{missed} of the {rep['cv_fits']} ")
+
+
+def test_a_marker_not_fixed_to_the_tool_is_refused_before_any_fit():
+    """Marker 4 on the UR5's fifth link, which joint 6 does not turn (NumPy FK of that link):
+    its distances to the tool's three markers change over the rows by millimetres, theirs by the
+    noise. Refused before anything is fitted, naming it and the points to keep; with the four
+    markers on the tool, nothing is said."""
+    from jaxcal.calibration._checks import check_rigid_points
+
+    robot, q, loose = _four_markers(0.0, marker4_link=5)
+    with pytest.raises(jaxcal.DataError, match=r"point 4 does not keep its distances to points 1, 2, 3") as e:
+        calibrate_data(robot, Measurements(q=q, measured=loose))
+    assert "(--points 1,2,3)" in str(e.value)
+    with pytest.raises(jaxcal.DataError, match=r"point 4 does not keep"):
+        jaxcal.calibrate(robot, q, loose)
+    check_rigid_points(_four_markers(0.0)[2])
+
+
+def test_a_point_seen_only_at_outlier_poses_is_refused():
+    """A fifth point (a reflection) seen at four poses only, far from any marker: those poses are
+    outliers, and the point's place on the tool is estimated from none. Refused, naming it, its
+    rows and the points to keep (the model wrote it at the tool's origin)."""
+    robot, q, p = _four_markers(0.0)
+    ghost = np.full((50, 1, 3), np.nan)
+    ghost[[5, 21, 37, 48], 0] = p[[5, 21, 37, 48], 0] + [[150.0, 20.0, -40.0]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", jaxcal.CalibrationWarning)
+        rep = calibrate_data(robot, Measurements(q=q, measured=np.concatenate([p, ghost], 1)), params="all").report
+    assert not rep["plausible"]
+    assert "point 5 is measured only at rows left out as outliers (6, 22, 38, 49)" in rep["implausible"]
+    assert "(--points 1,2,3,4)" in rep["implausible"]
