@@ -507,3 +507,24 @@ def check_rigid_points(target: Float[np.ndarray, "K M 3"], numbers: tuple[int, .
         f"Check the markers, or calibrate with the points that move together ({keep})",
         option="points",
     )
+
+
+def duplicate_rows_note(q, target, rows) -> tuple[str, ...]:
+    """A note naming rows that repeat another row to the last digit, joints and measurements alike
+    (a noisy instrument never reads a posture twice the same: a row written twice?), or ``()``.
+    Each copy weighs as a measurement of its own (the folds keep a posture's rows together)."""
+    K = len(q)
+    flat = np.concatenate([np.asarray(q, float).reshape(K, -1), np.asarray(target, float).reshape(K, -1)], 1)
+    flat = np.where(np.isnan(flat), np.inf, flat)  # a lost point reads alike in both copies
+    _, first, inverse = np.unique(flat, axis=0, return_index=True, return_inverse=True)
+    inverse = np.ravel(inverse)
+    dup = np.flatnonzero(first[inverse] != np.arange(K))
+    if not len(dup):
+        return ()
+    pairs = ", ".join(f"{int(rows[i])} (row {int(rows[first[inverse[i]]])})" for i in dup[:10])
+    more = f" and {len(dup) - 10} more" if len(dup) > 10 else ""
+    return (
+        f"row(s) {pairs}{more} repeat the row named beside them to the last digit, joints and measurements: a "
+        "row written twice? A measurement of the same posture again would differ by its noise. Each copy weighs "
+        "in the fit as a measurement of its own",
+    )

@@ -52,7 +52,7 @@ from ..solvers import PIN
 from . import _core as core
 from . import _outliers as outliers
 from . import _selection as selection
-from ._checks import as_target, check_rigid_points, check_units
+from ._checks import as_target, check_rigid_points, check_units, duplicate_rows_note
 from ._options import Options, make_options
 from ._param_sets import Candidate, parse_params
 from ._report import DataCalibration, report_of
@@ -212,9 +212,10 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
             layout = rigid
     cfg, chunk = _solve(robot, layout, opts, q, target, len(held) + 1)
     needed = core.generic_rank(core.generic_model(robot, layout), layout, K, wanted(layout))
-    notes = ()
+    notes = duplicate_rows_note(q, target, rows)
     if opts.params.strip() == "auto" and n_train * layout.rows < needed:  # a small session: what it can fit
-        candidates, needed, notes = _within_reach(robot, layout, K, n_train * layout.rows, candidates)
+        candidates, needed, small = _within_reach(robot, layout, K, n_train * layout.rows, candidates)
+        notes += small
     check_enough_poses(int(core.distinct_poses(q, core.same_pose(robot))), layout, needed, K)
     m = -(-needed // layout.rows)  # the poses a training set needs, and so the data with F folds
     least = next(k for k in itertools.count(m + 1) if k - -(-k // F) >= m)

@@ -144,3 +144,19 @@ def test_a_point_seen_only_at_outlier_poses_is_refused():
     assert not rep["plausible"]
     assert "point 5 is measured only at rows left out as outliers (6, 22, 38, 49)" in rep["implausible"]
     assert "(--points 1,2,3,4)" in rep["implausible"]
+
+
+def test_a_row_written_twice_is_named():
+    """Row 20 of the four-marker UR5 file copied as row 51, to the last digit (a lost point too):
+    a note names both rows. A posture measured again (its noise drawn anew) is not named."""
+    from jaxcal.calibration._checks import duplicate_rows_note
+
+    robot, q, p = _four_markers(0.0)
+    p[19, 1] = np.nan
+    rows = np.arange(1, 52)
+    twice = duplicate_rows_note(np.r_[q, q[19:20]], np.r_[p, p[19:20]], rows)
+    assert len(twice) == 1 and twice[0].startswith("row(s) 51 (row 20) repeat the row named beside them")
+    again = p[19:20] + np.random.default_rng(1).normal(0, 0.1, (1, 4, 3))
+    assert duplicate_rows_note(np.r_[q, q[19:20]], np.r_[p, again], rows) == ()
+    rep = calibrate_data(robot, Measurements(q=np.r_[q, q[19:20]], measured=np.r_[p, p[19:20]]), params="frames")
+    assert any(n.startswith("row(s) 51 (row 20) repeat") for n in rep.report["notes"])
