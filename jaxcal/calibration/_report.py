@@ -390,7 +390,14 @@ def _choice(p, final, per_fold, names) -> dict:
     kfold, ends = ch.parts
     return {
         "choice": cand.name,
-        "choice_rule": RULE,
+        "choice_rule": (
+            RULE
+            if p.auto
+            else "lowest score, the RMS of the K-fold and range-end held-out errors (linearised), among the "
+            f"candidates of params {p.opts.params!r} (compliance, camera models); nothing pruned"
+            if len(p.candidates) > 1
+            else f"given (params {p.opts.params!r}): nothing chosen or pruned"
+        ),
         "nested": p.nested,
         "nested_choices": [f"{s.candidate.name} ({int(s.choice.free.sum())} free)" for s in per_fold[: p.n_kfold]],
         "cv": [
@@ -663,6 +670,21 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
             "(a marker slipped, was taken for another or seen through a reflection): measurement faults, not "
             "the arm's, so never counted as a region of its motion where it errs"
         )
+    worse = [
+        f"{what} {rep[k]:.3g} against {rep['frames_only_' + k]:.3g} mm"
+        for what, k in (("new postures", "heldout_rms_mm"), ("beyond the training ranges", "extrapolation_rms_mm"))
+        # by more than 1 %: their nested fits' figures differ by their choices
+        if rep["selection"]["kept"] and np.isfinite(rep[k]) and rep[k] > rep["frames_only_" + k] * 1.01
+    ]
+    rep["worse_than_frames_only"] = (
+        f"the calibrated model predicts postures held out worse than the nominal kinematics with the frames alone "
+        f"({'; '.join(worse)}): these data do not support {rep['choice']!r}; "
+        + ("frames alone (--params frames) predicts better" if p.auto else "--params auto chooses by these figures")
+        if worse
+        else None
+    )
+    if rep["worse_than_frames_only"]:
+        rep["notes"].append(rep["worse_than_frames_only"])
     if moved := _drift_doc(p, f.model):
         rep["notes"].append(_drift_note(moved))
     rep["drift"] = moved

@@ -117,6 +117,84 @@ def _unusable(rep: dict) -> str:
     )
 
 
+def _worse(rep: dict) -> str:
+    """A calibrated model that predicts postures held out worse than the nominal kinematics with
+    the frames alone, said before the figures; empty otherwise."""
+    said = rep.get("worse_than_frames_only")
+    if not said:
+        return ""
+    return (
+        '<p style="border:2px solid #c80;padding:.5em;background:#ffd"><strong>Worse than not calibrating:</strong> '
+        + html.escape(said)
+        + "</p>"
+    )
+
+
+def _provenance(rep: dict) -> str:
+    """What made the page: jaxcal's version, the data's units and the options given."""
+    from .. import __version__
+
+    opts = rep.get("options") or {}
+    given = ", ".join(
+        f"{k} {opts[k]}"
+        for k in ("params", "ridge_mm", "compliance", "camera", "keep_outliers", "loss", "sigma_pos_mm")
+        if k in opts and opts[k] is not None
+    )
+    units = rep.get("units") or ["mm", "rad"]
+    return (
+        f"<p>jaxcal {html.escape(__version__)}; the data read in {html.escape(units[0])} and {html.escape(units[1])} "
+        f"(figures here in mm and degrees); options: {html.escape(given)}.</p>"
+    )
+
+
+def _rigid(rep: dict) -> str:
+    """What the rigid geometry alone (a URDF in ROS, a UR file, the DH table) errs, beside the
+    model with its compliances, for a model that has them; empty otherwise."""
+    rigid, bent = rep.get("rigid_geometry_rms_mm_on_the_data"), rep.get("rms_mm_on_the_data_with_compliance")
+    if rigid is None or bent is None:
+        return ""
+    return (
+        "<p><strong>Joint compliances</strong> are applied by jaxcal alone (evaluate, compensate, its TOML and "
+        "URDF): the rigid geometry that other readers load (a URDF in ROS or MoveIt, a UR kinematics file, the DH "
+        f"table without its compliance rows) errs {rigid:.3g} mm RMS on every pose of the data, the model with "
+        f"them {bent:.3g} mm (the train RMS above is over the poses fitted); --compliance no fits the best "
+        "rigid model.</p>"
+    )
+
+
+def _ranges(rep: dict, robot) -> str:
+    """The joint ranges the model was fitted over (the data file's units): beyond them it
+    extrapolates."""
+    ranges = rep.get("training_ranges")
+    if not ranges:
+        return ""
+    length, angle = rep.get("training_ranges_units") or robot.units
+    kind = dict(zip(robot.joint_names, robot.joint_types))
+    return "<h2>Training ranges</h2>" + _table(
+        "ranges",
+        ["joint", "lowest", "highest", "unit"],
+        [[name, lo, hi, angle if kind.get(name) == "R" else length] for name, (lo, hi) in ranges.items()],
+    )
+
+
+def _outlier_effect(rep: dict) -> str:
+    """What the outliers do to the figures above: left out of them (or fitted), the held-out RMS
+    with them scored, and the noise their sigmas are measured in."""
+    det = rep.get("outlier_detection") or {}
+    if not det:
+        return ""
+    rot = det.get("heldout_rot_rms_deg_all_poses")
+    noise = f"{det['noise_pos_mm']:.3g} mm per coordinate" + (
+        f" and {det['noise_rot_deg']:.3g} deg" if det.get("noise_rot_deg") is not None else ""
+    )
+    with_them = f"{det['heldout_rms_mm_all_poses']:.4g} mm" + (f", {rot:.3g} deg" if rot is not None else "")
+    if det.get("excluded"):
+        said = f"Left out of the fit and of the figures above; the held-out RMS with them scored: {with_them}"
+    else:
+        said = "Named, and fitted (--keep-outliers)"
+    return f"<p>{said}. Sigmas are in the robust noise of the fit: {noise}.</p>"
+
+
 def _lost(rep: dict) -> str:
     """The data file's rows read without a pose (every point lost) and the points not seen, as
     the command's notes and the JSON name them; empty when every point was seen."""
@@ -143,10 +221,12 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
         f"<h1>Calibration of {html.escape(rep['robot'])}</h1>",
         f"<p>Data: {html.escape(str(rep['data']))}, {rep['poses']} poses, "
         + (f"{rep['points']} measured point(s) per pose" if rep["points"] else "tool poses measured")
-        + f". Parameter set: {html.escape(rep['choice'])} ({html.escape(rep['choice_rule'])}). "
+        + f". Parameter set: {html.escape(rep['choice'])}. "
         f"Held-out errors from {kind} ({rep['folds']} folds): every pose scored by a model fitted "
         "without it.</p>",
+        _provenance(rep),
         _unusable(rep),
+        _worse(rep),
         _lost(rep),
         "<h2>Summary</h2>",
         _table(
@@ -183,10 +263,11 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
                 ],
             ],
         ),  # fmt: skip
+        _rigid(rep),
         _table(
             "fit",
             [
-                "noise of the fit (mm)",
+                "noise of the fit (mm per coordinate)",
                 "weights: sigma_pos (mm)",
                 "sigma_rot (deg)",
                 "condition number",
@@ -222,16 +303,31 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
                 for c in rep["cv"]
             ],
         ),  # fmt: skip
-        "<p>Scores are linearised held-out errors of the candidates; the chosen set was then pruned to "
-        + html.escape(", ".join(rep["selection"]["kept"]) or "no kinematic parameter")
-        + ".</p>",
+        "<p>Scores are linearised held-out errors of the candidates; "
+        + (
+            "the chosen set was then pruned to "
+            + html.escape(", ".join(rep["selection"]["kept"]) or "no kinematic parameter")
+            if rep["selection"]["dropped"]
+            else "the chosen set was estimated whole"
+        )
+        + f" ({html.escape(rep['choice_rule'])}).</p>",
+        _ranges(rep, result.nominal),
         "<h2>Parameters</h2>",
         "<p>Kinematic parameters in the robot file's units; a standard error is 1 sigma.</p>",
         _table(
             "parameters",
-            ["parameter", "unit", "nominal", "calibrated", "delta", "std error", "status"],
+            ["parameter", "joint", "unit", "nominal", "calibrated", "delta", "std error", "status"],
             [
-                [r["parameter"], r["unit"], r["nominal"], r["calibrated"], r["delta"], r["std_error"], r["status"]]
+                [
+                    r["parameter"],
+                    f"{r['joint']} ({result.nominal.joint_names[r['joint'] - 1]})",
+                    r["unit"],
+                    r["nominal"],
+                    r["calibrated"],
+                    r["delta"],
+                    r["std_error"],
+                    r["status"],
+                ]
                 for r in dh_rows(result)
             ],
         ),  # fmt: skip
@@ -276,6 +372,7 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
         cols = list(dict.fromkeys(k for o in outliers for k in o))
         heads = [OUTLIER_HEADS.get(c, c.replace("_", " ")) for c in cols]
         parts.append(_table("outliers", heads, [[o.get(c) for c in cols] for o in outliers]))
+        parts.append(_outlier_effect(rep))
     else:
         parts.append(
             "<p>No outlier poses reported.</p>"
@@ -306,7 +403,12 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
                 "accuracy",
                 ["poses", "predicted sigma, median (mm)", "predicted sigma, max (mm)"],
                 [
-                    ["sampled within the joint limits", float(np.median(sw)), float(np.max(sw))],
+                    [
+                        "sampled within the joint limits"
+                        + ("" if np.all(result.nominal.limits_given()) else " (a turn where the file gives none)"),
+                        float(np.median(sw)),
+                        float(np.max(sw)),
+                    ],
                     ["data poses", float(np.median(sd)), float(np.max(sd))],
                 ],
             )  # fmt: skip
@@ -331,7 +433,9 @@ def report_html(result, data, *, workspace_poses: int = 400, seed: int = 0) -> s
             f"estimated {parameter_kind(result.robot)} errors with 1-sigma error bars",
         ),
     ]
-    notes = list(rep.get("notes", [])) + [f"{k}: {v}" for k, v in rep.get("not_estimated", {}).items()]
+    said = rep.get("worse_than_frames_only")
+    notes = [n for n in rep.get("notes", []) if n != said]
+    notes += [f"{k}: {v}" for k, v in rep.get("not_estimated", {}).items()]
     if notes:
         parts += ["<h2>Notes</h2>", "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>"]
     title = html.escape(f"jaxcal calibration report: {rep['robot']}")

@@ -88,8 +88,13 @@ def test_tables(page):
     params = p.tables["parameters"]
     assert [r[0] for r in params["rows"]] == res.nominal.param_names()
     a2 = params["rows"][res.nominal.param_names().index("a2")]
-    assert float(a2[3]) == pytest.approx(float(np.asarray(res.robot.dh)[1, 2]), rel=1e-5)
-    assert float(a2[5]) == pytest.approx(res.deltas["a2"][1], rel=1e-5)  # its standard error
+    assert a2[1] == "2 (q2)"  # the joint by number and name (a URDF's chain numbers are not its names)
+    assert float(a2[4]) == pytest.approx(float(np.asarray(res.robot.dh)[1, 2]), rel=1e-5)
+    assert float(a2[6]) == pytest.approx(res.deltas["a2"][1], rel=1e-5)  # its standard error
+    ranges = p.tables["ranges"]["rows"]  # the joint ranges fitted over, in the file's units
+    assert [r[0] for r in ranges] == list(res.nominal.joint_names) and {r[3] for r in ranges} == {"rad"}
+    lo, hi = res.report["training_ranges"]["q3"]
+    assert [float(v) for v in ranges[2][1:3]] == pytest.approx([lo, hi], rel=1e-5)
     outliers = p.tables["outliers"]
     # headed in words: the command's for the keys it prints, spaces for underscores otherwise
     assert outliers["head"] == ["row", "residual mm", "position error (mm)", "z"]
@@ -195,3 +200,23 @@ def test_a_fit_not_to_use_says_so_first(page):
     implausible = dict(res.report, plausible=False, implausible=why)
     text = report_html(dataclasses.replace(res, report=implausible), data, workspace_poses=20)
     assert f"{said}</strong> {why}" in text
+
+
+def test_what_the_figures_leave_out_is_said_beside_them():
+    """An explicit parameter set is said to be given (nothing chosen or pruned); outliers left
+    out of the figures come with the held-out RMS with them scored and the noise their sigmas are
+    in; a model with compliances says what its rigid geometry errs; one worse than the frames
+    alone says so before the summary."""
+    _, _, data, res = ur5_tracker()
+    text = report_html(res, data, workspace_poses=20)
+    assert res.report["choice_rule"].startswith("given (params") and "the chosen set was estimated whole" in text
+    det = dict(res.report["outlier_detection"], excluded=True, heldout_rms_mm_all_poses=0.7311, noise_pos_mm=0.052)
+    rep = dict(res.report, outlier_detection=det, outliers=[{"row": 7, "position_mm": 0.6}])
+    rep |= {"rigid_geometry_rms_mm_on_the_data": 3.36, "rms_mm_on_the_data_with_compliance": 2.43}
+    rep |= {"worse_than_frames_only": "the calibrated model predicts postures held out worse (test)"}
+    rep["notes"] = [*rep["notes"], rep["worse_than_frames_only"]]
+    text = report_html(dataclasses.replace(res, report=rep), data, workspace_poses=20)
+    assert "the held-out RMS with them scored: 0.7311 mm" in text and "robust noise of the fit: 0.052 mm" in text
+    assert "errs 3.36 mm RMS on every pose of the data, the model with them 2.43 mm" in text
+    box = "Worse than not calibrating:</strong> the calibrated model predicts postures held out worse (test)"
+    assert text.index(box) < text.index("<h2>Summary</h2>") and text.count("held out worse (test)") == 1
