@@ -434,35 +434,103 @@ def check_units(
 
 RIGID_RATIO = 20.0
 """A pair of measured points keeps its distance when the distance's robust spread over the rows
-is within this many times the steadiest pair's (their noise) or :data:`RIGID_FLOOR_MM`: a marker
-that slipped partway is left to the fit's own finding (:mod:`._markers`), which names the row."""
+is within this many times the steadiest pair's (their noise) or :data:`RIGID_FLOOR_MM`, and the
+joint angles do not explain a change of it (:func:`_follows_posture`): a marker that slipped
+partway is left to the fit's own finding (:mod:`._markers`), which names the row."""
 RIGID_FLOOR_MM = 0.1
 RIGID_MIN_ROWS = 8
 """Rows a pair must be seen together in to be judged."""
+FEW_JOINTS = 3
+"""With too few rows for every joint's features, the last this many moving joints' are asked."""
+POSTURE_P = 1e-6
+"""A pair's distance follows the posture when the joint angles' first harmonics explain its
+change at this significance (F test) or beyond; the change must also exceed the pair's own
+scatter about them and three times the steadiest pair's spread (a noisy marker is not a loose one)."""
 
 
-def check_rigid_points(target: Float[np.ndarray, "K M 3"], numbers: tuple[int, ...] = ()) -> None:
+def _follows_posture(d, X, ref: float, X_few=None) -> float | None:
+    """The RMS change (mm) of one pair's distances ``d`` that the posture features ``X`` explain
+    (:data:`POSTURE_P`), or 0: a point on another link than the others moves against them with
+    the joints between, as the cosine and sine of their angles. Rows beyond six robust spreads
+    from the median (an outlier row, a label swapped) are left out first. Too few rows for
+    every joint's, ``X_few`` (the last joints': a marker on a link near the tool) is asked; None
+    where they are too few for that too."""
+    from scipy.stats import f as f_dist  # imported here: a cold start need not load scipy.stats
+
+    med = np.median(d)
+    spread = 1.4826 * np.median(np.abs(d - med))
+    keep = np.abs(d - med) <= 6.0 * spread + 1e-12
+    d, X = d[keep], X[keep]
+    n, m = X.shape
+    if n < m + 10 and X_few is not None:
+        X = X_few[keep]
+        m = X.shape[1]
+    if n < m + 10:
+        return None
+    fitted = X @ np.linalg.lstsq(X, d, rcond=None)[0]
+    rss1, rss0 = np.sum((d - fitted) ** 2), np.sum((d - d.mean()) ** 2)
+    if not rss0 > 0:
+        return 0.0
+    F = ((rss0 - rss1) / (m - 1)) / max(rss1 / (n - m), 1e-300)
+    change = float(np.sqrt(np.mean((fitted - d.mean()) ** 2)))
+    scatter = float(np.sqrt(rss1 / (n - m)))
+    if f_dist.sf(F, m - 1, n - m) < POSTURE_P and change > max(3.0 * ref, RIGID_FLOOR_MM, scatter):
+        return change
+    return 0.0
+
+
+def check_rigid_points(
+    target: Float[np.ndarray, "K M 3"], q=None, revolute=None, numbers: tuple[int, ...] = ()
+) -> None:
     """Refuse measured points that do not keep their distances to the others over the rows (a
     marker on another link, loose, or another marker's label in most rows): one tool cannot carry
     them, and a fit would spread their error over the arm's parameters. Model-free: each pair's
-    distance, its spread robust to the odd outlier row (1.4826 x the median absolute deviation),
-    against the steadiest pair's. Points that do keep them form groups; more than one is refused,
-    naming them. ``target`` in mm (NaN where not seen); ``numbers`` the file's point numbers."""
+    distance, its spread robust to the odd outlier row (1.4826 x the median absolute deviation)
+    against the steadiest pair's, and (given the joint values ``q (K, n)`` and which joints are
+    ``revolute``) the change of it the posture explains. Points that do keep them form groups;
+    a group apart from the largest, by pairs measured together, is refused, naming it (pairs
+    never seen together are no evidence). ``target`` in mm (NaN where not seen); ``numbers`` the
+    file's point numbers."""
     P = np.asarray(target, float)
     if P.ndim != 3 or P.shape[1] < 3:
         return
     M = P.shape[1]
     nums = list(numbers) if len(numbers) == M else list(range(1, M + 1))
-    spread = np.full((M, M), np.nan)
+    X = None
+    if q is not None:
+        q = np.asarray(q, float)
+        rev = np.ones(q.shape[1], bool) if revolute is None else np.asarray(revolute, bool)
+        moving = np.ptp(q, axis=0) > 1e-9
+
+        def features(cols):
+            r, p = cols & rev, cols & ~rev
+            return np.concatenate([np.ones((len(q), 1)), np.cos(q[:, r]), np.sin(q[:, r]), q[:, p]], 1)
+
+        X = features(moving)
+        last = np.zeros_like(moving)
+        last[np.flatnonzero(moving)[-FEW_JOINTS:]] = True
+        X_few = features(last)
+    spread, change = np.full((M, M), np.nan), np.full((M, M), np.nan)
+    seen = []
     for j in range(M):
         for k in range(j + 1, M):
             d = np.linalg.norm(P[:, j] - P[:, k], axis=-1)
-            d = d[np.isfinite(d)]
-            if len(d) >= RIGID_MIN_ROWS:
-                spread[j, k] = spread[k, j] = 1.4826 * np.median(np.abs(d - np.median(d)))
-    if np.all(np.isnan(spread)):
+            both = np.isfinite(d)
+            if both.sum() >= RIGID_MIN_ROWS:
+                spread[j, k] = spread[k, j] = 1.4826 * np.median(np.abs(d[both] - np.median(d[both])))
+                seen.append((j, k, both))
+    if not seen:
         return
-    limit = max(RIGID_RATIO * np.nanmin(spread), RIGID_FLOOR_MM)
+    ref = float(np.nanmin(spread))
+    limit = max(RIGID_RATIO * ref, RIGID_FLOOR_MM)
+    if X is not None:
+        for j, k, both in seen:
+            d = np.linalg.norm(P[both, j] - P[both, k], axis=-1)
+            c = _follows_posture(d, X[both], ref, X_few[both])
+            change[j, k] = change[k, j] = np.nan if c is None else c
+    # where the posture can be asked, it alone judges (a marker noisier than the others spreads
+    # too, and does not follow the joints); else the spread against the steadiest pair's
+    keeps = np.where(np.isfinite(change), change == 0, spread <= limit)
     group = list(range(M))  # union-find over the pairs that keep their distance
 
     def root(i):
@@ -470,41 +538,49 @@ def check_rigid_points(target: Float[np.ndarray, "K M 3"], numbers: tuple[int, .
             i = group[i]
         return i
 
-    for j, k in zip(*np.nonzero(spread <= limit)):
+    for j, k in zip(*np.nonzero(keeps)):
         group[root(j)] = root(k)
-    judged = [i for i in range(M) if np.any(np.isfinite(spread[i]))]
     groups = {}
-    for i in judged:
+    for i in (i for i in range(M) if np.any(np.isfinite(spread[i]))):
         groups.setdefault(root(i), []).append(i)
-    if len(groups) < 2:
-        return
     parts = sorted(groups.values(), key=lambda g: (-len(g), g))
-    main, rest = parts[0], [i for g in parts[1:] for i in g]
-    across = spread[np.ix_(rest, main)]
-    inside = spread[np.ix_(main, main)][np.triu_indices(len(main), 1)] if len(main) > 1 else spread[np.ix_(rest, rest)]
+    main = parts[0]
+    # a group apart only where the data hold a pair of it with the largest one, measured together
+    apart = [g for g in parts[1:] if np.any(np.isfinite(spread[np.ix_(g, main)]))]
+    if not apart:
+        return
+    rest = [i for g in apart for i in g]
+    tie = len(apart[0]) == len(main)
+    across = (spread[np.ix_(rest, main)], change[np.ix_(rest, main)])
+    inside = spread[np.ix_(main, main)][np.triu_indices(len(main), 1)] if len(main) > 1 else np.array([np.nan])
 
     def listed(idx):
         return ", ".join(str(nums[i]) for i in idx)
 
     def span(v):
-        v = v[np.isfinite(v)]
-        return f"{v.min():.3g}" if v.min() == v.max() or len(v) == 1 else f"{v.min():.3g}-{v.max():.3g}"
+        v = v[np.isfinite(v) & (v > 0)]
+        if not len(v):
+            return "?"
+        return f"{v.min():.3g}" if np.isclose(v.min(), v.max()) else f"{v.min():.3g}-{v.max():.3g}"
 
     one = "s" if len(rest) > 1 else ""
-    tie = len(parts[0]) == len(parts[1])
     who = (
-        " and ".join(f"points {listed(g)}" if len(g) > 1 else f"point {listed(g)}" for g in parts)
-        + " do not keep their distances to each other"
+        f"points {listed(main)} and point{one} {listed(rest)} do not keep their distances to each other"
         if tie
         else f"point{one} {listed(rest)} do{'es' if not one else ''} not keep {'their' if one else 'its'} distances "
         f"to points {listed(main)}"
     )
-    keep = " or ".join(f"--points {','.join(str(nums[i]) for i in sorted(g))}" for g in (parts if tie else parts[:1]))
+    follows = span(across[1])
+    keep = " or ".join(
+        f"--points {','.join(str(nums[i]) for i in sorted(g))}" for g in ([main, *apart] if tie else [main])
+    )
     raise DataError(
-        f"{who} over the rows: those distances spread by {span(across)} mm (robust, over the rows where both are "
-        f"seen), the others by {span(inside[np.isfinite(inside)]) if np.any(np.isfinite(inside)) else '?'} mm. One "
-        f"tool cannot carry them all: a marker on another link, loose, or another marker's label in most rows? "
-        f"Check the markers, or calibrate with the points that move together ({keep})",
+        f"{who} over the rows: those distances spread by {span(across[0])} mm (robust, over the rows where both are "
+        f"seen)"
+        + (f" and follow the joint angles by {follows} mm RMS" if follows != "?" else "")
+        + f", the others by {span(inside)} mm. One tool cannot carry them all: a marker on another link, loose, or "
+        f"another marker's label in most rows? Check the markers, or calibrate with the points that move together "
+        f"({keep})",
         option="points",
     )
 

@@ -258,20 +258,30 @@ def _moved_note(p, model: Model, noise_mm: float) -> str:
 
 
 def _unfitted_points(p) -> tuple[str, str]:
-    """``(finding, cause)`` for measured points seen only at poses left out as outliers (a ghost
-    marker, a reflection): their place on the tool is never estimated, yet a model would carry
-    them; ``("", "")`` when every point is seen at a pose fitted."""
+    """``(finding, cause)`` for measured points seen, but for one pose at most, only at poses left
+    out as outliers (a ghost marker, a reflection fixed in the room): their place on the tool is
+    estimated from no pose or fitted exactly by one, checked by none, yet a model would carry
+    them; ``("", "")`` when every point is seen at two poses fitted or not at outliers."""
     if not p.n_points:
         return "", ""
     seen = np.isfinite(np.asarray(p.target)).all(-1)  # (K, M)
-    gone = [j for j in range(p.n_points) if seen[:, j].any() and not seen[p.valid, j].any()]
+    fitted, out = seen[p.valid].sum(0), seen[~p.valid].sum(0)
+    gone = [j for j in range(p.n_points) if fitted[j] <= 1 and out[j] > 0]
     if not gone:
         return "", ""
     nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
-    rows = {j: ", ".join(str(int(r)) for r in p.rows[seen[:, j]][:10]) for j in gone}
+
+    def rows(mask):
+        return ", ".join(str(int(r)) for r in p.rows[mask][:10])
+
     finding = "; ".join(
-        f"point {nums[j]} is measured only at rows left out as outliers ({rows[j]}): its place on the tool is "
-        "not estimated"
+        f"point {nums[j]} is measured only at rows left out as outliers ({rows(seen[:, j] & ~p.valid)})"
+        + (
+            f" and at one pose fitted (row {rows(seen[:, j] & p.valid)}): its place on the tool rests on that one "
+            "reading, checked by none"
+            if fitted[j]
+            else ": its place on the tool is not estimated"
+        )
         for j in gone
     )
     keep = ",".join(str(n) for i, n in enumerate(nums) if i not in gone)

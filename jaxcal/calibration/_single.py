@@ -445,7 +445,7 @@ def calibrate(
     opts = make_options(options, kw)
     q, target, n_points = as_target(robot, q, measured, batched=False, position_only=position_only)
     if n_points:
-        check_rigid_points(target)
+        check_rigid_points(target, q, np.asarray(robot.revolute_mask, bool))
     layout = make_layout(robot, opts, n_points)
     K = q.shape[0]
     cand = kinematic_set(opts, robot)

@@ -178,7 +178,7 @@ def _prepare(robot: Robot, data, opts: Options, progress) -> _Problem:
     numbers = tuple(getattr(data, "point_numbers", ()))  # the file's numbers name the points
     q, target, n_points = as_target(robot, data.q, data.measured, batched=False, rows=rows, numbers=numbers)
     if n_points:
-        check_rigid_points(target, numbers)
+        check_rigid_points(target, q, np.asarray(robot.revolute_mask, bool), numbers)
     if len(still_joint_notes(robot, q)) == robot.n_joints:
         raise DataError(
             f"no joint moves over the {len(q)} poses: every row is the same posture (rows {rows[0]}..{rows[-1]}), "

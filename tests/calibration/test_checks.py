@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
+from helpers import dh_fk
 
 import jaxcal
-from jaxcal.calibration._checks import check_angles, joint_ranges, limit_notes
+from jaxcal.calibration._checks import check_angles, check_rigid_points, joint_ranges, limit_notes
 from jaxcal.calibration._evaluate import beyond
 
 
@@ -102,3 +103,45 @@ def test_no_column_hint_where_another_joint_is_held_still(held):
     with pytest.raises(jaxcal.DataError, match="look like degrees") as e:
         check_angles(ur5, q, rows=np.arange(1, 21))
     assert "only joint(s)" not in str(e.value) and 'angle_unit="deg"' in str(e.value)
+
+
+def _markers(K, seed, sigma, *, lost=0.0, link4=6, axis_mm=60.0):
+    """A UR5 (NumPy FK) carrying four markers on its tool seen from its base frame, ``sigma``
+    (mm, per marker) noise, a share ``lost`` of the cells lost; marker 4 on link ``link4`` (5:
+    before joint 6, ``axis_mm`` from its axis)."""
+    rng = np.random.default_rng(seed)
+    dh = np.asarray(jaxcal.preset("ur5").dh)
+    q = rng.uniform(-2.5, 2.5, (K, 6))
+    tool = np.array([[60.0, 0.0, 40.0], [-50.0, 40.0, 60.0], [0.0, -70.0, 90.0], [30.0, 50.0, 120.0]])
+    T = dh_fk(dh, q)
+    P = np.einsum("kij,mj->kmi", T[:, :3, :3], tool) + T[:, None, :3, 3]
+    if link4 == 5:
+        L = dh_fk(dh[:5], q[:, :5])
+        P[:, 3] = np.einsum("kij,j->ki", L[:, :3, :3], [axis_mm, 0.0, 150.0]) + L[:, :3, 3]
+    P += rng.normal(size=P.shape) * np.asarray(sigma, float).reshape(-1, 1)
+    P[rng.random((K, 4)) < lost] = np.nan
+    return q, P
+
+
+def test_points_that_keep_their_distances_are_not_refused():
+    """Clean data the check must pass: most cells lost (pairs seen together in too few rows are
+    no evidence); three markers re-emitted exactly by a rigid-body fit beside a raw one with
+    0.3 mm noise; one marker twenty times noisier than the others, in 20 rows."""
+    q, P = _markers(30, 17, 0.5, lost=0.6)
+    check_rigid_points(P, q, np.ones(6, bool))
+    q, P = _markers(40, 3, [0.0, 0.0, 0.0, 0.3])
+    check_rigid_points(P, q, np.ones(6, bool))
+    for seed in range(10):
+        q, P = _markers(20, seed, [0.05, 0.05, 0.05, 1.0])
+        check_rigid_points(P, q, np.ones(6, bool))
+
+
+@pytest.mark.parametrize("K", [20, 40])
+def test_a_marker_on_the_wrong_link_near_the_last_axis_is_refused(K):
+    """Marker 4 on link 5, 20 mm from joint 6's axis, 0.5 mm noise: its distances to the others
+    spread by less than twenty times theirs, but follow joint 6's angle; refused, naming it and
+    the points to keep (with few rows, by the last joints' angles)."""
+    q, P = _markers(K, 1, 0.5, link4=5, axis_mm=20.0)
+    with pytest.raises(jaxcal.DataError, match=r"point 4 does not keep its distances to points 1, 2, 3") as e:
+        check_rigid_points(P, q, np.ones(6, bool))
+    assert "follow the joint angles by" in str(e.value) and "(--points 1,2,3)" in str(e.value)

@@ -144,6 +144,14 @@ def test_a_point_seen_only_at_outlier_poses_is_refused():
     assert not rep["plausible"]
     assert "point 5 is measured only at rows left out as outliers (6, 22, 38, 49)" in rep["implausible"]
     assert "(--points 1,2,3,4)" in rep["implausible"]
+    # a reflection fixed in the room, seen at six poses: five are outliers, the sixth fits it exactly
+    fixed = np.full((50, 1, 3), np.nan)
+    fixed[[3, 9, 20, 33, 44, 51 - 2]] = [1500.0, 200.0, 900.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", jaxcal.CalibrationWarning)
+        rep = calibrate_data(robot, Measurements(q=q, measured=np.concatenate([p, fixed], 1)), params="all").report
+    assert not rep["plausible"] and "point 5 is measured only at rows left out as outliers" in rep["implausible"]
+    assert "and at one pose fitted (row " in rep["implausible"] and "checked by none" in rep["implausible"]
 
 
 def test_a_row_written_twice_is_named():
