@@ -110,9 +110,14 @@ def _unusable(rep: dict) -> str:
         why = f"the final fit did not converge in {rep['steps']} step(s)"
     else:
         return ""
+    return _box("#c00", "#fee", "Not a calibration to use:", why)
+
+
+def _box(border: str, background: str, title: str, text: str) -> str:
+    """A framed paragraph said before the figures: a bold ``title``, then ``text`` (escaped)."""
     return (
-        '<p style="border:2px solid #c00;padding:.5em;background:#fee"><strong>Not a calibration to use:</strong> '
-        + html.escape(why)
+        f'<p style="border:2px solid {border};padding:.5em;background:{background}"><strong>{title}</strong> '
+        + html.escape(text)
         + "</p>"
     )
 
@@ -121,13 +126,7 @@ def _worse(rep: dict) -> str:
     """A calibrated model that predicts postures held out worse than the nominal kinematics with
     the frames alone, said before the figures; empty otherwise."""
     said = rep.get("worse_than_frames_only")
-    if not said:
-        return ""
-    return (
-        '<p style="border:2px solid #c80;padding:.5em;background:#ffd"><strong>Worse than not calibrating:</strong> '
-        + html.escape(said)
-        + "</p>"
-    )
+    return _box("#c80", "#ffd", "Worse than not calibrating:", said) if said else ""
 
 
 def _provenance(rep: dict) -> str:
