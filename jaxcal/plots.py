@@ -165,7 +165,12 @@ def parameter_kind(robot) -> str:
 def parameters_figure(result):
     """Estimated DH (or joint-frame) errors with 1-sigma error bars (a :class:`DataCalibration`)."""
     rep = result.report
-    dh = [(k, v) for k, v in result.deltas.items() if not k.startswith(("base_", "tool_", "point", "camera_"))]
+    held = rep.get("not_estimated", {})  # an offset a compliance moved is not an estimate
+    dh = [
+        (k, v)
+        for k, v in result.deltas.items()
+        if not k.startswith(("base_", "tool_", "point", "camera_")) and k not in held
+    ]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for ax, unit, scale, label in (
         (axes[0], "mm", 1.0, "length error (mm)"),

@@ -433,10 +433,11 @@ def check_units(
 
 
 RIGID_RATIO = 20.0
-"""A pair of measured points keeps its distance when the distance's robust spread over the rows
-is within this many times the steadiest pair's (their noise) or :data:`RIGID_FLOOR_MM`, and the
-joint angles do not explain a change of it (:func:`_follows_posture`): a marker that slipped
-partway is left to the fit's own finding (:mod:`._markers`), which names the row."""
+"""Without the joint values: a pair of measured points keeps its distance when the distance's
+robust spread over the rows is within this many times the steadiest pair's (their noise) or
+:data:`RIGID_FLOOR_MM`. With them, the joint angles judge alone (:func:`_follows_posture`): a
+marker noisier than the others spreads too. A marker that slipped partway is left to the fit's
+own finding (:mod:`._markers`), which names the row."""
 RIGID_FLOOR_MM = 0.1
 RIGID_MIN_ROWS = 8
 """Rows a pair must be seen together in to be judged."""
@@ -446,6 +447,11 @@ POSTURE_P = 1e-6
 """A pair's distance follows the posture when the joint angles' first harmonics explain its
 change at this significance (F test) or beyond; the change must also exceed the pair's own
 scatter about them and three times the steadiest pair's spread (a noisy marker is not a loose one)."""
+
+
+def _robust_spread(d) -> float:
+    """1.4826 x the median absolute deviation: a normal deviation's sigma, robust to odd rows."""
+    return float(1.4826 * np.median(np.abs(d - np.median(d))))
 
 
 def _follows_posture(d, X, ref: float, X_few=None) -> float | None:
@@ -458,14 +464,13 @@ def _follows_posture(d, X, ref: float, X_few=None) -> float | None:
     from scipy.stats import f as f_dist  # imported here: a cold start need not load scipy.stats
 
     med = np.median(d)
-    spread = 1.4826 * np.median(np.abs(d - med))
-    keep = np.abs(d - med) <= 6.0 * spread + 1e-12
+    keep = np.abs(d - med) <= 6.0 * _robust_spread(d) + 1e-12
     d, X = d[keep], X[keep]
     n, m = X.shape
     if n < m + 10 and X_few is not None:
         X = X_few[keep]
         m = X.shape[1]
-    if n < m + 10:
+    if n < m + 10 or m < 2:  # (no joint moves: nothing to explain a change by)
         return None
     fitted = X @ np.linalg.lstsq(X, d, rcond=None)[0]
     rss1, rss0 = np.sum((d - fitted) ** 2), np.sum((d - d.mean()) ** 2)
@@ -482,15 +487,16 @@ def _follows_posture(d, X, ref: float, X_few=None) -> float | None:
 def check_rigid_points(
     target: Float[np.ndarray, "K M 3"], q=None, revolute=None, numbers: tuple[int, ...] = ()
 ) -> None:
-    """Refuse measured points that do not keep their distances to the others over the rows (a
-    marker on another link, loose, or another marker's label in most rows): one tool cannot carry
-    them, and a fit would spread their error over the arm's parameters. Model-free: each pair's
-    distance, its spread robust to the odd outlier row (1.4826 x the median absolute deviation)
-    against the steadiest pair's, and (given the joint values ``q (K, n)`` and which joints are
-    ``revolute``) the change of it the posture explains. Points that do keep them form groups;
-    a group apart from the largest, by pairs measured together, is refused, naming it (pairs
-    never seen together are no evidence). ``target`` in mm (NaN where not seen); ``numbers`` the
-    file's point numbers."""
+    """Refuse measured points that do not keep their distances to the others as the joints move
+    (a marker on another link): one tool cannot carry them, and a fit would spread their error
+    over the arm's parameters. Model-free: given the joint values ``q (K, n)`` and which joints
+    are ``revolute``, each pair's distance and the change of it the posture explains
+    (:func:`_follows_posture`; a pair seen together in too few rows is no evidence); without
+    them, its spread robust to the odd outlier row against the steadiest pair's
+    (:data:`RIGID_RATIO`). Points that do keep them form groups; a group apart from the largest,
+    by pairs judged, is refused, naming it. A marker that wobbles at random, or labels swapped in
+    some rows, are left to the fit (outliers, label swaps). ``target`` in mm (NaN where not
+    seen); ``numbers`` the file's point numbers."""
     P = np.asarray(target, float)
     if P.ndim != 3 or P.shape[1] < 3:
         return
@@ -517,7 +523,7 @@ def check_rigid_points(
             d = np.linalg.norm(P[:, j] - P[:, k], axis=-1)
             both = np.isfinite(d)
             if both.sum() >= RIGID_MIN_ROWS:
-                spread[j, k] = spread[k, j] = 1.4826 * np.median(np.abs(d[both] - np.median(d[both])))
+                spread[j, k] = spread[k, j] = _robust_spread(d[both])
                 seen.append((j, k, both))
     if not seen:
         return
@@ -529,8 +535,13 @@ def check_rigid_points(
             c = _follows_posture(d, X[both], ref, X_few[both])
             change[j, k] = change[k, j] = np.nan if c is None else c
     # where the posture can be asked, it alone judges (a marker noisier than the others spreads
-    # too, and does not follow the joints); else the spread against the steadiest pair's
-    keeps = np.where(np.isfinite(change), change == 0, spread <= limit)
+    # too, and does not follow the joints), and a pair seen in too few rows to ask it is no
+    # evidence; without joint values, the spread against the steadiest pair's
+    if X is None:
+        keeps = spread <= limit
+    else:
+        keeps = np.isfinite(change) & (change == 0)
+        spread = np.where(np.isfinite(change), spread, np.nan)  # the pairs not judged: as never seen
     group = list(range(M))  # union-find over the pairs that keep their distance
 
     def root(i):
@@ -543,6 +554,8 @@ def check_rigid_points(
     groups = {}
     for i in (i for i in range(M) if np.any(np.isfinite(spread[i]))):
         groups.setdefault(root(i), []).append(i)
+    if not groups:  # no pair judged (rows too few to ask the posture)
+        return
     parts = sorted(groups.values(), key=lambda g: (-len(g), g))
     main = parts[0]
     # a group apart only where the data hold a pair of it with the largest one, measured together
@@ -578,9 +591,8 @@ def check_rigid_points(
         f"{who} over the rows: those distances spread by {span(across[0])} mm (robust, over the rows where both are "
         f"seen)"
         + (f" and follow the joint angles by {follows} mm RMS" if follows != "?" else "")
-        + f", the others by {span(inside)} mm. One tool cannot carry them all: a marker on another link, loose, or "
-        f"another marker's label in most rows? Check the markers, or calibrate with the points that move together "
-        f"({keep})",
+        + f", the others by {span(inside)} mm. One tool cannot carry them all: a marker on another link, or loose? "
+        f"Check the markers, or calibrate with the points that move together ({keep})",
         option="points",
     )
 

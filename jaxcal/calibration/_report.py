@@ -272,7 +272,8 @@ def _unfitted_points(p) -> tuple[str, str]:
     nums = list(getattr(p.data, "point_numbers", ()) or range(1, p.n_points + 1))
 
     def rows(mask):
-        return ", ".join(str(int(r)) for r in p.rows[mask][:10])
+        r = p.rows[mask]
+        return ", ".join(str(int(v)) for v in r[:10]) + (", ..." if len(r) > 10 else "")
 
     finding = "; ".join(
         f"point {nums[j]} is measured only at rows left out as outliers ({rows(seen[:, j] & ~p.valid)})"
@@ -626,11 +627,12 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
         "estimate_tool": opts.estimate_tool,
     }
     rep |= _choice(p, final, per_fold, names) | _figures(p, fr, fits, fin, h, scored)
-    for k, reason in rep["not_estimated"].items():  # an offset a compliance moved to the mean load (_centred)
+    for k, reason in rep["not_estimated"].items():  # an offset a compliance moved (core.centred)
         if k in f.deltas:
             rep["not_estimated"][k] = (
-                f"{reason}; written moved by its joint's compliance times the mean moment arm over the data "
-                f"({f.deltas[k][0]:.3g} {f.deltas[k][2]}): the offset of the arm at its mean load"
+                f"{reason}; written moved by its joint's compliance times the shift of its reference moment to the "
+                f"mean moment arm over the data ({f.deltas[k][0]:.3g} {f.deltas[k][2]}): the offset of the arm at "
+                "its mean load"
             )
     rep |= {
         "camera_model": final.candidate.camera,
@@ -695,9 +697,9 @@ def report_of(p, fr, det, lin, final, per_fold, fits, named=None) -> DataCalibra
     )
     if rep["worse_than_frames_only"]:
         rep["notes"].append(rep["worse_than_frames_only"])
-    if moved := _drift_doc(p, f.model):
-        rep["notes"].append(_drift_note(moved))
-    rep["drift"] = moved
+    if drifted := _drift_doc(p, f.model):
+        rep["notes"].append(_drift_note(drifted))
+    rep["drift"] = drifted
     if region := rep["outlier_detection"]["region"]:
         rep["notes"].append(_region_note(p, region, kept=opts.keep_outliers))
     elif hint is not None:

@@ -45,9 +45,13 @@ class CalibrationResult:
     layout: Layout
     x: np.ndarray
     """``(m,)`` parameters relative to the nominal robot, named by :attr:`names`: ``apply(
-    Model(nominal), layout, x)`` is :attr:`model`."""
+    Model(nominal), layout, x)`` is :attr:`model`, but for a model with joint compliances, whose
+    offsets hold at its reference moments (:attr:`jaxcal.Robot.moment_ref`, set to the mean over
+    the poses fitted): the nominal robot with ``moment_ref=model.robot.moment_ref`` then. An
+    offset held but moved by its compliance so is not 0 (:func:`._core.centred`)."""
     std_errors: np.ndarray
-    """``(m,)`` 1-sigma standard errors (0 for parameters held at 0)."""
+    """``(m,)`` 1-sigma standard errors (0 for parameters held at 0; an offset moved by its
+    compliance carries the compliance's error times the moment's shift)."""
     identifiability: Identifiability
     free: tuple[int, ...]
     """Indices of the estimated parameters."""

@@ -459,8 +459,9 @@ def show(rep: dict, meas) -> None:
     console.print(pt)
     if moved:
         console.print(
-            "*: not estimated; moved by its joint's compliance times the mean moment arm over the data (the "
-            "offset of the arm at its mean load), its error that of the compliance",
+            "*: not estimated; moved by its joint's compliance times the shift of its reference moment to the mean "
+            "moment arm over the data (the offset of the arm at its mean load), its error the compliance's times "
+            "that shift",
             highlight=False,
         )
     if any(n.startswith(("base_", "tool_")) for n in rep["parameters"]):

@@ -173,7 +173,8 @@ def test_a_row_written_twice_is_named():
 def test_a_calibration_worse_than_the_frames_alone_says_so():
     """A UR5 exactly as its table (NumPy FK), 18 poses with 0.3 mm noise: ``params all`` fits the
     noise, and predicts postures held out worse than the nominal kinematics with the frames
-    alone. The report says so, with both figures; the default (auto) does not choose it."""
+    alone. The report says so, with both figures (the page's test: and says nothing of a model
+    that predicts better)."""
     ur5 = preset("ur5")
     rng = np.random.default_rng(12)
     q = rng.uniform(-np.pi, np.pi, (18, 6))

@@ -209,6 +209,7 @@ def test_what_the_figures_leave_out_is_said_beside_them():
     alone says so before the summary."""
     _, _, data, res = ur5_tracker()
     text = report_html(res, data, workspace_poses=20)
+    assert res.report["worse_than_frames_only"] is None and "Worse than not calibrating" not in text
     assert res.report["choice_rule"].startswith("given (params") and "the chosen set was estimated whole" in text
     det = dict(res.report["outlier_detection"], excluded=True, heldout_rms_mm_all_poses=0.7311, noise_pos_mm=0.052)
     rep = dict(res.report, outlier_detection=det, outliers=[{"row": 7, "position_mm": 0.6}])
