@@ -514,9 +514,10 @@ moments = jit(gravity_moments)
 would be a program of its own to compile in each process)."""
 
 
-def centred(model: Model, layout: Layout, q, x, cov, active) -> tuple[Model, np.ndarray, np.ndarray, list]:
+def centred(model: Model, layout: Layout, q, used, x, cov, active) -> tuple[Model, np.ndarray, np.ndarray, list]:
     """A fitted model with its compliances' reference moments (:attr:`jaxcal.Robot.moment_ref`)
-    at their mean over the poses fitted ``q (K, n)``: the same predictions (the moments are taken
+    at their mean over the poses fitted (``used (K,)`` of ``q (K, n)``: the moments of every pose
+    in one program the data's checks compiled already): the same predictions (the moments are taken
     at the weightless offsets, which do not move), and a rigid geometry, what readers other than
     jaxcal load, at the arm's mean load over these data. Fits and their priors work in the form
     they were given (weightless for a rigid start), so this follows them; the estimates ``x`` and
@@ -529,8 +530,10 @@ def centred(model: Model, layout: Layout, q, x, cov, active) -> tuple[Model, np.
         return model, x, cov, []
     old = np.zeros(r.n_joints) if r.moment_ref is None else np.asarray(r.moment_ref)
     dh = np.array(r.dh)
-    weightless = r.replace(dh=dh - np.c_[c * old, np.zeros((r.n_joints, dh.shape[1] - 1))], compliance=None)
-    new = np.asarray(moments(weightless.stripped(), np.asarray(q).reshape(-1, r.n_joints))).mean(0)
+    weightless = r.replace(
+        dh=dh - np.c_[c * old, np.zeros((r.n_joints, dh.shape[1] - 1))], compliance=None, moment_ref=None
+    )
+    new = np.asarray(moments(weightless.stripped(), np.asarray(q)))[np.asarray(used, bool)].mean(0)
     dh[:, 0] += c * (new - old)
     moved = [j for j in range(r.n_joints) if c[j] != 0]
     A = np.eye(len(x))

@@ -355,7 +355,7 @@ def _final(p, fr, final, fits) -> _Final:
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], final.prior)
     lev = core.leverage(J_fin, w, st, final.prior, observed(p.target))
     active = list(estimated(final.prior))
-    model, x, cov, moved = core.centred(model, layout, p.q[p.valid], x, cov, active)
+    model, x, cov, moved = core.centred(model, layout, p.q, p.valid, x, cov, active)
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     names, units = layout.names(), layout.units()
     deltas = {names[i]: (float(x[i]), float(se[i]), units[i]) for i in sorted(set(active) | set(moved))}

@@ -556,7 +556,7 @@ def calibrate(
     )
     cov, _ = core.covariance(st["normal"], st["rss"], st["n_rows"], prior)
     x = core.relative_x(robot, layout, model)
-    model, x, cov, _ = core.centred(model, layout, q[fitted], x, cov, list(estimated(prior)))
+    model, x, cov, _ = core.centred(model, layout, q, fitted, x, cov, list(estimated(prior)))
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     after = core.residual_stats(b["pos_err"][0], b["rot_err"][0], fitted, n_points=n_points)
     pos_mm = outliers.pose_position_mm(b["pos_err"][0])
