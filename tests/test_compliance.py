@@ -261,6 +261,11 @@ def test_references_are_the_mean_over_the_poses_each_fit_used():
     assert np.abs(m2 - m)[1:4].max() > 50.0  # the test can fail: the file's moments are not these
     assert np.sqrt(np.mean(np.sum((np.asarray(predict(again.model, q2))[:, 0] - p2) ** 2, -1))) < 3 * 0.02 * np.sqrt(3)
 
+    # the offsets a set without them holds still move with their compliances: the table says so
+    lengths = jaxcal.calibrate(ur5, q2, p2, compliance="yes", params="a,d,alpha")
+    row = next(line for line in lengths.table().splitlines() if line.split()[0] == "theta2")
+    assert lengths.delta("theta2") != 0 and row.endswith("(held; moved by its compliance)")
+
     batch = jaxcal.calibrate_batch(ur5, q2[None], p2[None], compliance="yes")
     model = Model(ur5.replace(compliance=np.zeros(6)), np.zeros((1, 3)))
     fitted = apply(model, batch.layout, jnp.asarray(batch.x[0]))

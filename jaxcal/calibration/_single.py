@@ -120,7 +120,9 @@ class CalibrationResult:
         units = self.layout.units()
         lines = [f"{'parameter':>14s} {'delta':>14s} {'std err':>11s} unit"]
         for i, (n, v, s) in enumerate(zip(self.names, self.x, self.std_errors)):
-            lines.append(f"{n:>14s} {v:14.8g} {s:11.3g} {units[i]:4s}" + ("  (held at 0)" if i in held else ""))
+            # a held offset its compliance moved to the reference moments (core.centred) is not 0
+            said = ("  (held at 0)" if v == 0 else "  (held; moved by its compliance)") if i in held else ""
+            lines.append(f"{n:>14s} {v:14.8g} {s:11.3g} {units[i]:4s}" + said)
         return "\n".join(lines)
 
 
